@@ -1,0 +1,50 @@
+// Fusion data types: what goes into the EKF and what comes out of it.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <cstdint>
+
+namespace locaid::fusion {
+
+// A (degraded) GPS position fix as the filter sees it.
+struct GpsFix {
+  int64_t t_ns = 0;
+  double lat_deg = 0, lon_deg = 0, alt_m = 0;
+  double sigma_h_m = 3.0;  // 1-sigma horizontal noise the receiver claims
+  double sigma_v_m = 5.0;  // 1-sigma vertical noise
+};
+
+// IMU sample in the body frame (x forward, y left, z up), as OXTS reports it:
+// specific force (gravity included, ~+9.81 m/s^2 on z at rest) and angular rate.
+struct ImuSample {
+  int64_t t_ns = 0;
+  Eigen::Vector3d accel_mps2 = Eigen::Vector3d::Zero();
+  Eigen::Vector3d gyro_radps = Eigen::Vector3d::Zero();
+};
+
+// Relative motion of the body between two VO frames: p_prev = T_prev_curr * p_curr,
+// covariance of the right perturbation [dt, dtheta] in body (curr) axes.
+struct VoMeasurement {
+  int64_t t_prev_ns = 0, t_ns = 0;
+  Eigen::Isometry3d T_prev_curr = Eigen::Isometry3d::Identity();
+  Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Identity();
+};
+
+enum class Mode { kGpsFused, kGpsDegraded, kVoOnly, kLost };
+const char* ToString(Mode mode);
+
+struct FusedPose {
+  int64_t t_ns = 0;
+  Eigen::Isometry3d T_enu_body = Eigen::Isometry3d::Identity();
+  double lat_deg = 0, lon_deg = 0, alt_m = 0;
+  Eigen::Vector3d v_enu_mps = Eigen::Vector3d::Zero();
+  // Covariance of [position ENU (m), attitude error (rad, ENU axes)].
+  Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Identity();
+  Mode mode = Mode::kLost;
+  double seconds_since_gps = 0;  // since the last accepted fix; +inf before the first
+  int gps_used = 0, gps_rejected = 0;  // cumulative counts
+};
+
+}  // namespace locaid::fusion
