@@ -1,0 +1,112 @@
+// Error-state EKF: IMU propagation, VO relative-motion and GPS position
+// updates with a chi-square gate, or (use_imu = false) VO-driven propagation
+// with GPS updates for cars without an IMU. Single-threaded, no I/O.
+//
+// Call order per camera frame (the pipeline does this):
+//   for each IMU sample / GPS fix since the last frame, in time order:
+//     PropagateImu(sample)  |  UpdateGps(fix)
+//   ProcessVo(body_motion, vo_ok)    // VO update (IMU) or propagation (no IMU)
+//   Output(t_ns, vo_ok)
+// Before the filter is initialised, GPS fixes and VO motions are buffered:
+// the pose is initialised from >= init_min_fixes fixes spanning
+// init_min_baseline_m, heading from the motion between the fixes (aligned to
+// the VO track), never from an external attitude.
+#pragma once
+
+#include "fusion/ekf_models.hpp"
+#include "fusion/geodesy.hpp"
+#include "fusion/types.hpp"
+
+#include <Eigen/Core>
+
+#include <deque>
+#include <optional>
+#include <vector>
+
+namespace locaid::fusion {
+
+struct EkfConfig {
+  bool use_imu = true;
+  double gravity_mps2 = 9.81;
+  // IMU noise (continuous densities) and bias random walks.
+  double accel_noise_mps2_sqrt_hz = 0.05;
+  double gyro_noise_radps_sqrt_hz = 0.001;
+  double accel_bias_walk_mps3_sqrt_hz = 0.001;
+  double gyro_bias_walk_radps2_sqrt_hz = 1e-5;
+  double max_imu_gap_s = 0.5;  // longer IMU gaps: propagate with extra noise
+  // Initial uncertainty.
+  double init_velocity_sigma_mps = 0.5;
+  double init_roll_pitch_sigma_rad = 0.02;
+  double init_accel_bias_sigma_mps2 = 0.1;
+  double init_gyro_bias_sigma_radps = 0.002;
+  int init_min_fixes = 3;
+  double init_min_baseline_m = 15.0;
+  // VO.
+  double vo_cov_scale = 1.0;          // multiplies the VO covariance
+  double vo_min_sigma_t_m = 0.005;    // floors of the VO 1-sigma per axis
+  double vo_min_sigma_rot_rad = 0.0005;
+  double vo_gate_probability = 0.9999;  // IMU mode: VO updates beyond are skipped
+  double no_imu_lost_sigma_mps = 1.0;   // no-IMU mode: extra velocity noise when VO is lost
+  // GPS.
+  double gps_gate_probability = 0.999;  // chi-square (3 dof) gate
+  int gps_max_consecutive_rejections = 8;  // then accept with inflated covariance
+  double degraded_hold_s = 3.0;       // GPS_DEGRADED while a rejection is this recent
+  double vo_only_after_periods = 1.5; // VO_ONLY when no fix for this x GPS period
+};
+
+class Ekf {
+ public:
+  explicit Ekf(EkfConfig config = {});
+
+  void PropagateImu(const ImuSample& sample);
+  // Returns true if the fix was accepted (false: rejected by the gate or buffered
+  // before initialisation).
+  bool UpdateGps(const GpsFix& fix);
+  // body_motion: VO relative motion in body axes (CameraMotionToBody).
+  // vo_ok false (VO lost): skip the update (IMU) or coast (no IMU).
+  void ProcessVo(const VoMeasurement& body_motion, bool vo_ok);
+  FusedPose Output(int64_t t_ns, bool vo_ok) const;
+
+  bool initialized() const { return initialized_; }
+  const EnuFrame& enu() const { return enu_; }
+  const NominalState& state() const { return x_; }
+  const Eigen::MatrixXd& covariance() const { return P_; }
+  double last_gps_nis() const { return last_nis_; }
+  double gps_gate() const { return gate_; }
+  int gps_used() const { return gps_used_; }
+  int gps_rejected() const { return gps_rejected_; }
+
+ private:
+  void TryInitialize(int64_t t_ns);
+  void PropagateTo(int64_t t_ns);
+  void Correct(const Eigen::VectorXd& dx);
+  void Clone();
+  Vec3 GpsEnu(const GpsFix& fix);
+
+  EkfConfig config_;
+  EnuFrame enu_;
+  bool initialized_ = false;
+  int64_t t_ns_ = 0;
+  NominalState x_;
+  Eigen::MatrixXd P_;
+  // Clone of the pose at the last VO frame (IMU mode).
+  Vec3 p_clone_ = Vec3::Zero();
+  Mat3 R_clone_ = Mat3::Identity();
+  // Last IMU sample (zero-order hold between samples).
+  std::optional<ImuSample> last_imu_;
+  Vec3 last_vo_velocity_body_mps_ = Vec3::Zero();  // no-IMU mode
+  // Initialisation buffers: VO-chained body poses and fixes.
+  struct InitFix { int64_t t_ns; Vec3 p_enu; double sigma_h; Eigen::Isometry3d T_start_body; };
+  std::vector<InitFix> init_fixes_;
+  Eigen::Isometry3d T_start_body_ = Eigen::Isometry3d::Identity();
+  int64_t init_t_ns_ = 0;
+  std::deque<Vec3> init_accel_;
+  // Bookkeeping.
+  double gate_ = 0;
+  double last_nis_ = 0;
+  int gps_used_ = 0, gps_rejected_ = 0, consecutive_rejections_ = 0;
+  std::optional<int64_t> last_gps_accepted_ns_, last_gps_rejected_ns_, last_gps_received_ns_;
+  double gps_period_s_ = 1.0;
+};
+
+}  // namespace locaid::fusion

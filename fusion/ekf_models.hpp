@@ -1,0 +1,91 @@
+// EKF math as free functions with explicit inputs (tested against numeric
+// Jacobians in tests/fusion/). Conventions:
+//   nominal state  p_enu (m), v_enu (m/s), R_enu_body, accel bias (m/s^2),
+//                  gyro bias (rad/s)
+//   error state    dp, dv, dtheta (global: R = Exp(dtheta) * R_hat, ENU axes),
+//                  dba, dbg   -> 15 states, plus a clone [dp_c, dtheta_c] of
+//                  the pose at the previous VO frame (21 states with IMU).
+//   without IMU    [dp, dtheta] (6 states), propagated by the VO motion.
+#pragma once
+
+#include "fusion/types.hpp"
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace locaid::fusion {
+
+using Vec3 = Eigen::Vector3d;
+using Mat3 = Eigen::Matrix3d;
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+using Mat15 = Eigen::Matrix<double, 15, 15>;
+
+inline constexpr int kImuStates = 15;  // p v theta ba bg
+inline constexpr int kCloneStates = 6; // p_c theta_c
+inline constexpr int kPoseStates = 6;  // p theta (no-IMU mode)
+
+Mat3 Skew(const Vec3& v);
+Mat3 ExpSO3(const Vec3& phi);
+Vec3 LogSO3(const Mat3& R);
+Mat3 RightJacobianSO3(const Vec3& phi);
+
+struct NominalState {
+  Vec3 p_enu_m = Vec3::Zero();
+  Vec3 v_enu_mps = Vec3::Zero();
+  Mat3 R_enu_body = Mat3::Identity();
+  Vec3 accel_bias_mps2 = Vec3::Zero();
+  Vec3 gyro_bias_radps = Vec3::Zero();
+};
+
+// x (+) dx for the 15 error states (global attitude error).
+NominalState BoxPlus(const NominalState& x, const Eigen::Matrix<double, 15, 1>& dx);
+// dx such that BoxPlus(x_hat, dx) == x (first order), for tests and NEES.
+Eigen::Matrix<double, 15, 1> BoxMinus(const NominalState& x, const NominalState& x_hat);
+
+// One IMU step over dt_s with specific force f (body) and angular rate w
+// (body), both raw (biases removed inside), gravity g_enu (0, 0, -9.81):
+//   p' = p + v dt + 1/2 (R a + g) dt^2,  v' = v + (R a + g) dt,  R' = R Exp(w dt)
+NominalState PropagateImu(const NominalState& x, const Vec3& f_body_mps2,
+                          const Vec3& w_body_radps, double dt_s, const Vec3& g_enu_mps2);
+// Exact Jacobian of PropagateImu w.r.t. the 15 error states.
+Mat15 ImuTransitionJacobian(const NominalState& x, const Vec3& f_body_mps2,
+                            const Vec3& w_body_radps, double dt_s);
+// Discrete process noise for that step (white accel/gyro noise densities,
+// bias random walk densities).
+Mat15 ImuProcessNoise(const NominalState& x, double dt_s, double accel_noise_mps2_sqrt_hz,
+                      double gyro_noise_radps_sqrt_hz, double accel_bias_walk,
+                      double gyro_bias_walk);
+
+// VO relative-motion measurement between the clone pose (p_c, R_c) and the
+// current pose (p, R). Residual (6) in measurement axes:
+//   r_t = R_m^T (t_m - R_c^T (p - p_c)),  r_theta = Log((R_c^T R)^T R_m)
+// and its Jacobian w.r.t. [dp, dtheta, dp_c, dtheta_c] (6 x 12), so that
+// r(x (+) dx) ~= r(x) - H dx.
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+using MatVoH = Eigen::Matrix<double, 6, 12>;
+Vec6 VoResidual(const Vec3& p_enu, const Mat3& R_enu_body, const Vec3& p_c_enu,
+                const Mat3& R_enu_clone, const Eigen::Isometry3d& T_prev_curr_meas);
+MatVoH VoJacobian(const Vec3& p_enu, const Mat3& R_enu_body, const Vec3& p_c_enu,
+                  const Mat3& R_enu_clone, const Eigen::Isometry3d& T_prev_curr_meas);
+
+// GPS position measurement z = p_enu (+ noise): H = [I3 0 ...] (3 x n).
+Eigen::MatrixXd GpsJacobian(int state_dim);
+
+// No-IMU mode: pose propagated by the body motion (t_b, R_b) measured by VO:
+//   p' = p + R t_b,  R' = R R_b.  F (6x6) w.r.t. [dp, dtheta], G (6x6) w.r.t.
+// the VO noise [n_t, n_theta] (convention of VoMeasurement::covariance).
+void OdometryPropagate(Vec3& p_enu, Mat3& R_enu_body, const Eigen::Isometry3d& T_prev_curr);
+Mat6 OdometryTransitionJacobian(const Mat3& R_enu_body, const Eigen::Isometry3d& T_prev_curr);
+Mat6 OdometryNoiseJacobian(const Mat3& R_enu_body, const Eigen::Isometry3d& T_prev_curr);
+
+// Camera motion -> body motion: T_prev_curr_body = T_body_cam T_prev_curr_cam T_cam_body,
+// covariance mapped by the adjoint of T_cam_body (first order, [dt, dtheta]).
+VoMeasurement CameraMotionToBody(const Eigen::Isometry3d& T_prev_curr_cam,
+                                 const Mat6& covariance_cam,
+                                 const Eigen::Isometry3d& T_cam_body);
+
+// chi-square quantile with `dof` degrees of freedom at probability p
+// (Wilson-Hilferty approximation, accurate to <1% for p in [0.9, 0.9999]).
+double ChiSquareQuantile(double p, int dof);
+
+}  // namespace locaid::fusion

@@ -1,0 +1,118 @@
+// GPS/IMU degradation scenarios: how the consumer-grade GPS (and optionally a
+// MEMS IMU) that the filter sees is produced from the untouched OXTS RT3003
+// solution. The OXTS fix is ground truth and never reaches the filter as is.
+#pragma once
+
+#include "fusion/types.hpp"
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <optional>
+#include <random>
+#include <string>
+#include <vector>
+
+namespace locaid::fusion {
+
+// A GPS outage, relative to the drive start (time of the first sample seen).
+struct OutageWindow {
+  double start_s = 0;
+  double duration_s = 0;
+};
+
+enum class ImuGrade {
+  kAsRecorded,  // OXTS accelerations / angular rates unchanged (RT3003 grade)
+  kMems,        // + constant turn-on bias, bias random walk and white noise
+};
+const char* ToString(ImuGrade grade);
+
+struct Scenario {
+  std::string name = "open-sky";
+  // GPS.
+  double gps_rate_hz = 10.0;         // fixes per second (decimated from OXTS)
+  double gps_sigma_h_m = 1.5;        // 1-sigma white horizontal noise per axis (E, N)
+  double gps_sigma_v_m = 3.0;        // 1-sigma white vertical noise
+  double gps_bias_sigma_m = 0.0;     // steady-state 1-sigma of a slow Gauss-Markov bias per axis
+  double gps_bias_tau_s = 60.0;      // correlation time of that bias (random walk for large tau)
+  double jump_probability = 0.0;     // per fix: probability that a multipath jump starts
+  double jump_size_m = 0.0;          // horizontal size of a jump (random direction)
+  double jump_duration_s = 0.0;      // how long a jump lasts (0: one fix)
+  // IMU.
+  ImuGrade imu_grade = ImuGrade::kAsRecorded;
+  double imu_accel_bias_sigma_mps2 = 0.05;      // kMems: turn-on bias, 1-sigma per axis
+  double imu_gyro_bias_sigma_radps = 0.002;     // kMems
+  double imu_accel_noise_mps2_sqrt_hz = 0.01;   // kMems: white noise density
+  double imu_gyro_noise_radps_sqrt_hz = 0.0005; // kMems
+  // Outages relative to the drive start.
+  std::vector<OutageWindow> outages;
+  uint64_t seed = 1;
+};
+
+// Throws std::invalid_argument "scenario NAME: field FIELD: reason" when a
+// value is out of range (negative sigma, rate <= 0, probability outside [0, 1],
+// outage with negative start or non-positive duration ...).
+void ValidateScenario(const Scenario& scenario);
+
+// Built-in scenarios: "open-sky" (1.5 m at 10 Hz), "urban-canyon" (3 m at
+// 1 Hz, multipath jumps), "tunnel-30s" (open-sky GPS with one 30 s outage in
+// the middle of the drive: use ScenarioForDrive or set the window yourself),
+// "intermittent" (3 m at 5 Hz, 5 s outages every 40 s).
+std::vector<std::string> BuiltinScenarioNames();
+// Throws std::invalid_argument for an unknown name (listing the known ones).
+Scenario BuiltinScenario(const std::string& name);
+// Scenarios whose outage depends on the drive length ("tunnel-30s": middle of
+// the drive) are placed with this; others are returned unchanged.
+Scenario PlaceOutagesForDrive(Scenario scenario, double drive_duration_s);
+
+// Degrades OXTS fixes into GpsFix: decimation to gps_rate_hz, white noise,
+// bias, multipath jumps, scheduled and run-time outages. Seeded, repeatable.
+class GpsScenario {
+ public:
+  explicit GpsScenario(Scenario scenario);
+
+  // Feed every OXTS position in time order; returns a degraded fix when one is
+  // due and GPS is not in an outage. The first call fixes the drive start.
+  std::optional<GpsFix> Apply(int64_t t_ns, double lat_deg, double lon_deg, double alt_m);
+  // Whether t_ns lies in a scheduled or run-time outage.
+  bool InOutage(int64_t t_ns) const;
+
+  // Run-time outages (absolute times, same clock as Apply).
+  void ScheduleOutage(int64_t start_ns, int64_t end_ns);
+  void SetForcedOutage(bool on) { forced_outage_ = on; }
+  bool forced_outage() const { return forced_outage_; }
+
+  const Scenario& scenario() const { return scenario_; }
+  std::optional<int64_t> drive_start_ns() const { return drive_start_ns_; }
+
+ private:
+  Scenario scenario_;
+  std::mt19937_64 rng_;
+  std::optional<int64_t> drive_start_ns_;
+  std::optional<int64_t> last_fix_ns_;
+  int64_t last_bias_ns_ = 0;
+  Eigen::Vector3d bias_enu_m_ = Eigen::Vector3d::Zero();
+  Eigen::Vector2d jump_en_m_ = Eigen::Vector2d::Zero();
+  int64_t jump_end_ns_ = 0;
+  bool jump_active_ = false;
+  std::vector<std::pair<int64_t, int64_t>> runtime_outages_;
+  bool forced_outage_ = false;
+};
+
+// Degrades IMU samples to MEMS grade (identity for kAsRecorded). Seeded.
+class ImuDegrader {
+ public:
+  explicit ImuDegrader(const Scenario& scenario);
+  ImuSample Apply(const ImuSample& sample);
+  const Eigen::Vector3d& accel_bias_mps2() const { return accel_bias_mps2_; }
+  const Eigen::Vector3d& gyro_bias_radps() const { return gyro_bias_radps_; }
+
+ private:
+  Scenario scenario_;
+  std::mt19937_64 rng_;
+  Eigen::Vector3d accel_bias_mps2_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d gyro_bias_radps_ = Eigen::Vector3d::Zero();
+  std::optional<int64_t> last_ns_;
+};
+
+}  // namespace locaid::fusion

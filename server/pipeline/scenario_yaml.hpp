@@ -1,0 +1,33 @@
+// Scenario files (YAML) for locaid-replay and the server.
+//
+//   name: my-scenario            # optional (default: file stem)
+//   base: urban-canyon           # optional built-in to start from
+//   gps: {rate_hz: 1, sigma_h_m: 3, sigma_v_m: 5, bias_sigma_m: 0.3,
+//         bias_tau_s: 60, jump_probability: 0.02, jump_size_m: 15,
+//         jump_duration_s: 0}
+//   imu: {grade: as-recorded | mems, accel_bias_sigma_mps2: 0.05,
+//         gyro_bias_sigma_radps: 0.002, accel_noise_mps2_sqrt_hz: 0.01,
+//         gyro_noise_radps_sqrt_hz: 0.0005}
+//   outages: [{start_s: 20, duration_s: 10}, {start_s: 60, end_s: 75}]
+//   seed: 7
+#pragma once
+
+#include "fusion/scenario.hpp"
+
+#include <stdexcept>
+#include <string>
+
+namespace locaid::pipeline {
+
+class ScenarioError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// A built-in name (fusion::BuiltinScenarioNames()) or a path to a YAML file.
+// Throws ScenarioError "FILE:LINE: field 'gps.sigma_h_m': must be >= 0, got -1"
+// (unknown key, wrong type, out-of-range value, outage end before start ...).
+fusion::Scenario LoadScenario(const std::string& name_or_path);
+fusion::Scenario ParseScenarioYaml(const std::string& text, const std::string& where);
+
+}  // namespace locaid::pipeline
