@@ -57,4 +57,9 @@ class StereoDataset {
 // folder) and opens it. Throws kitti::Error with the offending file.
 std::unique_ptr<StereoDataset> OpenDataset(const std::filesystem::path& path);
 
+// Same, with options for raw drives (kitti/raw_drive.hpp; ignored for odometry).
+struct RawDriveOptions;
+std::unique_ptr<StereoDataset> OpenDataset(const std::filesystem::path& path,
+                                           const RawDriveOptions& options);
+
 }  // namespace locaid::kitti

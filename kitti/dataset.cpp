@@ -1,0 +1,27 @@
+#include "kitti/dataset.hpp"
+
+#include "kitti/odometry_sequence.hpp"
+#include "kitti/raw_drive.hpp"
+
+#include <system_error>
+
+namespace locaid::kitti {
+namespace fs = std::filesystem;
+
+std::unique_ptr<StereoDataset> OpenDataset(const fs::path& path, const RawDriveOptions& options) {
+  std::error_code ec;
+  if (!fs::is_directory(path, ec)) throw Error(path.string() + ": not a directory");
+  if (fs::is_directory(path / "image_00", ec)) return std::make_unique<RawDrive>(path, options);
+  if (fs::is_regular_file(path / "calib.txt", ec) && fs::is_regular_file(path / "times.txt", ec)) {
+    return std::make_unique<OdometrySequence>(path);
+  }
+  throw Error(path.string() +
+              ": not a KITTI dataset: neither a raw drive (image_00/ with calibration in the "
+              "parent folder) nor an odometry sequence (calib.txt and times.txt)");
+}
+
+std::unique_ptr<StereoDataset> OpenDataset(const fs::path& path) {
+  return OpenDataset(path, RawDriveOptions{});
+}
+
+}  // namespace locaid::kitti
