@@ -1,5 +1,7 @@
 #include "kitti/calib.hpp"
 
+#include <Eigen/SVD>
+
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -151,11 +153,24 @@ template <typename Derived>
 std::string Line(const std::string& key, const Eigen::MatrixBase<Derived>& m) {
   std::string s = key + ":";
   for (int r = 0; r < m.rows(); ++r)
-    for (int c = 0; c < m.cols(); ++c) s += " " + Num(m(r, c));
+    for (int c = 0; c < m.cols(); ++c) {
+      s += ' ';
+      s += Num(m(r, c));
+    }
   return s + "\n";
 }
 
-std::string CamSuffix(int i) { return i < 10 ? "0" + std::to_string(i) : std::to_string(i); }
+std::string CamSuffix(int i) {
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "%02d", i);
+  return buf;
+}
+
+std::string PKey(int i) {  // "P0".."P3"
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "P%d", i);
+  return buf;
+}
 
 std::string RigidText(const RigidCalib& c, bool velo_to_cam) {
   std::string s;
@@ -210,7 +225,7 @@ RigidCalib ParseRigidCalib(std::string_view text, const std::string& where) {
 OdometryCalib ParseOdometryCalib(std::string_view text, const std::string& where) {
   const KeyValues kv(text, where);
   OdometryCalib c;
-  for (int i = 0; i < 4; ++i) c.P[i] = kv.Matrix<3, 4>("P" + std::to_string(i));
+  for (int i = 0; i < 4; ++i) c.P[i] = kv.Matrix<3, 4>(PKey(i));
   const Eigen::Matrix<double, 3, 4> Tr = kv.Matrix<3, 4>("Tr");
   kv.CheckRotation(Tr.leftCols<3>(), "Tr");
   c.T_cam0_velo.linear() = Tr.leftCols<3>();
@@ -268,7 +283,7 @@ void WriteImuToVelo(const std::filesystem::path& path, const RigidCalib& c) {
 
 void WriteOdometryCalib(const std::filesystem::path& path, const OdometryCalib& c) {
   std::string s;
-  for (int i = 0; i < 4; ++i) s += Line("P" + std::to_string(i), c.P[i]);
+  for (int i = 0; i < 4; ++i) s += Line(PKey(i), c.P[i]);
   Eigen::Matrix<double, 3, 4> Tr;
   Tr << c.T_cam0_velo.linear(), c.T_cam0_velo.translation();
   s += Line("Tr", Tr);
@@ -306,7 +321,12 @@ Eigen::Isometry3d ComputeT_cam0_imu(const CamToCamCalib& cam_to_cam,
                                     const Eigen::Isometry3d& T_velo_imu) {
   Eigen::Isometry3d T_rect0 = Eigen::Isometry3d::Identity();
   T_rect0.linear() = cam_to_cam.cams[0].R_rect;
-  return T_rect0 * T_cam0_velo * T_velo_imu;
+  Eigen::Isometry3d T = T_rect0 * T_cam0_velo * T_velo_imu;
+  // KITTI prints rotations with 7 digits (|R^T R - I| ~ 1e-7); project onto
+  // SO(3) so Isometry3d::inverse() (which transposes) is exact.
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(T.linear(), Eigen::ComputeFullU | Eigen::ComputeFullV);
+  T.linear() = svd.matrixU() * svd.matrixV().transpose();
+  return T;
 }
 
 }  // namespace locaid::kitti

@@ -86,7 +86,8 @@ StereoCamera RectifiedStereo(const CamToCamCalib& calib);
 StereoCamera OdometryStereo(const OdometryCalib& calib, int width, int height);
 
 // KITTI devkit chain: rectified cam0 <- imu = T_rect0 * T_cam0_velo * T_velo_imu,
-// T_rect0 = [R_rect_00 | 0].
+// T_rect0 = [R_rect_00 | 0]. The rotation of the result is projected onto SO(3)
+// (nearest rotation; KITTI's 7-digit matrices are off by ~1e-7).
 Eigen::Isometry3d ComputeT_cam0_imu(const CamToCamCalib& cam_to_cam,
                                     const Eigen::Isometry3d& T_cam0_velo,
                                     const Eigen::Isometry3d& T_velo_imu);

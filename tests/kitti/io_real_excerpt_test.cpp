@@ -1,0 +1,159 @@
+// Reads the real KITTI excerpts in LOCAID_SHARED_DATA (KITTI, CC BY-NC-SA 3.0;
+// see data/kitti/README.md). Skipped when the data is absent.
+#include "kitti/dataset.hpp"
+#include "kitti/odometry_sequence.hpp"
+#include "kitti/raw_drive.hpp"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+
+namespace locaid::kitti {
+namespace {
+
+namespace fs = std::filesystem;
+
+const fs::path kShared = LOCAID_SHARED_DATA;
+const fs::path kDrive = kShared / "raw/2011_09_26/2011_09_26_drive_unknown_extract";
+const fs::path kSeq00 = kShared / "odometry/sequences/00";
+
+std::string LoadError(const StereoDataset& ds, size_t i) {
+  try {
+    ds.Load(i);
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+class RealExtractDrive : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    if (fs::is_directory(kDrive)) ds_ = OpenDataset(kDrive).release();
+  }
+  static void TearDownTestSuite() {
+    delete ds_;
+    ds_ = nullptr;
+  }
+  void SetUp() override {
+    if (ds_ == nullptr) GTEST_SKIP() << "real KITTI excerpt absent: " << kDrive;
+  }
+  static StereoDataset* ds_;
+};
+StereoDataset* RealExtractDrive::ds_ = nullptr;
+
+TEST_F(RealExtractDrive, LayoutFramesAndDefects) {
+  EXPECT_EQ(ds_->kind(), "raw_extract");
+  EXPECT_EQ(ds_->size(), 200u);
+  const DatasetReport& r = ds_->report();
+  EXPECT_EQ(r.missing_left, std::vector<int>{23});
+  EXPECT_EQ(r.missing_right, std::vector<int>{22});
+  EXPECT_FALSE(ds_->has_stereo(22));
+  EXPECT_FALSE(ds_->has_stereo(23));
+  EXPECT_TRUE(ds_->has_stereo(21));
+  EXPECT_TRUE(ds_->has_stereo(24));
+  EXPECT_EQ(r.oxts_records, 671);
+  EXPECT_EQ(r.oxts_expected, 4129 - 3 + 1);
+  EXPECT_TRUE(r.oxts_timestamps_estimated);
+  for (const auto& n : r.notes) std::printf("  note: %s\n", n.c_str());
+  // First timestamp line: 2011-09-26 14:05:35.500923136.
+  EXPECT_EQ(ds_->time_ns(0) % 1'000'000'000LL, 500'923'136);
+  EXPECT_DOUBLE_EQ(ds_->tum_time_s(0), 0.0);
+  EXPECT_NEAR(ds_->tum_time_s(1), 0.102019328, 1e-12);
+}
+
+TEST_F(RealExtractDrive, CameraModelFromRectifiedCalib) {
+  const StereoCamera& c = ds_->camera();
+  EXPECT_DOUBLE_EQ(c.fx, 7.215377e+02);
+  EXPECT_DOUBLE_EQ(c.cy, 1.728540e+02);
+  EXPECT_NEAR(c.baseline_m, 3.875744e+02 / 7.215377e+02, 1e-12);
+  EXPECT_EQ(c.width, 1242);
+  EXPECT_EQ(c.height, 375);
+}
+
+TEST_F(RealExtractDrive, LoadRectifiesAndNamesMissingFiles) {
+  const StereoImages im = ds_->Load(0);
+  EXPECT_EQ(im.left.cols, 1242);
+  EXPECT_EQ(im.left.rows, 375);
+  EXPECT_EQ(im.left.type(), CV_8UC1);
+  EXPECT_EQ(im.right.size(), im.left.size());
+  EXPECT_EQ(im.right.type(), CV_8UC1);
+  // Rectified images have content in the middle (not a black remap).
+  EXPECT_GT(cv::mean(im.left(cv::Rect(500, 150, 200, 100)))[0], 5.0);
+  const std::string e23 = LoadError(*ds_, 23);
+  EXPECT_NE(e23.find("image_00/data/0000000023.png"), std::string::npos) << e23;
+  EXPECT_NE(e23.find("missing"), std::string::npos) << e23;
+  const std::string e22 = LoadError(*ds_, 22);
+  EXPECT_NE(e22.find("image_01/data/0000000022.png"), std::string::npos) << e22;
+}
+
+TEST_F(RealExtractDrive, OxtsSortedWithEstimatedTimes) {
+  const auto& o = ds_->oxts();
+  ASSERT_EQ(o.size(), 671u);
+  EXPECT_EQ(o.front().index, 3);
+  EXPECT_EQ(o.back().index, 4129);
+  EXPECT_EQ(o.front().t_ns, ds_->time_ns(0) + 100'000'000 + 3 * 10'000'000);
+  for (size_t k = 1; k < o.size(); ++k) EXPECT_LT(o[k - 1].t_ns, o[k].t_ns);
+  // Specific force at z includes gravity (~9.8 m/s^2).
+  EXPECT_NEAR(o.front().record.az_mps2, 9.8, 0.5);
+}
+
+TEST_F(RealExtractDrive, GroundTruthInsideOxtsSpanAndPlausibleLength) {
+  const auto& o = ds_->oxts();
+  int with_gt = 0, first = -1;
+  double length_m = 0;
+  std::optional<Eigen::Vector3d> prev;
+  for (size_t i = 0; i < ds_->size(); ++i) {
+    const auto gt = ds_->ground_truth(i);
+    const bool inside = ds_->time_ns(i) >= o.front().t_ns && ds_->time_ns(i) <= o.back().t_ns;
+    if (!inside) EXPECT_FALSE(gt.has_value()) << "frame " << i;
+    if (!gt) continue;
+    ++with_gt;
+    if (first < 0) {
+      first = static_cast<int>(i);
+      EXPECT_TRUE(gt->isApprox(Eigen::Isometry3d::Identity(), 1e-12));
+    }
+    if (prev) length_m += (gt->translation() - *prev).norm();
+    prev = gt->translation();
+  }
+  const double duration_s = ds_->tum_time_s(ds_->size() - 1) - ds_->tum_time_s(first);
+  std::printf("  GT: %d of %zu frames, first %d, path length %.2f m over %.2f s (%.2f m/s)\n",
+              with_gt, ds_->size(), first, length_m, duration_s, length_m / duration_s);
+  EXPECT_GT(with_gt, 150);
+  EXPECT_LE(first, 5);  // OXTS record 3 is ~0.13 s after image 0
+  EXPECT_GT(length_m, 100.0);
+  EXPECT_LT(length_m, 250.0);
+  // Camera looks forward: z of cam0 ~ direction of travel over the drive.
+  const Eigen::Vector3d last = ds_->ground_truth(ds_->size() - 1)->translation();
+  EXPECT_GT(last.z(), 0.5 * last.norm());
+}
+
+TEST(RealOdometry, Sequence00WithoutImages) {
+  if (!fs::is_directory(kSeq00)) GTEST_SKIP() << "odometry excerpt absent: " << kSeq00;
+  const auto ds = OpenDataset(kSeq00);
+  EXPECT_EQ(ds->kind(), "odometry");
+  ASSERT_EQ(ds->size(), 4541u);
+  EXPECT_EQ(ds->report().missing_left.size(), 4541u);
+  EXPECT_FALSE(ds->has_stereo(0));
+  EXPECT_DOUBLE_EQ(ds->tum_time_s(1), 1.037359e-01);
+  EXPECT_EQ(ds->time_ns(1), 103'735'900);
+  EXPECT_NEAR(ds->camera().baseline_m, 0.5372, 1e-4);
+  EXPECT_DOUBLE_EQ(ds->camera().fx, 7.188560000000e+02);
+  EXPECT_TRUE(ds->oxts().empty());
+  const auto gt0 = ds->ground_truth(0);
+  const auto gtN = ds->ground_truth(4540);
+  ASSERT_TRUE(gt0 && gtN);
+  EXPECT_TRUE(gt0->isApprox(Eigen::Isometry3d::Identity(), 1e-5));
+  EXPECT_GT(gtN->translation().norm(), 0.0);
+  const std::string err = LoadError(*ds, 0);
+  EXPECT_NE(err.find("image_0/000000.png"), std::string::npos) << err;
+  bool noted = false;
+  for (const auto& n : ds->report().notes) noted |= n.find("image_0/ absent") != std::string::npos;
+  EXPECT_TRUE(noted);
+  // Tr (cam0 <- velo) of sequence 00 stands in for T_cam0_imu.
+  EXPECT_NEAR(ds->T_cam0_imu().translation().z(), -2.921968648686e-01, 1e-12);
+}
+
+}  // namespace
+}  // namespace locaid::kitti
