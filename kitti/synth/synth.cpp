@@ -1,0 +1,377 @@
+#include "kitti/synth/synth.hpp"
+
+#include "kitti/synth/motion.hpp"
+#include "kitti/synth/random.hpp"
+#include "kitti/synth/renderer.hpp"
+#include "kitti/synth/texture.hpp"
+#include "kitti/synth/world.hpp"
+
+#include <GeographicLib/LocalCartesian.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <regex>
+#include <system_error>
+
+namespace locaid::kitti::synth {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// KITTI calibration numbers: "%e" (6 decimals), like the real files.
+std::string E(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%e", x);
+  return buf;
+}
+double Round(double x) { return std::strtod(E(x).c_str(), nullptr); }
+
+template <int R, int C>
+Eigen::Matrix<double, R, C> RoundM(const Eigen::Matrix<double, R, C>& m) {
+  Eigen::Matrix<double, R, C> r;
+  for (int i = 0; i < R; ++i)
+    for (int j = 0; j < C; ++j) r(i, j) = Round(m(i, j));
+  return r;
+}
+
+template <typename M>
+std::string Row(const std::string& key, const M& m) {  // row-major
+  std::string s = key + ":";
+  for (int i = 0; i < m.rows(); ++i)
+    for (int j = 0; j < m.cols(); ++j) s += " " + E(m(i, j));
+  return s + "\n";
+}
+
+Eigen::Matrix3d SmallRot(double rx, double ry, double rz) {
+  return (Eigen::AngleAxisd(rz, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(ry, Eigen::Vector3d::UnitY()) *
+          Eigen::AngleAxisd(rx, Eigen::Vector3d::UnitX()))
+      .toRotationMatrix();
+}
+
+Eigen::Matrix3d Orthonormal(const Eigen::Matrix3d& m) {
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(m, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  return svd.matrixU() * svd.matrixV().transpose();
+}
+
+void WriteFile(const std::filesystem::path& path, const std::string& text) {
+  std::ofstream f(path, std::ios::binary | std::ios::trunc);
+  if (!f) throw Error("synth: cannot write '" + path.string() + "': " + std::strerror(errno));
+  f << text;
+  if (!f.flush()) throw Error("synth: write failed for '" + path.string() + "'");
+}
+
+void MakeDirs(const std::filesystem::path& p) {
+  std::error_code ec;
+  std::filesystem::create_directories(p, ec);
+  if (ec || !std::filesystem::is_directory(p))
+    throw Error("synth: cannot create folder '" + p.string() + "': " +
+                (ec ? ec.message() : std::string("not a directory")));
+}
+
+std::string Index10(int i) {
+  char buf[16];
+  std::snprintf(buf, sizeof buf, "%010d", i);
+  return buf;
+}
+
+std::string Timestamp(const std::string& date_dashes, int64_t t_ns) {
+  const int64_t sec = t_ns / 1000000000, ns = t_ns % 1000000000;
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%s %02d:%02d:%02d.%09lld", date_dashes.c_str(), static_cast<int>(sec / 3600),
+                static_cast<int>(sec / 60 % 60), static_cast<int>(sec % 60), static_cast<long long>(ns));
+  return buf;
+}
+
+// oxts/dataformat.txt of KITTI raw drives, verbatim (including its "ay:" typo for az).
+const char* kDataFormat =
+    "lat:   latitude of the oxts-unit (deg)\n"
+    "lon:   longitude of the oxts-unit (deg)\n"
+    "alt:   altitude of the oxts-unit (m)\n"
+    "roll:  roll angle (rad),    0 = level, positive = left side up,      range: -pi   .. +pi\n"
+    "pitch: pitch angle (rad),   0 = level, positive = front down,        range: -pi/2 .. +pi/2\n"
+    "yaw:   heading (rad),       0 = east,  positive = counter clockwise, range: -pi   .. +pi\n"
+    "vn:    velocity towards north (m/s)\n"
+    "ve:    velocity towards east (m/s)\n"
+    "vf:    forward velocity, i.e. parallel to earth-surface (m/s)\n"
+    "vl:    leftward velocity, i.e. parallel to earth-surface (m/s)\n"
+    "vu:    upward velocity, i.e. perpendicular to earth-surface (m/s)\n"
+    "ax:    acceleration in x, i.e. in direction of vehicle front (m/s^2)\n"
+    "ay:    acceleration in y, i.e. in direction of vehicle left (m/s^2)\n"
+    "ay:    acceleration in z, i.e. in direction of vehicle top (m/s^2)\n"
+    "af:    forward acceleration (m/s^2)\n"
+    "al:    leftward acceleration (m/s^2)\n"
+    "au:    upward acceleration (m/s^2)\n"
+    "wx:    angular rate around x (rad/s)\n"
+    "wy:    angular rate around y (rad/s)\n"
+    "wz:    angular rate around z (rad/s)\n"
+    "wf:    angular rate around forward axis (rad/s)\n"
+    "wl:    angular rate around leftward axis (rad/s)\n"
+    "wu:    angular rate around upward axis (rad/s)\n"
+    "pos_accuracy:  velocity accuracy (north/east in m)\n"
+    "vel_accuracy:  velocity accuracy (north/east in m/s)\n"
+    "navstat:       navigation status (see navstat_to_string)\n"
+    "numsats:       number of satellites tracked by primary GPS receiver\n"
+    "posmode:       position mode of primary GPS receiver (see gps_mode_to_string)\n"
+    "velmode:       velocity mode of primary GPS receiver (see gps_mode_to_string)\n"
+    "orimode:       orientation mode of primary GPS receiver (see gps_mode_to_string)\n";
+
+std::string PoseKittiLine(const Eigen::Isometry3d& T) {
+  std::string s;
+  char buf[40];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 4; ++j) {
+      std::snprintf(buf, sizeof buf, "%.9e", T.matrix()(i, j));
+      if (!s.empty()) s += ' ';
+      s += buf;
+    }
+  return s + "\n";
+}
+
+std::string PoseTumLine(double t_s, const Eigen::Isometry3d& T) {
+  const Eigen::Quaterniond q(T.linear());
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "%.9f %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n", t_s, T.translation().x(),
+                T.translation().y(), T.translation().z(), q.x(), q.y(), q.z(), q.w());
+  return buf;
+}
+
+}  // namespace
+
+std::string FormatOxtsLine(const OxtsRecord& r) {
+  const double v[25] = {r.lat_deg, r.lon_deg, r.alt_m, r.roll_rad, r.pitch_rad, r.yaw_rad, r.vn_mps,
+                        r.ve_mps, r.vf_mps, r.vl_mps, r.vu_mps, r.ax_mps2, r.ay_mps2, r.az_mps2,
+                        r.af_mps2, r.al_mps2, r.au_mps2, r.wx_radps, r.wy_radps, r.wz_radps,
+                        r.wf_radps, r.wl_radps, r.wu_radps, r.pos_accuracy_m, r.vel_accuracy_mps};
+  std::string s;
+  char buf[40];
+  for (double x : v) {
+    std::snprintf(buf, sizeof buf, "%.14g", x);
+    if (!s.empty()) s += ' ';
+    s += buf;
+  }
+  for (int x : {r.navstat, r.numsats, r.posmode, r.velmode, r.orimode}) s += " " + std::to_string(x);
+  return s;
+}
+
+SynthCalib MakeSynthCalib(int width, int height) {
+  SynthCalib c;
+  const double f = Round(721.5377 * width / 1242.0), cx = Round(609.5593 * width / 1242.0),
+               cy = Round(172.854 * height / 375.0);
+  const double pos_x[4] = {0.0, 0.5371, -0.0598, 0.4762};  // rectified camera centres along x (m)
+  const Eigen::Matrix3d R_rect_00 = RoundM<3, 3>(SmallRot(0.00431, -0.00744, 0.00986));
+  const Eigen::Matrix3d R_0x[4] = {Eigen::Matrix3d::Identity(), SmallRot(-0.0087, -0.0307, -0.0188),
+                                   SmallRot(-0.0034, -0.0046, 0.0052), SmallRot(-0.0018, -0.0243, -0.0170)};
+  std::string cc = "calib_time: 17-May-2024 09:12:31\ncorner_dist: " + E(0.0995) + "\n";
+  for (int i = 0; i < 4; ++i) {
+    const std::string id = "0" + std::to_string(i);
+    Eigen::Matrix3d K;
+    K << f, 0, cx, 0, f, cy, 0, 0, 1;
+    const Eigen::Matrix3d R = RoundM<3, 3>(R_0x[i]);
+    const Eigen::Matrix3d R_rect = RoundM<3, 3>(R_rect_00 * R.transpose());
+    const Eigen::Vector3d T = R * R_rect_00.transpose() * Eigen::Vector3d(-pos_x[i], 0, 0);
+    Eigen::Matrix<double, 3, 4> P;
+    P << f, 0, cx, -f * pos_x[i], 0, f, cy, 0, 0, 0, 1, 0;
+    Eigen::Matrix<double, 1, 2> S(width, height);
+    cc += Row("S_" + id, S) + Row("K_" + id, K) + Row("D_" + id, Eigen::Matrix<double, 1, 5>::Zero()) +
+          Row("R_" + id, R) + Row("T_" + id, T.transpose()) + Row("S_rect_" + id, S) + Row("R_rect_" + id, R_rect) +
+          Row("P_rect_" + id, P);
+  }
+  c.cam_to_cam_text = cc;
+  // velodyne -> cam0 (unrectified): axes swap plus a small mounting rotation
+  Eigen::Matrix3d base;
+  base << 0, -1, 0, 0, 0, -1, 1, 0, 0;
+  const Eigen::Matrix3d R_cv = RoundM<3, 3>(SmallRot(0.01481, 0.0006, 0.0075) * base);
+  const Eigen::Vector3d t_cv = RoundM<3, 1>(Eigen::Vector3d(-0.0041, -0.0757, -0.2731));
+  c.velo_to_cam_text = "calib_time: 17-May-2024 10:02:44\n" + Row("R", R_cv) + Row("T", t_cv.transpose()) +
+                       "delta_f: " + E(0) + " " + E(0) + "\ndelta_c: " + E(0) + " " + E(0) + "\n";
+  const Eigen::Matrix3d R_vi = RoundM<3, 3>(SmallRot(0.01475, -0.00208, -0.00079));
+  const Eigen::Vector3d t_vi = RoundM<3, 1>(Eigen::Vector3d(-0.8102, 0.3188, -0.8021));
+  c.imu_to_velo_text = "calib_time: 17-May-2024 10:40:05\n" + Row("R", R_vi) + Row("T", t_vi.transpose());
+  Eigen::Isometry3d T_cv = Eigen::Isometry3d::Identity(), T_vi = Eigen::Isometry3d::Identity(),
+                    T_rect = Eigen::Isometry3d::Identity();
+  T_cv.linear() = R_cv;
+  T_cv.translation() = t_cv;
+  T_vi.linear() = R_vi;
+  T_vi.translation() = t_vi;
+  T_rect.linear() = R_rect_00;
+  Eigen::Isometry3d T = T_rect * T_cv * T_vi;
+  T.linear() = Orthonormal(T.linear());
+  c.T_cam0_imu = T;
+  c.stereo.fx = c.stereo.fy = f;
+  c.stereo.cx = cx;
+  c.stereo.cy = cy;
+  c.stereo.baseline_m = -Round(-f * pos_x[1]) / f;
+  c.stereo.width = width;
+  c.stereo.height = height;
+  return c;
+}
+
+SynthSummary GenerateDrive(const SynthConfig& cfg, const std::filesystem::path& out_dir,
+                           const std::function<void(int, int)>& progress) {
+  if (cfg.length_m <= 0 && cfg.frames < 2) throw Error("synth: frames must be >= 2 (got " + std::to_string(cfg.frames) + ")");
+  if (cfg.length_m > 100000) throw Error("synth: length_m must be <= 100000");
+  if (cfg.width < 64 || cfg.width > 4096 || cfg.height < 48 || cfg.height > 4096)
+    throw Error("synth: image size " + std::to_string(cfg.width) + "x" + std::to_string(cfg.height) +
+                " out of range (64..4096 x 48..4096)");
+  if (!(cfg.frame_rate_hz > 0.5 && cfg.frame_rate_hz <= 100)) throw Error("synth: frame_rate_hz must be in (0.5, 100]");
+  if (!std::regex_match(cfg.date, std::regex("[0-9]{4}_[0-9]{2}_[0-9]{2}")))
+    throw Error("synth: date '" + cfg.date + "' is not YYYY_MM_DD");
+  if (cfg.png_compression < 0 || cfg.png_compression > 9) throw Error("synth: png_compression must be 0..9");
+
+  const SynthCalib calib = MakeSynthCalib(cfg.width, cfg.height);
+  const double dt = 1.0 / cfg.frame_rate_hz;
+  const double lead_s = 1.0;  // the car is already moving 1 s before the first image
+  RouteConfig rc;
+  rc.seed = cfg.seed;
+  const double duration_bound = cfg.length_m > 0 ? cfg.length_m / rc.v_min_mps + 5 : (cfg.frames - 1) * dt + 1;
+  rc.length_m = (cfg.length_m > 0 ? cfg.length_m : rc.v_max_mps * duration_bound) + rc.v_max_mps * lead_s + 330;
+  const Route route(rc);
+  const VehicleMotion motion(route, MotionConfig{}, cfg.seed, duration_bound + lead_s + 2);
+  int frames = cfg.frames;
+  if (cfg.length_m > 0) {
+    const double t_end = motion.TimeAtS(motion.S(lead_s) + cfg.length_m);
+    if (t_end < 0) throw Error("synth: internal: route too short for length_m");
+    frames = static_cast<int>(std::ceil((t_end - lead_s) * cfg.frame_rate_hz)) + 1;
+  }
+
+  // Timestamps (ns since midnight), seconds relative to the first image.
+  Rng trng(cfg.seed, 9);
+  const int64_t t0_ns = int64_t{13} * 3600 * 1000000000LL + int64_t{trng.Int(0, 3599)} * 1000000000LL;
+  std::vector<double> t_img(frames), t_oxts(frames);
+  std::vector<int64_t> img_ns(frames), oxts_ns(frames);
+  for (int k = 0; k < frames; ++k) {
+    t_img[k] = k * dt + (k > 0 ? trng.Uniform(-cfg.frame_jitter_max_s, cfg.frame_jitter_max_s) : 0.0);
+    img_ns[k] = t0_ns + std::llround(t_img[k] * 1e9);
+    t_img[k] = (img_ns[k] - t0_ns) * 1e-9;  // exactly what the file says
+    oxts_ns[k] = img_ns[k] + std::llround(trng.Uniform(-cfg.oxts_time_offset_max_s, cfg.oxts_time_offset_max_s) * 1e9);
+    t_oxts[k] = (oxts_ns[k] - t0_ns) * 1e-9;
+  }
+
+  SynthSummary sum;
+  sum.date_dir = out_dir;
+  char drive[64];
+  std::snprintf(drive, sizeof drive, "%s_drive_%04d_sync", cfg.date.c_str(), cfg.drive_number);
+  sum.drive_dir = out_dir / drive;
+  sum.frames = frames;
+  sum.camera = calib.stereo;
+  sum.T_cam0_imu = calib.T_cam0_imu;
+  sum.first_image_t_ns = t0_ns;
+
+  const auto& D = sum.drive_dir;
+  for (const char* sub : {"image_00/data", "image_01/data", "oxts/data"}) MakeDirs(D / sub);
+  WriteFile(out_dir / "calib_cam_to_cam.txt", calib.cam_to_cam_text);
+  WriteFile(out_dir / "calib_velo_to_cam.txt", calib.velo_to_cam_text);
+  WriteFile(out_dir / "calib_imu_to_velo.txt", calib.imu_to_velo_text);
+  WriteFile(D / "oxts/dataformat.txt", kDataFormat);
+  std::string date_dashes = cfg.date;
+  std::replace(date_dashes.begin(), date_dashes.end(), '_', '-');
+  {
+    std::string ti, to;
+    for (int k = 0; k < frames; ++k) {
+      ti += Timestamp(date_dashes, img_ns[k]) + "\n";
+      to += Timestamp(date_dashes, oxts_ns[k]) + "\n";
+    }
+    WriteFile(D / "image_00/timestamps.txt", ti);
+    WriteFile(D / "image_01/timestamps.txt", ti);
+    WriteFile(D / "oxts/timestamps.txt", to);
+  }
+
+  const std::vector<MipTexture> textures = MakeTextures(cfg.seed);
+  World world(route, textures, cfg.seed, duration_bound + lead_s + 2);
+  sum.static_polygons = world.num_static_polys();
+  Intrinsics K{calib.stereo.fx, calib.stereo.fy, calib.stereo.cx, calib.stereo.cy, cfg.width, cfg.height};
+  Renderer renderer(K, &textures);
+  const GeographicLib::LocalCartesian enu(cfg.origin_lat_deg, cfg.origin_lon_deg, cfg.origin_alt_m);
+  const Eigen::Isometry3d T_imu_cam0 = calib.T_cam0_imu.inverse();
+  Eigen::Isometry3d T_cam0_cam1 = Eigen::Isometry3d::Identity();
+  T_cam0_cam1.translation().x() = calib.stereo.baseline_m;
+
+  Rng prng(cfg.seed, 21);
+  const double ph1 = prng.Uniform(0, 2 * kPi), ph2 = prng.Uniform(0, 2 * kPi), ph3 = prng.Uniform(0, 2 * kPi);
+  const double lr_gain = 1.0 - prng.Uniform(0.01, 0.04), lr_offset = prng.Uniform(-2, 2);
+  const Eigen::Vector3d acc_bias(prng.Normal() * 0.02, prng.Normal() * 0.02, prng.Normal() * 0.02);
+  const Eigen::Vector3d gyro_bias(prng.Normal() * 2e-4, prng.Normal() * 2e-4, prng.Normal() * 2e-4);
+  const std::vector<int> png_params = {cv::IMWRITE_PNG_COMPRESSION, cfg.png_compression};
+
+  std::string gt_kitti, gt_tum;
+  Eigen::Isometry3d T_enu_world = Eigen::Isometry3d::Identity();
+  std::vector<const Poly*> polys;
+  cv::Mat img;
+  sum.min_speed_mps = 1e9;
+  for (int k = 0; k < frames; ++k) {
+    const double tau = lead_s + t_img[k];
+    const Eigen::Isometry3d T_enu_cam0 = motion.T_enu_imu(tau) * T_imu_cam0;
+    if (k == 0) T_enu_world = T_enu_cam0;
+    const Eigen::Isometry3d T_world_cam0 = T_enu_world.inverse() * T_enu_cam0;
+    gt_kitti += PoseKittiLine(T_world_cam0);
+    gt_tum += PoseTumLine(t_img[k], T_world_cam0);
+    const double speed = motion.SpeedAt(tau);
+    sum.min_speed_mps = std::min(sum.min_speed_mps, speed);
+    sum.max_speed_mps = std::max(sum.max_speed_mps, speed);
+
+    // Images.
+    world.Collect(motion.S(tau), tau, T_enu_cam0.translation(), polys);
+    Photometry ph;
+    ph.gain = 1.0 + 0.07 * std::sin(2 * kPi * tau / 29.0 + ph1) + 0.03 * std::sin(2 * kPi * tau / 9.7 + ph2) +
+              0.01 * std::sin(2 * kPi * tau / 2.3 + ph3);
+    ph.noise_sigma_dn = cfg.noise_sigma_dn;
+    ph.noise_seed = cfg.seed * 1000003ULL + static_cast<uint64_t>(k) * 2;
+    renderer.Render(polys, T_enu_cam0, ph, img);
+    const std::string name = Index10(k);
+    if (!cv::imwrite((D / "image_00/data" / (name + ".png")).string(), img, png_params))
+      throw Error("synth: cannot write " + (D / "image_00/data" / (name + ".png")).string());
+    ph.gain *= lr_gain;
+    ph.offset_dn = lr_offset;
+    ph.noise_seed += 1;
+    renderer.Render(polys, T_enu_cam0 * T_cam0_cam1, ph, img);
+    if (!cv::imwrite((D / "image_01/data" / (name + ".png")).string(), img, png_params))
+      throw Error("synth: cannot write " + (D / "image_01/data" / (name + ".png")).string());
+
+    // OXTS record at its own time stamp.
+    const double to = lead_s + t_oxts[k];
+    const ImuKinematics kin = KinematicsAt(motion, to);
+    Rng nrng(cfg.seed, 1000 + static_cast<uint64_t>(k));
+    OxtsRecord r;
+    const Eigen::Vector3d p = kin.T_enu_imu.translation();
+    enu.Reverse(p.x(), p.y(), p.z(), r.lat_deg, r.lon_deg, r.alt_m);
+    const Eigen::Vector3d rpy = RollPitchYaw(kin.T_enu_imu.linear());
+    r.roll_rad = rpy.x();
+    r.pitch_rad = rpy.y();
+    r.yaw_rad = rpy.z();
+    r.vn_mps = kin.v_enu_mps.y();
+    r.ve_mps = kin.v_enu_mps.x();
+    r.vu_mps = kin.v_enu_mps.z();
+    r.vf_mps = r.ve_mps * std::cos(r.yaw_rad) + r.vn_mps * std::sin(r.yaw_rad);
+    r.vl_mps = -r.ve_mps * std::sin(r.yaw_rad) + r.vn_mps * std::cos(r.yaw_rad);
+    const Eigen::Vector3d f = kin.f_imu_mps2 + acc_bias +
+                              Eigen::Vector3d(nrng.Normal(), nrng.Normal(), nrng.Normal()) * 0.03;
+    const Eigen::Vector3d w = kin.w_imu_radps + gyro_bias +
+                              Eigen::Vector3d(nrng.Normal(), nrng.Normal(), nrng.Normal()) * 8e-4;
+    const Eigen::Matrix3d R_level = AttitudeFromRpy(r.roll_rad, r.pitch_rad, 0.0);  // body -> heading frame
+    const Eigen::Vector3d f_flu = R_level * f, w_flu = R_level * w;
+    r.ax_mps2 = f.x(); r.ay_mps2 = f.y(); r.az_mps2 = f.z();
+    r.af_mps2 = f_flu.x(); r.al_mps2 = f_flu.y(); r.au_mps2 = f_flu.z();
+    r.wx_radps = w.x(); r.wy_radps = w.y(); r.wz_radps = w.z();
+    r.wf_radps = w_flu.x(); r.wl_radps = w_flu.y(); r.wu_radps = w_flu.z();
+    r.pos_accuracy_m = 0.26 + 0.08 * std::sin(to / 17.0 + ph1);
+    r.vel_accuracy_mps = 0.032 + 0.004 * std::sin(to / 11.0 + ph2);
+    r.navstat = 4;
+    r.numsats = 8 + static_cast<int>(std::floor(2.99 * (0.5 + 0.5 * std::sin(to / 23.0 + ph3))));
+    r.posmode = r.velmode = (std::sin(to / 31.0 + ph2) > 0.3) ? 5 : 4;
+    r.orimode = 0;
+    WriteFile(D / "oxts/data" / (name + ".txt"), FormatOxtsLine(r) + "\n");
+    if (progress) progress(k + 1, frames);
+  }
+  WriteFile(D / "ground_truth_cam0.txt", gt_kitti);
+  WriteFile(D / "ground_truth_cam0.tum", gt_tum);
+  sum.duration_s = t_img.back();
+  sum.distance_m = motion.S(lead_s + t_img.back()) - motion.S(lead_s);
+  return sum;
+}
+
+}  // namespace locaid::kitti::synth

@@ -1,0 +1,71 @@
+// Synthetic KITTI raw *sync* drives rendered by locaid's own software renderer.
+//
+// GenerateDrive(config, out_dir) writes the date folder `out_dir`:
+//   calib_cam_to_cam.txt, calib_velo_to_cam.txt, calib_imu_to_velo.txt
+//   <date>_drive_<NNNN>_sync/
+//     image_00/data/%010d.png, image_00/timestamps.txt   (left, 8-bit gray, rectified)
+//     image_01/data/%010d.png, image_01/timestamps.txt   (right)
+//     oxts/data/%010d.txt, oxts/timestamps.txt, oxts/dataformat.txt
+//     ground_truth_cam0.txt  (KITTI 3x4 row-major T_world_cam0, world = cam0 at frame 0)
+//     ground_truth_cam0.tum  (t tx ty tz qx qy qz qw; t = s since the first image)
+// Cam0 is the *rectified* left camera: T_cam0_imu = R_rect_00 * T_cam0_velo * T_velo_imu,
+// exactly as KITTI defines the odometry ground truth. OXTS records follow the
+// RT3003 conventions (see oxts/dataformat.txt; accelerations are specific
+// force, +g on z at rest). Same config (incl. seed) -> byte-identical files.
+#pragma once
+
+#include "kitti/types.hpp"
+
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <string>
+
+namespace locaid::kitti::synth {
+
+struct SynthConfig {
+  uint64_t seed = 1;
+  int frames = 600;           // number of stereo frames (used when length_m <= 0)
+  double length_m = 0;        // > 0: drive this distance instead (frames derived)
+  int width = 1242, height = 375;  // image size; intrinsics scale with it
+  double frame_rate_hz = 10;
+  std::string date = "2024_05_17";  // date folder name / timestamp date (YYYY_MM_DD)
+  int drive_number = 1;
+  double origin_lat_deg = 49.0110, origin_lon_deg = 8.4165, origin_alt_m = 115.0;  // Karlsruhe
+  double noise_sigma_dn = 1.2;       // sensor noise
+  double oxts_time_offset_max_s = 0.004;  // |t_oxts - t_image| <= this (sync data are not exact)
+  double frame_jitter_max_s = 0.0015;     // image timestamp jitter around 1/rate
+  int png_compression = 1;           // 0..9 (zlib level)
+};
+
+struct SynthSummary {
+  std::filesystem::path date_dir, drive_dir;
+  int frames = 0;
+  double duration_s = 0, distance_m = 0;
+  double min_speed_mps = 0, max_speed_mps = 0;
+  StereoCamera camera;
+  Eigen::Isometry3d T_cam0_imu = Eigen::Isometry3d::Identity();  // rectified cam0 <- imu
+  int64_t first_image_t_ns = 0;  // since the date's midnight
+  size_t static_polygons = 0;
+};
+
+// Throws kitti::Error for bad configs ("synth: --frames must be >= 2") and
+// unwritable folders ("synth: cannot create folder '/x': Permission denied").
+SynthSummary GenerateDrive(const SynthConfig& config, const std::filesystem::path& out_dir,
+                           const std::function<void(int frame, int total)>& progress = {});
+
+// Calibration of the synthetic rig as written to the files (after the %e rounding
+// of the text format): stereo model and rectified cam0 <- imu.
+struct SynthCalib {
+  StereoCamera stereo;
+  Eigen::Isometry3d T_cam0_imu = Eigen::Isometry3d::Identity();
+  std::string cam_to_cam_text, velo_to_cam_text, imu_to_velo_text;
+};
+SynthCalib MakeSynthCalib(int width, int height);
+
+// The 30-field OXTS line exactly as written to oxts/data (no newline).
+std::string FormatOxtsLine(const OxtsRecord& r);
+
+}  // namespace locaid::kitti::synth
