@@ -107,7 +107,9 @@ TEST_F(RealExtractDrive, GroundTruthInsideOxtsSpanAndPlausibleLength) {
   for (size_t i = 0; i < ds_->size(); ++i) {
     const auto gt = ds_->ground_truth(i);
     const bool inside = ds_->time_ns(i) >= o.front().t_ns && ds_->time_ns(i) <= o.back().t_ns;
-    if (!inside) EXPECT_FALSE(gt.has_value()) << "frame " << i;
+    if (!inside) {
+      EXPECT_FALSE(gt.has_value()) << "frame " << i;
+    }
     if (!gt) continue;
     ++with_gt;
     if (first < 0) {
@@ -124,6 +126,21 @@ TEST_F(RealExtractDrive, GroundTruthInsideOxtsSpanAndPlausibleLength) {
   EXPECT_LE(first, 5);  // OXTS record 3 is ~0.13 s after image 0
   EXPECT_GT(length_m, 100.0);
   EXPECT_LT(length_m, 250.0);
+  // Cross-check against the OXTS forward speed over the same span (independent
+  // of positions, so it also checks the estimated OXTS time base).
+  double vf_sum = 0;
+  int vf_n = 0;
+  const int64_t t_first = ds_->time_ns(first), t_last = ds_->time_ns(ds_->size() - 1);
+  for (const OxtsSample& s : o) {
+    if (s.t_ns < t_first || s.t_ns > t_last) continue;
+    vf_sum += s.record.vf_mps;
+    ++vf_n;
+  }
+  ASSERT_GT(vf_n, 0);
+  const double vf_mean = vf_sum / vf_n;
+  std::printf("  mean OXTS vf over the same span %.2f m/s (%d records)\n", vf_mean, vf_n);
+  constexpr double kSpeedTolMps = 0.5;  // OXTS records are unevenly spread in time
+  EXPECT_NEAR(length_m / duration_s, vf_mean, kSpeedTolMps);
   // Camera looks forward: z of cam0 ~ direction of travel over the drive.
   const Eigen::Vector3d last = ds_->ground_truth(ds_->size() - 1)->translation();
   EXPECT_GT(last.z(), 0.5 * last.norm());

@@ -1,0 +1,97 @@
+#include "kitti/oxts_pose.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace locaid::kitti {
+namespace {
+
+constexpr double kTol = 1e-9;
+
+TEST(IoOxtsPose, AttitudeFollowsOxtsConvention) {
+  // yaw 90 deg: IMU x (forward) points north.
+  EXPECT_LT((OxtsAttitude(0, 0, M_PI / 2) * Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitY())
+                .norm(),
+            kTol);
+  // pitch > 0 = front down (dataformat.txt).
+  EXPECT_LT((OxtsAttitude(0, 0.1, 0) * Eigen::Vector3d::UnitX()).z(), 0.0);
+  // roll > 0 = left side up.
+  EXPECT_GT((OxtsAttitude(0.1, 0, 0) * Eigen::Vector3d::UnitY()).z(), 0.0);
+  // Composition order Rz * Ry * Rx.
+  const Eigen::Matrix3d R = OxtsAttitude(0.1, -0.2, 0.3);
+  const Eigen::Matrix3d want = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).matrix() *
+                               Eigen::AngleAxisd(-0.2, Eigen::Vector3d::UnitY()).matrix() *
+                               Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitX()).matrix();
+  EXPECT_LT((R - want).norm(), kTol);
+}
+
+TEST(IoOxtsPose, EnuPoseFromLatLon) {
+  const GeographicLib::LocalCartesian enu(49.0, 8.4, 100.0);
+  OxtsRecord r;
+  enu.Reverse(12.5, -3.0, 1.5, r.lat_deg, r.lon_deg, r.alt_m);
+  r.yaw_rad = 0.7;
+  const Eigen::Isometry3d T = OxtsToEnuPose(r, enu);
+  EXPECT_LT((T.translation() - Eigen::Vector3d(12.5, -3.0, 1.5)).norm(), 1e-6);
+  EXPECT_LT((T.linear() - OxtsAttitude(0, 0, 0.7)).norm(), kTol);
+}
+
+TEST(IoOxtsPose, InterpolatesLinearlyAndBySlerp) {
+  Eigen::Isometry3d a = Eigen::Isometry3d::Identity(), b = Eigen::Isometry3d::Identity();
+  b.translation() << 2, 4, -6;
+  b.linear() = Eigen::AngleAxisd(0.8, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const Eigen::Isometry3d m = InterpolatePose(a, b, 0.25);
+  EXPECT_LT((m.translation() - Eigen::Vector3d(0.5, 1, -1.5)).norm(), kTol);
+  EXPECT_NEAR(Eigen::AngleAxisd(m.linear()).angle(), 0.2, kTol);
+
+  const std::vector<TimedPose> poses = {{1000, a}, {2000, b}, {9000, a}};
+  const auto at = InterpolatePose(poses, 1250, 5000);
+  ASSERT_TRUE(at.has_value());
+  EXPECT_LT((at->matrix() - m.matrix()).norm(), kTol);
+  EXPECT_EQ(InterpolatePose(poses, 2000, 1)->matrix(), b.matrix());  // exact sample
+  EXPECT_FALSE(InterpolatePose(poses, 999, 5000).has_value());       // before
+  EXPECT_FALSE(InterpolatePose(poses, 9001, 5000).has_value());      // after
+  EXPECT_FALSE(InterpolatePose(poses, 3000, 5000).has_value());      // 7000 ns gap
+  EXPECT_TRUE(InterpolatePose(poses, 3000, 7000).has_value());
+  EXPECT_FALSE(InterpolatePose({}, 0, 1).has_value());
+}
+
+TEST(IoOxtsPose, GroundTruthAnchorsAtFirstCoveredFrame) {
+  // IMU drives north (yaw 90 deg) at 5 m/s; camera looks along IMU x.
+  const GeographicLib::LocalCartesian enu(49.0, 8.4, 100.0);
+  std::vector<OxtsSample> oxts;
+  for (int k = 0; k < 11; ++k) {
+    OxtsSample s;
+    s.t_ns = 1'000'000'000LL + k * 100'000'000LL;
+    s.index = k;
+    enu.Reverse(0, 5.0 * 0.1 * k, 0, s.record.lat_deg, s.record.lon_deg, s.record.alt_m);
+    s.record.yaw_rad = M_PI / 2;
+    oxts.push_back(s);
+  }
+  Eigen::Isometry3d T_cam0_imu = Eigen::Isometry3d::Identity();
+  T_cam0_imu.linear() << 0, -1, 0, 0, 0, -1, 1, 0, 0;
+  T_cam0_imu.translation() << 0.1, 0.2, 0.3;
+  // Frames at 0.95 s (before OXTS), 1.05, 1.55, 2.0, 2.05 s (after).
+  const std::vector<int64_t> frames = {950'000'000, 1'050'000'000, 1'550'000'000,
+                                       2'000'000'000, 2'050'000'000};
+  const OxtsGroundTruth gt = ComputeOxtsGroundTruth(oxts, frames, T_cam0_imu);
+  EXPECT_EQ(gt.anchor_frame, 1);
+  EXPECT_DOUBLE_EQ(gt.origin_lat_deg, oxts.front().record.lat_deg);
+  ASSERT_EQ(gt.T_world_cam.size(), frames.size());
+  EXPECT_FALSE(gt.T_world_cam[0]);
+  EXPECT_FALSE(gt.T_world_cam[4]);
+  ASSERT_TRUE(gt.T_world_cam[1] && gt.T_world_cam[2] && gt.T_world_cam[3]);
+  EXPECT_LT((gt.T_world_cam[1]->matrix() - Eigen::Matrix4d::Identity()).norm(), 1e-6);
+  // 0.5 s later the camera is 2.5 m further along its own z axis.
+  EXPECT_LT((gt.T_world_cam[2]->translation() - Eigen::Vector3d(0, 0, 2.5)).norm(), 1e-6);
+  EXPECT_LT((gt.T_world_cam[3]->translation() - Eigen::Vector3d(0, 0, 4.75)).norm(), 1e-6);
+  // T_enu_world maps the anchor camera into ENU: its optical axis points north.
+  EXPECT_LT((gt.T_enu_world.linear() * Eigen::Vector3d::UnitZ() - Eigen::Vector3d::UnitY()).norm(),
+            1e-9);
+  // Unsorted input is refused.
+  std::swap(oxts[2], oxts[3]);
+  EXPECT_THROW(ComputeOxtsGroundTruth(oxts, frames, T_cam0_imu), Error);
+}
+
+}  // namespace
+}  // namespace locaid::kitti
