@@ -5,6 +5,11 @@
 #include "kitti/raw_drive.hpp"
 
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
 
 #include <filesystem>
 #include <string>
@@ -86,6 +91,48 @@ TEST_F(RealExtractDrive, LoadRectifiesAndNamesMissingFiles) {
   EXPECT_NE(e23.find("missing"), std::string::npos) << e23;
   const std::string e22 = LoadError(*ds_, 22);
   EXPECT_NE(e22.find("image_01/data/0000000022.png"), std::string::npos) << e22;
+}
+
+// Median |row offset| of left corners matched in the right image by template
+// matching in a band of +-kBand rows and 0..kMaxDisp px disparity.
+double MedianRowOffset(const cv::Mat& left, const cv::Mat& right, int* matched) {
+  constexpr int kHalf = 10, kBand = 8, kMaxDisp = 160;
+  constexpr double kMinScore = 0.9;
+  std::vector<cv::Point2f> corners;
+  cv::goodFeaturesToTrack(left, corners, 300, 0.01, 15);
+  std::vector<double> dys;
+  for (const auto& c : corners) {
+    const int x = static_cast<int>(c.x), y = static_cast<int>(c.y);
+    const cv::Rect patch(x - kHalf, y - kHalf, 2 * kHalf + 1, 2 * kHalf + 1);
+    const cv::Rect search(x - kHalf - kMaxDisp, y - kHalf - kBand, 2 * kHalf + 1 + kMaxDisp,
+                          2 * kHalf + 1 + 2 * kBand);
+    const cv::Rect img(0, 0, left.cols, left.rows);
+    if ((patch & img) != patch || (search & img) != search) continue;
+    cv::Mat score;
+    cv::matchTemplate(right(search), left(patch), score, cv::TM_CCOEFF_NORMED);
+    double best;
+    cv::Point at;
+    cv::minMaxLoc(score, nullptr, &best, nullptr, &at);
+    if (best < kMinScore) continue;
+    dys.push_back(std::abs(at.y - kBand));
+  }
+  *matched = static_cast<int>(dys.size());
+  if (dys.empty()) return 1e9;
+  std::nth_element(dys.begin(), dys.begin() + dys.size() / 2, dys.end());
+  return dys[dys.size() / 2];
+}
+
+TEST_F(RealExtractDrive, RectifiedRowsAreEpipolar) {
+  const StereoImages im = ds_->Load(0);
+  int n_rect = 0, n_raw = 0;
+  const double dy_rect = MedianRowOffset(im.left, im.right, &n_rect);
+  const cv::Mat raw_l = cv::imread((kDrive / "image_00/data/0000000000.png").string(), cv::IMREAD_GRAYSCALE);
+  const cv::Mat raw_r = cv::imread((kDrive / "image_01/data/0000000000.png").string(), cv::IMREAD_GRAYSCALE);
+  const double dy_raw = MedianRowOffset(raw_l, raw_r, &n_raw);
+  std::printf("  median |dy|: rectified %.1f px (%d matches), raw %.1f px (%d matches)\n", dy_rect,
+              n_rect, dy_raw, n_raw);
+  EXPECT_GT(n_rect, 30);
+  EXPECT_LE(dy_rect, 0.0 + 1e-9);  // integer search: the median row offset is 0
 }
 
 TEST_F(RealExtractDrive, OxtsSortedWithEstimatedTimes) {
