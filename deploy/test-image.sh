@@ -1,0 +1,265 @@
+#!/usr/bin/env bash
+# Builds the locaid container image with podman and proves it works:
+# start the server from the image, check health, start a session, stream
+# poses with the CLI, stop with SIGTERM and check the clean exit.
+#
+#   deploy/test-image.sh [--tag IMAGE] [--base IMAGE] [--no-cache] [--skip-build]
+#                        [--run auto|podman|chroot] [--port N] [--keep]
+#
+# Run as root on Debian 12 (installs podman, runc and debootstrap if missing).
+# Paths it can take, printed as it goes:
+#   base  : --base IMAGE | local localhost/debian:12 | registry debian:12 |
+#           debootstrap of the apt mirror in /etc/apt/sources.list* (imported
+#           as localhost/debian:12) when no registry is reachable
+#   build : podman build --isolation chroot (works without a container runtime)
+#   run   : podman run (default runtime) | podman run --runtime runc with
+#           lowered rlimits (hosts without CAP_SYS_RESOURCE / hybrid cgroups) |
+#           chroot into a podman-mounted container filesystem as uid 10001
+# Everything generated lives in $LOCAID_DEPLOY_DIR (default /var/tmp/locaid-deploy).
+set -euo pipefail
+
+ROOT=$(cd "$(dirname "$0")/.." && pwd)
+STATE=${LOCAID_DEPLOY_DIR:-/var/tmp/locaid-deploy}
+TAG=localhost/locaid:test
+BASE=""
+NO_CACHE=()
+SKIP_BUILD=0
+RUN_MODE=auto
+PORT=50751
+KEEP=0
+MAX_IMAGE_MB=350
+while (($#)); do
+  case "$1" in
+    --tag) TAG=$2; shift 2 ;;
+    --base) BASE=$2; shift 2 ;;
+    --no-cache) NO_CACHE=(--no-cache); shift ;;
+    --skip-build) SKIP_BUILD=1; shift ;;
+    --run) RUN_MODE=$2; shift 2 ;;
+    --port) PORT=$2; shift 2 ;;
+    --keep) KEEP=1; shift ;;
+    -h | --help) sed -n '2,19p' "$0"; exit 0 ;;
+    *) echo "test-image: unknown argument '$1'" >&2; exit 2 ;;
+  esac
+done
+
+say() { echo "test-image: $*"; }
+fail() { echo "test-image: FAIL: $*" >&2; exit 1; }
+summary=()
+note() { summary+=("$*"); say "$*"; }
+
+[[ $(id -u) -eq 0 ]] || fail "run as root (podman build/mount and chroot need it)"
+mkdir -p "$STATE"
+
+# ------------------------------------------------------------ tools ----
+need=()
+command -v podman >/dev/null || need+=(podman)
+command -v runc >/dev/null || need+=(runc)
+command -v debootstrap >/dev/null || need+=(debootstrap)
+if ((${#need[@]})); then
+  say "installing ${need[*]} with apt-get"
+  export DEBIAN_FRONTEND=noninteractive
+  apt-get update -qq
+  apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
+fi
+note "podman $(podman --version | awk '{print $3}'), storage $(podman info --format '{{.Store.GraphDriverName}}')"
+
+# ------------------------------------------------------------- base ----
+apt_mirror() {  # first Debian (non-security) URI of the host's apt sources
+  local f uri
+  for f in /etc/apt/sources.list /etc/apt/sources.list.d/*.list /etc/apt/sources.list.d/*.sources; do
+    [[ -f $f ]] || continue
+    uri=$(grep -hoE '(^deb|^URIs:)[[:space:]]+(\[[^]]*\][[:space:]]+)?https?://[^[:space:]]+' "$f" |
+      grep -oE 'https?://[^[:space:]]+' | grep -v security | grep -i debian | head -n1 || true)
+    [[ -n $uri ]] && { echo "${uri%/}"; return; }
+  done
+  echo "http://deb.debian.org/debian"
+}
+
+if [[ -n $BASE ]]; then
+  note "base: $BASE (given)"
+elif podman image exists localhost/debian:12; then
+  BASE=localhost/debian:12
+  note "base: localhost/debian:12 (already imported)"
+elif timeout 90 podman pull -q docker.io/library/debian:12 >/dev/null 2>&1; then
+  BASE=docker.io/library/debian:12
+  note "base: docker.io/library/debian:12 (pulled from the registry)"
+else
+  mirror=$(apt_mirror)
+  rootfs="$STATE/rootfs-bookworm"
+  say "no registry reachable: debootstrap bookworm from $mirror into $rootfs"
+  rm -rf "$rootfs"
+  debootstrap --variant=minbase bookworm "$rootfs" "$mirror" >"$STATE/debootstrap.log" 2>&1 ||
+    fail "debootstrap failed, see $STATE/debootstrap.log"
+  rm -rf "$rootfs"/var/cache/apt/archives/*.deb "$rootfs"/var/lib/apt/lists/*
+  sec="${mirror%/debian}/debian-security"
+  printf 'deb %s bookworm main\ndeb %s bookworm-updates main\ndeb %s bookworm-security main\n' \
+    "$mirror" "$mirror" "$sec" >"$rootfs/etc/apt/sources.list"
+  tar -C "$rootfs" -c . | podman import -q - localhost/debian:12 >/dev/null
+  BASE=localhost/debian:12
+  note "base: localhost/debian:12 made with debootstrap from $mirror (no registry reachable)"
+fi
+
+# ------------------------------------------------------------ build ----
+if ((SKIP_BUILD == 0)); then
+  cache=()
+  [[ -d /var/cache/apt/archives ]] && cache=(-v /var/cache/apt/archives:/var/cache/apt/archives)
+  say "building $TAG (podman build --isolation chroot, base $BASE, host apt cache mounted)"
+  t0=$(date +%s)
+  podman build --isolation chroot --format docker "${NO_CACHE[@]}" "${cache[@]}" \
+    --build-arg BASE_IMAGE="$BASE" --build-arg BUILD_JOBS="$(nproc)" \
+    -f "$ROOT/deploy/Containerfile" -t "$TAG" "$ROOT" >"$STATE/build.log" 2>&1 ||
+    { tail -n 40 "$STATE/build.log" >&2; fail "podman build failed, full log $STATE/build.log"; }
+  t1=$(date +%s)
+  note "build: podman build --isolation chroot ${NO_CACHE[*]} took $((t1 - t0)) s on $(nproc) cores (log $STATE/build.log)"
+fi
+podman image exists "$TAG" || fail "image $TAG does not exist"
+
+# ----------------------------------------------------- image checks ----
+size=$(podman image inspect --format '{{.Size}}' "$TAG")
+size_mb=$((size / 1000000))
+((size_mb <= MAX_IMAGE_MB)) || fail "image is $size_mb MB > $MAX_IMAGE_MB MB"
+note "image size: $size_mb MB (limit $MAX_IMAGE_MB MB)"
+user=$(podman image inspect --format '{{.Config.User}}' "$TAG")
+[[ -n $user && ${user%%:*} != 0 && ${user%%:*} != root ]] || fail "image runs as root (User='$user')"
+ports=$(podman image inspect --format '{{range $p, $v := .Config.ExposedPorts}}{{$p}} {{end}}' "$TAG")
+[[ $ports == *50051/tcp* ]] || fail "port 50051 not exposed (ExposedPorts: $ports)"
+hc=$(podman image inspect --format '{{if .Config.Healthcheck}}{{join .Config.Healthcheck.Test " "}}{{end}}' "$TAG" 2>/dev/null || true)
+[[ $hc == *health* ]] || fail "no HEALTHCHECK using 'locaid health' (got '$hc')"
+mnt=$(podman image mount "$TAG")
+bad=$(ls "$mnt"/usr/bin/{gcc,g++,cc,c++,cmake,ld} 2>/dev/null || true)
+[[ -z $bad ]] || fail "toolchain in the runtime image: $bad"
+devpk=$(awk '/^Package: /{p=$2} /^Status: install ok installed/{print p}' "$mnt/var/lib/dpkg/status" |
+  grep -E -- '-dev$|^libgtk|^libqt|^libgl1-mesa-dri$|^libllvm' || true)
+[[ -z $devpk ]] || fail "unwanted packages in the runtime image: $devpk"
+npk=$(grep -c '^Status: install ok installed' "$mnt/var/lib/dpkg/status")
+podman image unmount "$TAG" >/dev/null
+note "image config: user $user, exposes $ports, healthcheck '$hc'; $npk packages, no compiler/-dev/GUI toolkit/Mesa"
+
+# -------------------------------------------------------------- run ----
+NAME=locaid-test-$$
+WORK=/var/lib/locaid
+mode=""
+rt=()
+if [[ $RUN_MODE == auto || $RUN_MODE == podman ]]; then
+  if out=$(timeout 60 podman run --rm "$TAG" true 2>&1); then
+    mode=podman
+  else
+    say "podman run (default runtime) refused: ${out//$'\n'/ }"
+    rt=(--runtime runc --ulimit "nofile=$(ulimit -n):$(ulimit -n)" --ulimit nproc=4096:4096)
+    if out=$(timeout 60 podman "${rt[@]:0:2}" run --rm "${rt[@]:2}" "$TAG" true 2>&1); then
+      mode=podman-runc
+    else
+      say "podman run --runtime runc refused: ${out//$'\n'/ }"
+      [[ $RUN_MODE == podman ]] && fail "no way to run containers here"
+    fi
+  fi
+fi
+[[ -z $mode ]] && mode=chroot
+
+cleanup() {
+  set +e
+  if [[ $mode == chroot ]]; then
+    [[ -n ${srv_pid:-} ]] && kill -TERM "$srv_pid" 2>/dev/null
+    [[ -n ${cmnt:-} ]] && { umount "$cmnt/proc" "$cmnt/dev" 2>/dev/null; }
+  fi
+  if ((KEEP == 0)); then podman rm -f "$NAME" >/dev/null 2>&1; fi
+}
+trap cleanup EXIT
+
+if [[ $mode == chroot ]]; then
+  note "run: chroot into the image's filesystem (podman create + podman mount), server as uid 10001 on 127.0.0.1:$PORT: podman cannot run containers here"
+  if (exec 3<>"/dev/tcp/127.0.0.1/$PORT") 2>/dev/null; then fail "port $PORT is in use (--port N)"; fi
+  podman create --name "$NAME" "$TAG" >/dev/null
+  cmnt=$(podman mount "$NAME")
+  mount --bind /dev "$cmnt/dev"
+  mount -t proc proc "$cmnt/proc"
+  envs=(env -i HOME=$WORK PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin
+    LOCAID_LISTEN=127.0.0.1:$PORT LOCAID_WORK_DIR=$WORK)
+  chroot --userspec=10001:10001 "$cmnt" "${envs[@]}" /usr/local/bin/locaid-entrypoint demo \
+    >"$STATE/server.log" 2>&1 &
+  srv_pid=$!
+  in_image() { chroot --userspec=10001:10001 "$cmnt" "${envs[@]}" "$@"; }
+  outside() { in_image "$@"; }  # same network namespace as the host
+else
+  note "run: podman run ($mode${rt:+: ${rt[*]}}), port 127.0.0.1:$PORT -> 50051"
+  podman "${rt[@]:0:2}" run -d --name "$NAME" "${rt[@]:2}" -p "127.0.0.1:$PORT:50051" "$TAG" >/dev/null
+  in_image() { podman exec "$NAME" "$@"; }
+  # A second container on the host network talks to the published port.
+  outside() { podman "${rt[@]:0:2}" run --rm "${rt[@]:2}" --network host "$TAG" "$@"; }
+fi
+cli=(locaid --server 127.0.0.1:50051)
+[[ $mode == chroot ]] && cli=(locaid --server 127.0.0.1:$PORT)
+
+# 1. health
+t0=$(date +%s)
+until h=$(in_image "${cli[@]}" health 2>&1) && [[ $h == SERVING ]]; do
+  (($(date +%s) - t0 < 60)) || { cat "$STATE/server.log" 2>/dev/null; fail "not SERVING after 60 s: $h"; }
+  sleep 1
+done
+note "health: SERVING after $(($(date +%s) - t0)) s (locaid health)"
+if [[ $mode != chroot ]]; then
+  h=$(outside locaid --server "127.0.0.1:$PORT" health) || fail "published port: $h"
+  hc_out=$(podman healthcheck run "$NAME" 2>&1) && hc_rc=0 || hc_rc=$?
+  note "published port 127.0.0.1:$PORT from the host network: $h; podman healthcheck run: rc=$hc_rc ${hc_out}"
+fi
+
+# 2. the default demo session (renders a synthetic drive first)
+t0=$(date +%s)
+until demo=$(in_image cat "$WORK/demo-session-id" 2>/dev/null) && [[ -n $demo ]]; do
+  (($(date +%s) - t0 < 300)) || fail "no demo session after 300 s"
+  sleep 2
+done
+note "demo session: $demo (ready $(($(date +%s) - t0)) s after SERVING)"
+drive=$(in_image "${cli[@]}" session get "$demo" | grep -oE 'source=[^ ]+' | head -n1)
+drive=${drive#source=}
+drive=${drive#kitti:}
+say "demo drive: $drive"
+
+# 3. start a session of our own on the same drive, as fast as possible
+sid=$(in_image "${cli[@]}" session start --kitti "$drive" --rate 0 --scenario open-sky) ||
+  fail "session start: $sid"
+sid=${sid%%[[:space:]]*}
+note "session start --kitti $drive --rate 0: $sid"
+
+# 4. stream poses (print) and record them (TUM) with the CLI
+poses=$(in_image "${cli[@]}" subscribe "$sid" --from-start --max 20 --stream-timeout-s 120) ||
+  fail "subscribe: $poses"
+n=$(grep -c '^seq=' <<<"$poses" || true)
+((n == 20)) || { echo "$poses" >&2; fail "expected 20 poses, got $n"; }
+note "subscribe --from-start --max 20: $n poses; last: $(tail -n1 <<<"$poses")"
+in_image "${cli[@]}" subscribe "$demo" --from-start --max 30 --format tum --out "$WORK/demo.tum" \
+  --stream-timeout-s 120 >/dev/null || fail "subscribe --format tum"
+ntum=$(in_image cat "$WORK/demo.tum" | grep -cvE '^#|^$' || true)
+((ntum == 30)) || fail "expected 30 TUM lines in $WORK/demo.tum, got $ntum"
+note "recorded $ntum TUM poses of the demo session into $WORK/demo.tum"
+if [[ $mode != chroot ]]; then
+  rp=$(outside locaid --server "127.0.0.1:$PORT" subscribe "$sid" --from-start --max 5 | grep -c '^seq=' || true)
+  ((rp == 5)) || fail "streaming through the published port gave $rp poses"
+  note "streamed $rp poses through the published port from another container"
+fi
+stats=$(in_image "${cli[@]}" stats "$sid" | grep -E '^(frames_processed|poses_published|fps) ' | tr '\n' ' ')
+note "stats $sid: $stats"
+in_image "${cli[@]}" session list | sed 's/^/test-image:   /'
+in_image "${cli[@]}" session stop "$sid" >/dev/null || fail "session stop"
+
+# 5. SIGTERM and clean exit
+t0=$(date +%s%N)
+if [[ $mode == chroot ]]; then
+  kill -TERM "$srv_pid"
+  rc=0; wait "$srv_pid" || rc=$?
+  srv_pid=""
+  log=$(cat "$STATE/server.log")
+else
+  podman stop -t 30 "$NAME" >/dev/null
+  rc=$(podman inspect --format '{{.State.ExitCode}}' "$NAME")
+  log=$(podman logs "$NAME" 2>&1)
+  printf '%s\n' "$log" >"$STATE/server.log"
+fi
+ms=$((($(date +%s%N) - t0) / 1000000))
+((rc == 0)) || { echo "$log" | tail -n 20 >&2; fail "server exit code $rc after SIGTERM"; }
+grep -q 'locaid-server: stopped' <<<"$log" || fail "no 'locaid-server: stopped' in the log"
+note "SIGTERM: exit code 0 after $ms ms; log ends: $(tail -n1 <<<"$log")"
+
+echo
+echo "test-image: PASS ($mode)"
+for s in "${summary[@]}"; do echo "  - $s"; done
