@@ -20,6 +20,8 @@
 #                        synthetic one, e.g. /data/kitti/2011_09_26/2011_09_26_drive_0001_sync
 #   LOCAID_DEMO_FRAMES [200]  LOCAID_DEMO_SEED [7]  (synthetic demo drive)
 #   LOCAID_DEMO_SCENARIO [open-sky]  LOCAID_DEMO_RATE [1] (1 = real time)
+#   LOCAID_DEMO_SCENARIO_FILE  scenario YAML for the demo session (overrides
+#                        LOCAID_DEMO_SCENARIO), e.g. /etc/locaid/scenario.yaml
 set -euo pipefail
 
 listen="${LOCAID_LISTEN:-0.0.0.0:50051}"
@@ -51,7 +53,7 @@ start_demo() {  # runs in the background while the server starts
     if [[ ! -f "$drive/.complete" ]]; then
       log "rendering synthetic demo drive (seed $seed, $frames frames) into $date_dir"
       rm -rf "$date_dir"
-      locaid-synth --out "$date_dir" --date 2024_05_17 --drive 1 --frames "$frames" --seed "$seed" -q
+      locaid-synth --out "$date_dir" --date 2024_05_17 --drive 1 --frames "$frames" --seed "$seed" -q || return 1
       touch "$drive/.complete"
     fi
   fi
@@ -61,9 +63,9 @@ start_demo() {  # runs in the background while the server starts
     sleep 0.5
   done
   if ((ok == 0)); then log "server did not become healthy in 60 s; no demo session"; return 1; fi
-  local id
-  id=$(client session start --kitti "$drive" --scenario "${LOCAID_DEMO_SCENARIO:-open-sky}" \
-         --rate "${LOCAID_DEMO_RATE:-1}")
+  local id scenario=(--scenario "${LOCAID_DEMO_SCENARIO:-open-sky}")
+  if [[ -n "${LOCAID_DEMO_SCENARIO_FILE:-}" ]]; then scenario=(--scenario-file "$LOCAID_DEMO_SCENARIO_FILE"); fi
+  id=$(client session start --kitti "$drive" "${scenario[@]}" --rate "${LOCAID_DEMO_RATE:-1}") || return 1
   id="${id%%[[:space:]]*}"
   echo "$id" >"$work/demo-session-id"
   log "demo session $id started on $drive (id also in $work/demo-session-id)"
