@@ -78,6 +78,11 @@ int64_t ParseTimestamp(std::string_view line_in, const std::string& where) {
   if (h > 23) throw fail("hour " + std::to_string(h) + " out of range");
   if (mi > 59) throw fail("minute " + std::to_string(mi) + " out of range");
   if (sec > 59) throw fail("second " + std::to_string(sec) + " out of range");
+  // t_ns is int64 ns since 1970: only years 1678..2261 fit (found by fuzz_timestamps).
+  constexpr int64_t kMinYear = 1678, kMaxYear = 2261;
+  if (y < kMinYear || y > kMaxYear) {
+    throw fail("year " + std::to_string(y) + " outside [1678, 2261] (int64 nanoseconds since 1970)");
+  }
   int64_t frac_ns = 0;
   if (s.size() > 19) {
     if (s[19] != '.') throw fail("unexpected text after the seconds");
