@@ -4,6 +4,7 @@
 #
 #   deploy/install-deps.sh            # build + test dependencies
 #   deploy/install-deps.sh --runtime  # only the shared libraries the binaries need
+#   deploy/install-deps.sh --fuzz     # build + test dependencies and clang/libFuzzer (fuzz/)
 set -euo pipefail
 
 build_pkgs=(
@@ -21,8 +22,11 @@ runtime_pkgs=(
   libgeographiclib23 libgrpc++1.51 libprotobuf32 libyaml-cpp0.7
 )
 
+fuzz_pkgs=(clang libclang-rt-14-dev)  # optional: libFuzzer + sanitizer runtimes
+
 pkgs=("${build_pkgs[@]}")
 [[ "${1:-}" == "--runtime" ]] && pkgs=("${runtime_pkgs[@]}")
+[[ "${1:-}" == "--fuzz" ]] && pkgs+=("${fuzz_pkgs[@]}")
 
 missing=()
 for p in "${pkgs[@]}"; do
