@@ -36,8 +36,8 @@ std::optional<double> Scaled(const std::optional<double>& v, double factor) {
   return *v * factor;
 }
 
-nlohmann::json OrNull(const std::optional<double>& v) {
-  return v ? nlohmann::json(*v) : nlohmann::json(nullptr);
+nlohmann::ordered_json OrNull(const std::optional<double>& v) {
+  return v ? nlohmann::ordered_json(*v) : nlohmann::ordered_json(nullptr);
 }
 
 std::string NoSegmentsNote(const EvalReport& r, float shortest_m) {
@@ -49,11 +49,11 @@ std::string NoSegmentsNote(const EvalReport& r, float shortest_m) {
   return buf;
 }
 
-nlohmann::json ToJson(const EvalReport& r, const std::string& gt, const std::string& est,
+nlohmann::ordered_json ToJson(const EvalReport& r, const std::string& gt, const std::string& est,
                       const locaid::kitti::eval::MatchedPoses& m, const std::string& align,
                       float shortest_m) {
   const DevkitResult& d = r.devkit;
-  nlohmann::json j;
+  nlohmann::ordered_json j;
   j["gt"] = gt;
   j["est"] = est;
   j["format"] = m.format == locaid::kitti::PoseFormat::kKitti ? "kitti" : "tum";
@@ -67,7 +67,7 @@ nlohmann::json ToJson(const EvalReport& r, const std::string& gt, const std::str
   j["t_rel_pct"] = OrNull(Scaled(d.t_err, kPercent));
   j["r_rel_deg_per_100m"] = OrNull(Scaled(d.r_err_rad_per_m, kRadPerMToDegPer100m));
   if (d.segments.empty()) j["note"] = NoSegmentsNote(r, shortest_m);
-  nlohmann::json per_length = nlohmann::json::array();
+  nlohmann::ordered_json per_length = nlohmann::ordered_json::array();
   for (const auto& l : d.per_length) {
     per_length.push_back({{"length_m", l.length_m},
                           {"segments", l.segments},
