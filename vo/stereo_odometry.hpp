@@ -50,10 +50,62 @@ class StereoOdometry {
   virtual void Reset() = 0;
 };
 
+// Configuration of the "default" method (KLT tracking against a keyframe,
+// stereo KLT depth, P3P RANSAC + Huber Gauss-Newton on both images).
+struct DefaultConfig {
+  // Detection / bucketing (left image split into grid_cols x grid_rows cells).
+  int grid_cols = 16, grid_rows = 5;
+  int max_features_per_cell = 6;     // tracked features kept per cell (oldest first)
+  int fast_threshold = 15;           // FAST intensity threshold (grey levels)
+  int min_feature_distance_px = 8;  // no new corner this close to a tracked one
+  // KLT.
+  int klt_window_px = 15;
+  int klt_levels = 3;                // pyramid levels above the base (temporal)
+  double stereo_max_dy_px = 1.0;     // rectified: |v_right - v_left| bound
+  double min_disparity_px = 1.0;     // farther points are kept as mono observations
+  double max_disparity_px = 200.0;
+  int stereo_search_half_patch = 3;  // SAD patch half size for the row search of new corners
+  double max_forward_backward_px = 1.0;  // temporal KLT forward-backward check
+  // Motion.
+  int ransac_iterations = 100;
+  double ransac_threshold_px = 2.0;
+  double huber_px = 1.0;             // Huber threshold of the Gauss-Newton refinement
+  double outlier_px = 3.0;           // residual beyond which a point is dropped
+  int min_inliers_ok = 40;           // fewer -> DEGRADED
+  int min_inliers_degraded = 12;     // fewer -> LOST (re-initialise)
+  // Keyframes / standstill: a new keyframe is taken when the median feature
+  // displacement since the keyframe exceeds keyframe_flow_px; below
+  // standstill_flow_px (and a motion not significant at 3 sigma) the motion
+  // against the keyframe is snapped to identity.
+  double keyframe_flow_px = 1.0;
+  double standstill_flow_px = 0.25;
+  double min_image_stddev = 3.0;     // below: black / saturated / flat image
+};
+
+// Configuration of the "thesis" baseline (reference/thesis-stereo-vo-kitti.md).
+struct ThesisConfig {
+  int grid_cell_px = 60;             // detection grid (thesis: 60x60 px)
+  int max_features_per_cell = 6;
+  int fast_threshold = 20;
+  double ratio = 0.8;                // Lowe ratio test, k = 2
+  double max_angle_deg = 30.0;       // angle filter on ORB keypoint orientations
+  int num_disparities = 128, block_size = 15;  // StereoBM depth map
+  double essential_threshold_px = 1.0;
+  int pnp_iterations = 100;
+  double pnp_threshold_px = 2.0;
+  int min_inliers_ok = 40, min_inliers_degraded = 12;
+  double standstill_flow_px = 0.3;   // guard (not in the thesis): no flow -> identity
+  double min_image_stddev = 3.0;
+};
+
 // Methods: "default" (locaid's design) and "thesis" (baseline). Throws
 // std::invalid_argument for an unknown name.
 std::unique_ptr<StereoOdometry> MakeStereoOdometry(const std::string& method,
                                                    const kitti::StereoCamera& camera);
+std::unique_ptr<StereoOdometry> MakeDefaultOdometry(const kitti::StereoCamera& camera,
+                                                    const DefaultConfig& config = {});
+std::unique_ptr<StereoOdometry> MakeThesisOdometry(const kitti::StereoCamera& camera,
+                                                   const ThesisConfig& config = {});
 std::vector<std::string> StereoOdometryMethods();
 
 }  // namespace locaid::vo

@@ -1,0 +1,103 @@
+// vo_bench: VO drift and speed on one drive with ground truth, for one or all
+// methods. Drift uses the devkit definition (kitti/eval/devkit.hpp: segments
+// starting every 10 frames, plain mean over all segments) with the segment
+// lengths given by --lengths (default 25 50 75 100 m for short drives), plus
+// the final position error as % of the ground-truth path length.
+//
+//   vo_bench --drive DIR [--method NAME|all] [--lengths 25 50 75 100] [--max-frames N]
+#include "kitti/dataset.hpp"
+#include "kitti/eval/devkit.hpp"
+#include "vo/drive_runner.hpp"
+#include "vo/stereo_odometry.hpp"
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+
+int main(int argc, char** argv) {
+  using namespace locaid;
+  CLI::App app{"VO drift and timing benchmark"};
+  std::string drive, method = "all";
+  std::vector<float> lengths = {25, 50, 75, 100};
+  size_t max_frames = 0;
+  app.add_option("--drive", drive, "drive folder with ground truth")->required();
+  app.add_option("--method", method, "default | thesis | all");
+  app.add_option("--lengths", lengths, "devkit segment lengths in metres");
+  app.add_option("--max-frames", max_frames, "at most N frames (0: all)");
+  CLI11_PARSE(app, argc, argv);
+  cv::setNumThreads(1);
+  try {
+    const auto dataset = kitti::OpenDataset(drive);
+    std::vector<std::string> methods = vo::StereoOdometryMethods();
+    if (method != "all") methods = {method};
+    nlohmann::json out = nlohmann::json::array();
+    for (const std::string& m : methods) {
+      vo::DriveRunConfig config;
+      config.method = m;
+      config.max_frames = max_frames;
+      const vo::DriveRun run = vo::RunOnDataset(*dataset, config);
+      // Frames with ground truth (raw drives: OXTS may start after frame 0);
+      // both trajectories re-anchored at the first of them.
+      const std::vector<Eigen::Isometry3d> all_est = vo::PosesPerFrame(run);
+      std::vector<Eigen::Isometry3d> gt, est;
+      for (size_t i = 0; i < all_est.size(); ++i) {
+        const auto g = dataset->ground_truth(i);
+        if (!g) {
+          if (!gt.empty()) break;  // keep one contiguous stretch
+          continue;
+        }
+        gt.push_back(*g);
+        est.push_back(all_est[i]);
+      }
+      if (gt.size() < 2) throw std::runtime_error("no ground truth in " + drive);
+      const Eigen::Isometry3d gt0_inv = gt.front().inverse(), est0_inv = est.front().inverse();
+      for (size_t i = 0; i < gt.size(); ++i) {
+        gt[i] = gt0_inv * gt[i];
+        est[i] = est0_inv * est[i];
+      }
+      kitti::eval::DevkitConfig dc;
+      dc.lengths_m = lengths;
+      const kitti::eval::DevkitResult r = kitti::eval::EvaluateDevkit(gt, est, dc);
+      double length = 0;
+      for (size_t i = 1; i < gt.size(); ++i)
+        length += (gt[i].translation() - gt[i - 1].translation()).norm();
+      const double final_err = (est.back().translation() - gt.back().translation()).norm();
+      const vo::TimingSummary s = vo::Summarize(run);
+      nlohmann::json j;
+      j["method"] = m;
+      j["drive"] = drive;
+      j["frames"] = s.frames;
+      j["evaluated_frames"] = gt.size();
+      j["missing_frames"] = s.missing_frames;
+      j["failed_frames"] = s.lost_frames;
+      j["degraded_frames"] = s.degraded_frames;
+      j["length_m"] = length;
+      j["segments"] = r.segments.size();
+      if (r.t_err) j["t_rel_pct"] = *r.t_err * 100;
+      if (r.r_err_rad_per_m) j["r_rel_deg_per_100m"] = *r.r_err_rad_per_m * 180 / M_PI * 100;
+      for (const auto& pl : r.per_length)
+        if (pl.t_err)
+          j["t_rel_pct_by_length"][std::to_string(static_cast<int>(pl.length_m))] = *pl.t_err * 100;
+      j["final_error_m"] = final_err;
+      j["final_error_pct"] = 100 * final_err / length;
+      j["ms_per_frame_median"] = s.ms_per_frame_median;
+      j["ms_per_frame_p95"] = s.ms_per_frame_p95;
+      j["cpu_ms_per_frame_median"] = s.cpu_ms_per_frame_median;
+      j["cpu_ms_per_frame_p95"] = s.cpu_ms_per_frame_p95;
+      j["stage_median_ms"] = s.stage_median_ms;
+      std::fprintf(stderr, "%s: t_rel %.3f %%, final %.3f %%, %.2f ms median (cpu %.2f)\n",
+                   m.c_str(), r.t_err ? *r.t_err * 100 : -1.0, 100 * final_err / length,
+                   s.ms_per_frame_median, s.cpu_ms_per_frame_median);
+      out.push_back(j);
+    }
+    std::cout << out.dump(2) << std::endl;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "vo_bench: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,219 @@
+// Both VO methods on synthetic scenes with known motion, degenerate inputs,
+// standstill, recovery, and (when the shared excerpt is present) real frames.
+#include "kitti/dataset.hpp"
+#include "tests/vo/synthetic_scene.hpp"
+#include "vo/stereo_geometry.hpp"
+#include "vo/stereo_odometry.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace locaid::vo {
+namespace {
+
+using testing::CorridorPose;
+using testing::CorridorScene;
+using testing::SyntheticCamera;
+
+// Named tolerances.
+constexpr double kStepTranslationTolM = 0.03;   // per-frame translation error (1 m steps)
+constexpr double kStepRotationTolRad = 0.002;   // per-frame rotation error
+constexpr double kChainTranslationTolFrac = 0.02;  // end error / distance after the run
+constexpr double kStandstillTolM = 1e-3;          // chained drift over a still sequence
+constexpr double kStandstillRotTolRad = 1e-4;
+constexpr double kIdentityishTolM = 0.05;         // duplicated frame: "no motion"
+
+double RotationAngle(const Eigen::Isometry3d& T) {
+  return Eigen::AngleAxisd(T.rotation()).angle();
+}
+
+bool Finite(const RelativeMotion& m) {
+  return m.T_prev_curr.matrix().allFinite() && m.covariance.allFinite();
+}
+
+// Renders frames of the corridor drive once and shares them across tests.
+class SyntheticDrive {
+ public:
+  static const SyntheticDrive& Get() {
+    static const SyntheticDrive drive(24);
+    return drive;
+  }
+  kitti::StereoCamera camera = SyntheticCamera();
+  std::vector<Eigen::Isometry3d> T_world_cam;
+  std::vector<StereoFrame> frames;
+
+ private:
+  explicit SyntheticDrive(int n) {
+    const CorridorScene scene;
+    for (int k = 0; k < n; ++k) {
+      T_world_cam.push_back(CorridorPose(k));
+      StereoFrame f;
+      f.t_ns = int64_t{100'000'000} * k;
+      f.left = scene.Render(camera, T_world_cam.back(), false);
+      f.right = scene.Render(camera, T_world_cam.back(), true);
+      frames.push_back(f);
+    }
+  }
+};
+
+class StereoOdometryTest : public ::testing::TestWithParam<std::string> {
+ protected:
+  std::unique_ptr<StereoOdometry> Make() {
+    return MakeStereoOdometry(GetParam(), SyntheticDrive::Get().camera);
+  }
+};
+
+TEST_P(StereoOdometryTest, RecoversKnownMotionOnSyntheticCorridor) {
+  const auto& drive = SyntheticDrive::Get();
+  auto vo = Make();
+  Eigen::Isometry3d T_world = Eigen::Isometry3d::Identity();
+  for (size_t k = 0; k < drive.frames.size(); ++k) {
+    const RelativeMotion m = vo->Track(drive.frames[k]);
+    ASSERT_TRUE(Finite(m)) << "frame " << k;
+    ASSERT_NE(m.status, Status::kLost) << "frame " << k;
+    if (k == 0) continue;
+    const Eigen::Isometry3d truth = drive.T_world_cam[k - 1].inverse() * drive.T_world_cam[k];
+    const Eigen::Isometry3d err = truth.inverse() * m.T_prev_curr;
+    EXPECT_LT(err.translation().norm(), kStepTranslationTolM) << "frame " << k;
+    EXPECT_LT(RotationAngle(err), kStepRotationTolRad) << "frame " << k;
+    EXPECT_GT(m.inliers, 20) << "frame " << k;
+    // Covariance: symmetric positive definite.
+    const Eigen::SelfAdjointEigenSolver<Matrix6d> eig(m.covariance);
+    EXPECT_GT(eig.eigenvalues().minCoeff(), 0.0) << "frame " << k;
+    T_world = T_world * m.T_prev_curr;
+  }
+  const double distance = drive.T_world_cam.back().translation().norm();
+  const double end_error = (T_world.translation() - drive.T_world_cam.back().translation()).norm();
+  EXPECT_LT(end_error / distance, kChainTranslationTolFrac);
+}
+
+TEST_P(StereoOdometryTest, StandstillDoesNotDrift) {
+  const auto& drive = SyntheticDrive::Get();
+  auto vo = Make();
+  Eigen::Isometry3d T_world = Eigen::Isometry3d::Identity();
+  for (int k = 0; k < 30; ++k) {
+    StereoFrame f = drive.frames[3];
+    f.t_ns = int64_t{100'000'000} * k;
+    const RelativeMotion m = vo->Track(f);
+    ASSERT_TRUE(Finite(m));
+    EXPECT_NE(m.status, Status::kLost) << "frame " << k;
+    T_world = T_world * m.T_prev_curr;
+  }
+  EXPECT_LT(T_world.translation().norm(), kStandstillTolM);
+  EXPECT_LT(RotationAngle(T_world), kStandstillRotTolRad);
+}
+
+TEST_P(StereoOdometryTest, DegenerateFramesNeverNaNAndTrackingRecovers) {
+  const auto& drive = SyntheticDrive::Get();
+  const auto& cam = drive.camera;
+  auto vo = Make();
+  int64_t t = 0;
+  const auto track = [&](cv::Mat left, cv::Mat right) {
+    StereoFrame f;
+    f.t_ns = t;
+    t += 100'000'000;
+    f.left = left;
+    f.right = right;
+    const RelativeMotion m = vo->Track(f);
+    EXPECT_TRUE(Finite(m));
+    return m;
+  };
+  const cv::Mat black = cv::Mat::zeros(cam.height, cam.width, CV_8UC1);
+  const cv::Mat white(cam.height, cam.width, CV_8UC1, cv::Scalar(255));
+  const cv::Mat wrong_size = cv::Mat::zeros(10, 10, CV_8UC1);
+
+  // Garbage before any good frame.
+  EXPECT_EQ(track(cv::Mat(), cv::Mat()).status, Status::kLost);
+  EXPECT_EQ(track(black, black).status, Status::kLost);
+  EXPECT_EQ(track(wrong_size, wrong_size).status, Status::kLost);
+
+  EXPECT_NE(track(drive.frames[0].left, drive.frames[0].right).status, Status::kLost);
+  // Duplicated frame: identity-ish, not lost.
+  RelativeMotion dup = track(drive.frames[0].left, drive.frames[0].right);
+  EXPECT_NE(dup.status, Status::kLost);
+  EXPECT_LT(dup.T_prev_curr.translation().norm(), kIdentityishTolM);
+
+  // Missing, black, saturated, left-only: LOST or DEGRADED, identity, finite.
+  for (const auto& [left, right] : std::vector<std::pair<cv::Mat, cv::Mat>>{
+           {cv::Mat(), cv::Mat()}, {black, black}, {white, white}, {drive.frames[1].left, cv::Mat()}}) {
+    const RelativeMotion m = track(left, right);
+    EXPECT_NE(m.status, Status::kOk);
+    EXPECT_TRUE(m.T_prev_curr.isApprox(Eigen::Isometry3d::Identity()));
+  }
+  // Good frames again: tracking resumes within two frames and is accurate.
+  int ok_after = -1;
+  for (int k = 1; k < 6; ++k) {
+    const RelativeMotion m = track(drive.frames[k].left, drive.frames[k].right);
+    if (m.status == Status::kOk && ok_after < 0) ok_after = k;
+    if (ok_after > 0 && k > ok_after) {
+      const Eigen::Isometry3d truth = drive.T_world_cam[k - 1].inverse() * drive.T_world_cam[k];
+      EXPECT_LT((truth.inverse() * m.T_prev_curr).translation().norm(), kStepTranslationTolM)
+          << "frame " << k;
+    }
+  }
+  EXPECT_GE(ok_after, 1);
+  EXPECT_LE(ok_after, 2);
+}
+
+TEST_P(StereoOdometryTest, MissingFrameIsBridgedByTheNextMotion) {
+  // Skipping a frame (the caller does not call Track) keeps the chain consistent:
+  // the next motion spans both intervals.
+  const auto& drive = SyntheticDrive::Get();
+  auto vo = Make();
+  Eigen::Isometry3d T_world = Eigen::Isometry3d::Identity();
+  for (int k : {0, 1, 2, 4, 5, 6}) {
+    const RelativeMotion m = vo->Track(drive.frames[static_cast<size_t>(k)]);
+    ASSERT_TRUE(Finite(m));
+    EXPECT_NE(m.status, Status::kLost) << "frame " << k;
+    T_world = T_world * m.T_prev_curr;
+  }
+  const Eigen::Isometry3d err = drive.T_world_cam[6].inverse() * T_world;
+  EXPECT_LT(err.translation().norm(), 3 * kStepTranslationTolM);
+}
+
+INSTANTIATE_TEST_SUITE_P(Methods, StereoOdometryTest,
+                         ::testing::ValuesIn(StereoOdometryMethods()),
+                         [](const auto& info) { return info.param; });
+
+TEST(StereoOdometryFactory, RejectsUnknownMethodAndBadCamera) {
+  EXPECT_THROW(MakeStereoOdometry("nope", SyntheticCamera()), std::invalid_argument);
+  EXPECT_THROW(MakeStereoOdometry("default", kitti::StereoCamera{}), std::invalid_argument);
+  EXPECT_THROW(MakeStereoOdometry("thesis", kitti::StereoCamera{}), std::invalid_argument);
+}
+
+// Real frames (shared excerpt): the travelled distance over the first frames
+// agrees with the OXTS ground truth.
+TEST(StereoOdometryReal, DistanceMatchesGroundTruthOnRealExcerpt) {
+  const std::filesystem::path drive_dir = std::filesystem::path(LOCAID_SHARED_DATA) /
+                                          "raw/2011_09_26/2011_09_26_drive_unknown_extract";
+  if (!std::filesystem::exists(drive_dir)) GTEST_SKIP() << "shared data absent: " << drive_dir;
+  constexpr size_t kFrames = 20;           // before the missing frames 22/23
+  constexpr double kDistanceTolFrac = 0.05;
+  const auto dataset = kitti::OpenDataset(drive_dir);
+  for (const std::string& method : StereoOdometryMethods()) {
+    auto vo = MakeStereoOdometry(method, dataset->camera());
+    Eigen::Isometry3d T_world = Eigen::Isometry3d::Identity();
+    for (size_t i = 0; i < kFrames; ++i) {
+      const kitti::StereoImages im = dataset->Load(i);
+      const RelativeMotion m = vo->Track({dataset->time_ns(i), im.left, im.right});
+      ASSERT_TRUE(Finite(m));
+      EXPECT_EQ(m.status, Status::kOk) << method << " frame " << i;
+      T_world = T_world * m.T_prev_curr;
+    }
+    const auto gt0 = dataset->ground_truth(0), gtn = dataset->ground_truth(kFrames - 1);
+    ASSERT_TRUE(gt0 && gtn);
+    const double gt_dist = (gt0->inverse() * *gtn).translation().norm();
+    ASSERT_GT(gt_dist, 5.0);
+    EXPECT_NEAR(T_world.translation().norm() / gt_dist, 1.0, kDistanceTolFrac) << method;
+  }
+}
+
+}  // namespace
+}  // namespace locaid::vo

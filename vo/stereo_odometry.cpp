@@ -1,0 +1,79 @@
+#include "vo/stereo_odometry.hpp"
+
+#include "vo/odometry_common.hpp"
+#include "vo/stereo_geometry.hpp"
+
+#include <opencv2/imgproc.hpp>
+
+#include <cmath>
+#include <stdexcept>
+
+namespace locaid::vo {
+
+const char* ToString(Status status) {
+  switch (status) {
+    case Status::kOk: return "OK";
+    case Status::kDegraded: return "DEGRADED";
+    case Status::kLost: return "LOST";
+  }
+  return "UNKNOWN";
+}
+
+std::string ImageProblem(const cv::Mat& image, const kitti::StereoCamera& camera,
+                         double min_stddev) {
+  if (image.empty()) return "image missing";
+  if (image.depth() != CV_8U || (image.channels() != 1 && image.channels() != 3))
+    return "image type " + std::to_string(image.type()) + ", expected CV_8UC1";
+  if (image.cols != camera.width || image.rows != camera.height)
+    return "image " + std::to_string(image.cols) + "x" + std::to_string(image.rows) +
+           ", camera is " + std::to_string(camera.width) + "x" + std::to_string(camera.height);
+  // Sparse sample: every 8th pixel of every 8th row.
+  double sum = 0, sum_sq = 0;
+  int n = 0;
+  const int step = 8;
+  for (int y = 0; y < image.rows; y += step) {
+    const uchar* row = image.ptr<uchar>(y);
+    for (int x = 0; x < image.cols; x += step) {
+      const double v = row[x * image.channels()];
+      sum += v;
+      sum_sq += v * v;
+      ++n;
+    }
+  }
+  const double mean = sum / n;
+  const double stddev = std::sqrt(std::max(0.0, sum_sq / n - mean * mean));
+  if (stddev < min_stddev) return "no texture (intensity stddev " + std::to_string(stddev) + ")";
+  return {};
+}
+
+cv::Mat ToGrey(const cv::Mat& image) {
+  if (image.channels() == 1) return image;
+  cv::Mat grey;
+  cv::cvtColor(image, grey, cv::COLOR_BGR2GRAY);
+  return grey;
+}
+
+RelativeMotion NoMotion(int64_t t_ns, Status status) {
+  RelativeMotion m;
+  m.t_ns = t_ns;
+  m.status = status;
+  m.covariance = LargeCovariance();
+  return m;
+}
+
+double SumTimings(const StageTimings& timings) {
+  double total = 0;
+  for (const auto& [name, ms] : timings) total += ms;
+  return total;
+}
+
+std::unique_ptr<StereoOdometry> MakeStereoOdometry(const std::string& method,
+                                                   const kitti::StereoCamera& camera) {
+  if (method == "default") return MakeDefaultOdometry(camera);
+  if (method == "thesis") return MakeThesisOdometry(camera);
+  throw std::invalid_argument("unknown VO method '" + method + "' (known: default, thesis)");
+}
+
+std::vector<std::string> StereoOdometryMethods() { return {"default", "thesis"}; }
+
+}  // namespace locaid::vo
