@@ -1,8 +1,9 @@
 #include "kitti/calib.hpp"
 
+#include "kitti/parse_number.hpp"
+
 #include <Eigen/SVD>
 
-#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -70,17 +71,9 @@ class KeyValues {
     std::string tok;
     while (ss >> tok) {
       double v = 0;
-      const char* first = tok.data();
-      const char* last = tok.data() + tok.size();
-      if (first != last && *first == '+') ++first;
-      const auto [ptr, ec] = std::from_chars(first, last, v);
-      if (ec != std::errc() || ptr != last) {
-        throw Error(at + "value " + std::to_string(out.size() + 1) + " is not a number: '" +
-                    tok + "'");
-      }
-      if (!std::isfinite(v)) {
-        throw Error(at + "value " + std::to_string(out.size() + 1) + " is not finite: '" + tok +
-                    "'");
+      std::string why;
+      if (!ParseFiniteDouble(tok, v, why)) {
+        throw Error(at + "value " + std::to_string(out.size() + 1) + " " + why + ": '" + tok + "'");
       }
       out.push_back(v);
     }
@@ -204,10 +197,11 @@ CamToCamCalib ParseCamToCam(std::string_view text, const std::string& where) {
     cam.P_rect = kv.Matrix<3, 4>("P_rect_" + s);
     kv.CheckRotation(cam.R_rect, "R_rect_" + s);
     for (const auto& [key, size] : {std::pair{"S_", cam.S}, std::pair{"S_rect_", cam.S_rect}}) {
-      if (size(0) < 1 || size(1) < 1 || size(0) != std::floor(size(0)) ||
-          size(1) != std::floor(size(1))) {
+      constexpr double kMaxSidePx = 100000;
+      if (size(0) < 1 || size(1) < 1 || size(0) > kMaxSidePx || size(1) > kMaxSidePx ||
+          size(0) != std::floor(size(0)) || size(1) != std::floor(size(1))) {
         throw Error(where + ": key '" + std::string(key) + s +
-                    "': image size must be two positive integers");
+                    "': image size must be two integers in [1, 100000]");
       }
     }
   }

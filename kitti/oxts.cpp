@@ -1,6 +1,7 @@
 #include "kitti/oxts.hpp"
 
-#include <charconv>
+#include "kitti/parse_number.hpp"
+
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -58,20 +59,10 @@ OxtsRecord ParseOxtsLine(std::string_view line, const std::string& where) {
   }
   std::array<double, kOxtsFieldCount> v{};
   for (int i = 0; i < kOxtsFieldCount; ++i) {
-    const std::string_view tok = tokens[i];
-    const char* first = tok.data();
-    const char* last = tok.data() + tok.size();
-    if (first != last && *first == '+') ++first;  // from_chars rejects a leading '+'
-    const auto [ptr, ec] = std::from_chars(first, last, v[i]);
-    if (ec == std::errc::result_out_of_range) {
-      throw Error(where + ": " + FieldLabel(i) + " is out of the double range: '" +
-                  std::string(tok) + "'");
+    std::string why;
+    if (!ParseFiniteDouble(tokens[i], v[i], why)) {
+      throw Error(where + ": " + FieldLabel(i) + " " + why + ": '" + std::string(tokens[i]) + "'");
     }
-    if (ec != std::errc() || ptr != last) {
-      throw Error(where + ": " + FieldLabel(i) + " is not a number: '" + std::string(tok) + "'");
-    }
-    if (std::isnan(v[i])) throw Error(where + ": " + FieldLabel(i) + " is NaN");
-    if (std::isinf(v[i])) throw Error(where + ": " + FieldLabel(i) + " is infinite");
   }
   if (v[0] < -90.0 || v[0] > 90.0) {
     throw Error(where + ": " + FieldLabel(0) + " = " + std::string(tokens[0]) +

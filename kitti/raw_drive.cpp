@@ -31,8 +31,9 @@ bool IsFile(const fs::path& p) {
 
 // Index from a KITTI data file name ("0000000017.txt" -> 17); -1 if not all digits.
 long ParseIndex(const fs::path& p) {
-  const std::string stem = p.stem().string();
-  if (stem.empty() || stem.size() > 10) return -1;
+  std::string stem = p.stem().string();
+  if (stem.size() == 10 && stem[0] == '0') stem.erase(0, 1);
+  if (stem.empty() || stem.size() > 9) return -1;  // KITTI uses 10 digits, values < 1e9
   long v = 0;
   for (char c : stem) {
     if (c < '0' || c > '9') return -1;

@@ -1,8 +1,8 @@
 #include "kitti/timestamps.hpp"
 
+#include "kitti/parse_number.hpp"
 #include "kitti/types.hpp"
 
-#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -163,14 +163,13 @@ std::vector<double> ReadOdometryTimes(const std::filesystem::path& path) {
                   ": blank line inside a times file (line k must be frame k)");
     }
     double v = 0;
-    const char* first = tok.data();
-    const char* last = tok.data() + tok.size();
-    if (*first == '+') ++first;
-    const auto [ptr, ec] = std::from_chars(first, last, v);
-    if (ec != std::errc() || ptr != last)
-      throw Error(at + "time is not a number: '" + std::string(tok) + "'");
-    if (!std::isfinite(v)) throw Error(at + "time is not finite: '" + std::string(tok) + "'");
+    std::string why;
+    if (!ParseFiniteDouble(tok, v, why)) {
+      throw Error(at + "time " + why + ": '" + std::string(tok) + "'");
+    }
     if (v < 0) throw Error(at + "negative time " + std::string(tok));
+    constexpr double kMaxTimeS = 1e9;  // keeps llround(t * 1e9) inside int64
+    if (v > kMaxTimeS) throw Error(at + "time " + std::string(tok) + " s exceeds 1e9 s");
     if (!out.empty() && v < out.back())
       throw Error(at + "time " + std::string(tok) + " s goes back (previous line " +
                   std::to_string(out.back()) + " s)");

@@ -76,11 +76,11 @@ TEST(IoCalib, RigidErrorsNameFileKeyAndReason) {
   s = kVeloToCam;
   s.replace(s.find("-7.631618e-02"), 13, "nan");
   EXPECT_EQ(ErrorOf([&] { ParseRigidCalib(s, "v.txt"); }),
-            "v.txt:3: key 'T': value 2 is not finite: 'nan'");
+            "v.txt:3: key 'T': value 2 is NaN: 'nan'");
   s = kVeloToCam;
   s.replace(s.find("-7.631618e-02"), 13, "inf");
   EXPECT_EQ(ErrorOf([&] { ParseRigidCalib(s, "v.txt"); }),
-            "v.txt:3: key 'T': value 2 is not finite: 'inf'");
+            "v.txt:3: key 'T': value 2 is infinite: 'inf'");
   s = kVeloToCam;
   s.erase(s.find("T:"), s.find("delta_f") - s.find("T:"));
   EXPECT_EQ(ErrorOf([&] { ParseRigidCalib(s, "v.txt"); }), "v.txt: missing key 'T'");

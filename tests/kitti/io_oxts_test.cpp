@@ -65,10 +65,15 @@ TEST(IoOxts, RejectsWrongFieldCount) {
 TEST(IoOxts, RejectsNonNumbersNamingTheField) {
   EXPECT_EQ(ErrorOf(WithField(6, "abc")), "f.txt:1: field 7 (vn) is not a number: 'abc'");
   EXPECT_EQ(ErrorOf(WithField(2, "1.5x")), "f.txt:1: field 3 (alt) is not a number: '1.5x'");
-  EXPECT_EQ(ErrorOf(WithField(12, "nan")), "f.txt:1: field 13 (ay) is NaN");
-  EXPECT_EQ(ErrorOf(WithField(17, "-inf")), "f.txt:1: field 18 (wx) is infinite");
-  EXPECT_EQ(ErrorOf(WithField(3, "1e999")),
-            "f.txt:1: field 4 (roll) is out of the double range: '1e999'");
+  EXPECT_EQ(ErrorOf(WithField(12, "nan")), "f.txt:1: field 13 (ay) is NaN: 'nan'");
+  EXPECT_EQ(ErrorOf(WithField(17, "-inf")), "f.txt:1: field 18 (wx) is infinite: '-inf'");
+  EXPECT_EQ(ErrorOf(WithField(3, "1e999")), "f.txt:1: field 4 (roll) overflows a double: '1e999'");
+  EXPECT_EQ(ErrorOf(WithField(4, "--1")), "f.txt:1: field 5 (pitch) is not a number: '--1'");
+  EXPECT_EQ(ErrorOf(WithField(4, "+-1")), "f.txt:1: field 5 (pitch) is not a number: '+-1'");
+  EXPECT_EQ(ErrorOf(WithField(4, "0x10")), "f.txt:1: field 5 (pitch) is not a number: '0x10'");
+  // Underflow is a number (reads as 0 or a subnormal), not an error.
+  EXPECT_EQ(ParseOxtsLine(WithField(3, "1e-400"), "x").roll_rad, 0.0);
+  EXPECT_EQ(ParseOxtsLine(WithField(3, "+2.5"), "x").roll_rad, 2.5);
 }
 
 TEST(IoOxts, RejectsOutOfRangeLatLon) {

@@ -101,8 +101,9 @@ TEST(IoTimestamps, OdometryTimes) {
   };
   const std::string p = (dir / "t.txt").string();
   EXPECT_EQ(err("0.0\nabc\n"), p + ":2: time is not a number: 'abc'");
-  EXPECT_EQ(err("0.0\nnan\n"), p + ":2: time is not finite: 'nan'");
-  EXPECT_EQ(err("0.0\ninf\n"), p + ":2: time is not finite: 'inf'");
+  EXPECT_EQ(err("0.0\nnan\n"), p + ":2: time is NaN: 'nan'");
+  EXPECT_EQ(err("0.0\ninf\n"), p + ":2: time is infinite: 'inf'");
+  EXPECT_EQ(err("0.0\n2e9\n"), p + ":2: time 2e9 s exceeds 1e9 s");
   EXPECT_EQ(err("-1\n"), p + ":1: negative time -1");
   EXPECT_NE(err("0.2\n0.1\n").find(":2: time 0.1 s goes back"), std::string::npos);
 }
