@@ -72,6 +72,9 @@ class Ekf {
   const NominalState& state() const { return x_; }
   const Eigen::MatrixXd& covariance() const { return P_; }
   double last_gps_nis() const { return last_nis_; }
+  double last_vo_nis() const { return last_vo_nis_; }
+  int vo_rejected() const { return vo_rejected_; }
+  double gps_period_s() const { return gps_period_s_; }
   double gps_gate() const { return gate_; }
   int gps_used() const { return gps_used_; }
   int gps_rejected() const { return gps_rejected_; }
@@ -101,9 +104,11 @@ class Ekf {
   Eigen::Isometry3d T_start_body_ = Eigen::Isometry3d::Identity();
   int64_t init_t_ns_ = 0;
   std::deque<Vec3> init_accel_;
+  Vec3 init_gravity_start_ = Vec3::Zero();
   // Bookkeeping.
   double gate_ = 0;
-  double last_nis_ = 0;
+  double last_nis_ = 0, last_vo_nis_ = 0;
+  int vo_rejected_ = 0;
   int gps_used_ = 0, gps_rejected_ = 0, consecutive_rejections_ = 0;
   std::optional<int64_t> last_gps_accepted_ns_, last_gps_rejected_ns_, last_gps_received_ns_;
   double gps_period_s_ = 1.0;

@@ -84,8 +84,8 @@ VoMeasurement CameraMotionToBody(const Eigen::Isometry3d& T_prev_curr_cam,
                                  const Mat6& covariance_cam,
                                  const Eigen::Isometry3d& T_cam_body);
 
-// chi-square quantile with `dof` degrees of freedom at probability p
-// (Wilson-Hilferty approximation, accurate to <1% for p in [0.9, 0.9999]).
+// chi-square CDF (closed form for integer dof) and its quantile (bisection).
+double ChiSquareCdf(double x, int dof);
 double ChiSquareQuantile(double p, int dof);
 
 }  // namespace locaid::fusion

@@ -19,6 +19,9 @@ namespace locaid::fusion {
 struct OutageWindow {
   double start_s = 0;
   double duration_s = 0;
+  // Place the window in the middle of the drive when its length is known
+  // (PlaceOutagesForDrive); start_s is used until then (live sessions).
+  bool centered = false;
 };
 
 enum class ImuGrade {
@@ -84,6 +87,8 @@ class GpsScenario {
 
   const Scenario& scenario() const { return scenario_; }
   std::optional<int64_t> drive_start_ns() const { return drive_start_ns_; }
+  // Sets the drive start explicitly (else: the first Apply).
+  void SetDriveStart(int64_t t_ns) { drive_start_ns_ = t_ns; last_bias_ns_ = t_ns; }
 
  private:
   Scenario scenario_;
@@ -95,6 +100,7 @@ class GpsScenario {
   Eigen::Vector2d jump_en_m_ = Eigen::Vector2d::Zero();
   int64_t jump_end_ns_ = 0;
   bool jump_active_ = false;
+  bool bias_initialized_ = false;
   std::vector<std::pair<int64_t, int64_t>> runtime_outages_;
   bool forced_outage_ = false;
 };

@@ -38,7 +38,8 @@ struct LocalizerOptions {
 struct GpsFeed {
   fusion::GpsFix fix;
   Eigen::Vector3d p_enu_m = Eigen::Vector3d::Zero();  // fix in the filter's ENU (valid once has_origin)
-  bool accepted = false;
+  bool accepted = false;   // used by the filter
+  bool rejected = false;   // refused by the chi-square gate (false while buffered for init)
 };
 
 struct FrameResult {

@@ -1,0 +1,376 @@
+#include "fusion/ekf.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace locaid::fusion {
+namespace {
+
+constexpr double kNsPerS = 1e9;
+constexpr int kP = 0, kV = 3, kTh = 6, kBa = 9, kBg = 12, kPc = 15, kThc = 18;  // IMU layout
+constexpr double kMaxImuStepS = 0.01;
+
+double Seconds(int64_t a_ns, int64_t b_ns) { return static_cast<double>(a_ns - b_ns) / kNsPerS; }
+
+void Symmetrize(Eigen::MatrixXd& P) { P = 0.5 * (P + P.transpose()).eval(); }
+
+}  // namespace
+
+Ekf::Ekf(EkfConfig config) : config_(config) {
+  gate_ = ChiSquareQuantile(config_.gps_gate_probability, 3);
+}
+
+// ------------------------------------------------------------------ IMU
+
+void Ekf::PropagateImu(const ImuSample& sample) {
+  if (!config_.use_imu) return;
+  if (!initialized_) {
+    init_accel_.push_back(sample.accel_mps2);
+    last_imu_ = sample;
+    return;
+  }
+  if (sample.t_ns > t_ns_ && last_imu_) {
+    // Interval [t_ns_, sample.t_ns]: mean of the two samples bounding it.
+    ImuSample mid = *last_imu_;
+    mid.accel_mps2 = 0.5 * (last_imu_->accel_mps2 + sample.accel_mps2);
+    mid.gyro_radps = 0.5 * (last_imu_->gyro_radps + sample.gyro_radps);
+    last_imu_ = mid;
+    PropagateTo(sample.t_ns);
+  }
+  last_imu_ = sample;
+}
+
+void Ekf::PropagateTo(int64_t t_ns) {
+  if (!config_.use_imu || !initialized_ || t_ns <= t_ns_) return;
+  const double total = Seconds(t_ns, t_ns_);
+  const Vec3 f = last_imu_ ? last_imu_->accel_mps2 : Vec3(0, 0, config_.gravity_mps2);
+  const Vec3 w = last_imu_ ? last_imu_->gyro_radps : Vec3::Zero();
+  const Vec3 g(0, 0, -config_.gravity_mps2);
+  // Long gaps: the held sample is stale; inflate the noise accordingly.
+  const double gap_scale = total > config_.max_imu_gap_s ? total / config_.max_imu_gap_s : 1.0;
+  const int steps = std::max(1, static_cast<int>(std::ceil(total / kMaxImuStepS)));
+  const double dt = total / steps;
+  for (int i = 0; i < steps; ++i) {
+    const Mat15 F = ImuTransitionJacobian(x_, f, w, dt);
+    const Mat15 Q = ImuProcessNoise(x_, dt, config_.accel_noise_mps2_sqrt_hz * gap_scale,
+                                    config_.gyro_noise_radps_sqrt_hz * gap_scale,
+                                    config_.accel_bias_walk_mps3_sqrt_hz,
+                                    config_.gyro_bias_walk_radps2_sqrt_hz);
+    x_ = fusion::PropagateImu(x_, f, w, dt, g);
+    const Eigen::MatrixXd P15 = P_.topLeftCorner<15, 15>();
+    P_.topLeftCorner<15, 15>() = F * P15 * F.transpose() + Q;
+    P_.topRightCorner<15, 6>() = F * P_.topRightCorner<15, 6>();
+    P_.bottomLeftCorner<6, 15>() = P_.topRightCorner<15, 6>().transpose();
+  }
+  Symmetrize(P_);
+  t_ns_ = t_ns;
+}
+
+// ------------------------------------------------------------------ GPS
+
+Vec3 Ekf::GpsEnu(const GpsFix& fix) {
+  if (!enu_.has_origin()) enu_.SetOrigin(fix.lat_deg, fix.lon_deg, fix.alt_m);
+  return enu_.ToEnu(fix.lat_deg, fix.lon_deg, fix.alt_m);
+}
+
+bool Ekf::UpdateGps(const GpsFix& fix) {
+  const Vec3 z = GpsEnu(fix);
+  if (last_gps_received_ns_) {
+    const double interval = Seconds(fix.t_ns, *last_gps_received_ns_);
+    if (interval > 0) {
+      if (gps_used_ + gps_rejected_ <= 1) gps_period_s_ = interval;
+      else if (interval < 3 * gps_period_s_) gps_period_s_ = 0.8 * gps_period_s_ + 0.2 * interval;
+    }
+  }
+  last_gps_received_ns_ = fix.t_ns;
+  if (!initialized_) {
+    init_fixes_.push_back({fix.t_ns, z, fix.sigma_h_m, Eigen::Isometry3d::Identity()});
+    init_fixes_.back().T_start_body.matrix()(0, 0) = std::numeric_limits<double>::quiet_NaN();
+    return false;
+  }
+  PropagateTo(fix.t_ns);
+  const int n = static_cast<int>(P_.rows());
+  Vec3 predicted = x_.p_enu_m;
+  Mat3 R = Mat3::Zero();
+  R.diagonal() << fix.sigma_h_m * fix.sigma_h_m, fix.sigma_h_m * fix.sigma_h_m,
+      fix.sigma_v_m * fix.sigma_v_m;
+  if (!config_.use_imu) {
+    // State lives at the last frame: extrapolate with the VO velocity.
+    const double dt = Seconds(fix.t_ns, t_ns_);
+    predicted += x_.v_enu_mps * dt;
+    R.diagonal().array() += std::pow(0.3 * dt, 2);
+  }
+  const Vec3 y = z - predicted;
+  const Eigen::MatrixXd H = GpsJacobian(n);
+  Mat3 S = P_.topLeftCorner<3, 3>() + R;
+  last_nis_ = y.dot(S.ldlt().solve(y));
+  if (!std::isfinite(last_nis_) || last_nis_ > gate_) {
+    ++consecutive_rejections_;
+    if (consecutive_rejections_ <= config_.gps_max_consecutive_rejections ||
+        !std::isfinite(last_nis_)) {
+      ++gps_rejected_;
+      last_gps_rejected_ns_ = fix.t_ns;
+      return false;
+    }
+    // Many rejections in a row: the filter, not the GPS, is wrong. Inflate.
+    P_.topLeftCorner<3, 3>() += y * y.transpose() + R;
+    S = P_.topLeftCorner<3, 3>() + R;
+  }
+  consecutive_rejections_ = 0;
+  const Eigen::MatrixXd PHt = P_.leftCols<3>();
+  const Eigen::MatrixXd K = PHt * S.inverse();
+  const Eigen::VectorXd dx = K * y;
+  const Eigen::MatrixXd IKH = Eigen::MatrixXd::Identity(n, n) - K * H;
+  P_ = IKH * P_ * IKH.transpose() + K * R * K.transpose();
+  Symmetrize(P_);
+  Correct(dx);
+  ++gps_used_;
+  last_gps_accepted_ns_ = fix.t_ns;
+  return true;
+}
+
+// ------------------------------------------------------------------ VO
+
+void Ekf::ProcessVo(const VoMeasurement& m, bool vo_ok) {
+  const double dt = std::max(1e-3, Seconds(m.t_ns, m.t_prev_ns));
+  Eigen::Isometry3d motion = m.T_prev_curr;
+  if (!vo_ok) {
+    // Coast at the last VO velocity.
+    motion = Eigen::Isometry3d::Identity();
+    motion.translation() = last_vo_velocity_body_mps_ * dt;
+  } else {
+    last_vo_velocity_body_mps_ = motion.translation() / dt;
+  }
+  Mat6 Rvo = m.covariance * config_.vo_cov_scale;
+  for (int i = 0; i < 3; ++i) {
+    Rvo(i, i) = std::max(Rvo(i, i), std::pow(config_.vo_min_sigma_t_m, 2));
+    Rvo(i + 3, i + 3) = std::max(Rvo(i + 3, i + 3), std::pow(config_.vo_min_sigma_rot_rad, 2));
+  }
+
+  if (!initialized_) {
+    // Attach the buffered fixes of (t_prev, t] to the VO chain (interpolated).
+    const Eigen::Isometry3d T_prev = T_start_body_;
+    T_start_body_ = T_start_body_ * motion;
+    for (auto& f : init_fixes_) {
+      if (!std::isnan(f.T_start_body.matrix()(0, 0))) continue;
+      const double a = std::clamp(Seconds(f.t_ns, m.t_prev_ns) / dt, 0.0, 1.0);
+      f.T_start_body = T_start_body_;
+      f.T_start_body.translation() = (1 - a) * T_prev.translation() + a * T_start_body_.translation();
+    }
+    // Gravity direction in the start frame from the accelerometer.
+    if (!init_accel_.empty()) {
+      Vec3 mean = Vec3::Zero();
+      for (const auto& a : init_accel_) mean += a;
+      mean /= static_cast<double>(init_accel_.size());
+      init_gravity_start_ += T_start_body_.linear() * mean;
+      init_accel_.clear();
+    }
+    t_ns_ = m.t_ns;
+    TryInitialize(m.t_ns);
+    return;
+  }
+
+  if (!config_.use_imu) {
+    Mat6 F = OdometryTransitionJacobian(x_.R_enu_body, motion);
+    Mat6 G = OdometryNoiseJacobian(x_.R_enu_body, motion);
+    if (!vo_ok) {
+      Rvo.setZero();
+      Rvo.topLeftCorner<3, 3>().diagonal().setConstant(std::pow(config_.no_imu_lost_sigma_mps * dt, 2));
+      Rvo.bottomRightCorner<3, 3>().diagonal().setConstant(std::pow(0.05 * dt, 2));
+    }
+    OdometryPropagate(x_.p_enu_m, x_.R_enu_body, motion);
+    P_ = F * P_ * F.transpose() + G * Rvo * G.transpose();
+    Symmetrize(P_);
+    x_.v_enu_mps = x_.R_enu_body * last_vo_velocity_body_mps_;
+    t_ns_ = m.t_ns;
+    return;
+  }
+
+  PropagateTo(m.t_ns);
+  if (vo_ok) {
+    const Vec6 r = VoResidual(x_.p_enu_m, x_.R_enu_body, p_clone_, R_clone_, motion);
+    const MatVoH Hs = VoJacobian(x_.p_enu_m, x_.R_enu_body, p_clone_, R_clone_, motion);
+    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(6, P_.rows());
+    H.middleCols<3>(kP) = Hs.middleCols<3>(0);
+    H.middleCols<3>(kTh) = Hs.middleCols<3>(3);
+    H.middleCols<3>(kPc) = Hs.middleCols<3>(6);
+    H.middleCols<3>(kThc) = Hs.middleCols<3>(9);
+    const Mat6 S = H * P_ * H.transpose() + Rvo;
+    const double nis = r.dot(S.ldlt().solve(r));
+    last_vo_nis_ = nis;
+    if (std::isfinite(nis) && nis < ChiSquareQuantile(config_.vo_gate_probability, 6)) {
+      const Eigen::MatrixXd K = P_ * H.transpose() * S.inverse();
+      const int n = static_cast<int>(P_.rows());
+      const Eigen::MatrixXd IKH = Eigen::MatrixXd::Identity(n, n) - K * H;
+      P_ = IKH * P_ * IKH.transpose() + K * Rvo * K.transpose();
+      Symmetrize(P_);
+      Correct(K * r);
+    } else {
+      ++vo_rejected_;
+    }
+  }
+  Clone();
+}
+
+void Ekf::Clone() {
+  p_clone_ = x_.p_enu_m;
+  R_clone_ = x_.R_enu_body;
+  const int n = static_cast<int>(P_.rows());
+  Eigen::MatrixXd J = Eigen::MatrixXd::Identity(n, n);
+  J.block<3, 3>(kPc, kPc).setZero();
+  J.block<3, 3>(kThc, kThc).setZero();
+  J.block<3, 3>(kPc, kP).setIdentity();
+  J.block<3, 3>(kThc, kTh).setIdentity();
+  P_ = J * P_ * J.transpose();
+  Symmetrize(P_);
+}
+
+void Ekf::Correct(const Eigen::VectorXd& dx) {
+  if (!dx.allFinite()) return;
+  if (config_.use_imu) {
+    x_ = BoxPlus(x_, dx.head<15>());
+    p_clone_ += dx.segment<3>(kPc);
+    R_clone_ = ExpSO3(dx.segment<3>(kThc)) * R_clone_;
+  } else {
+    x_.p_enu_m += dx.head<3>();
+    x_.R_enu_body = ExpSO3(dx.segment<3>(3)) * x_.R_enu_body;
+  }
+}
+
+// ------------------------------------------------------------------ init
+
+void Ekf::TryInitialize(int64_t t_ns) {
+  // Fixes already attached to the VO chain.
+  std::vector<const InitFix*> fixes;
+  for (const auto& f : init_fixes_)
+    if (!std::isnan(f.T_start_body.matrix()(0, 0))) fixes.push_back(&f);
+  if (static_cast<int>(fixes.size()) < std::max(2, config_.init_min_fixes)) return;
+  const double sigma_h = fixes.back()->sigma_h;
+  const double min_baseline = std::max(config_.init_min_baseline_m, 5.0 * sigma_h);
+  double gps_span = 0, vo_span = 0;
+  for (const auto* f : fixes) {
+    gps_span = std::max(gps_span, (f->p_enu.head<2>() - fixes.front()->p_enu.head<2>()).norm());
+    vo_span = std::max(vo_span, (f->T_start_body.translation() -
+                                 fixes.front()->T_start_body.translation()).norm());
+  }
+  if (gps_span < min_baseline || vo_span < 0.5 * min_baseline) return;
+
+  // Roll / pitch of the start frame from gravity (IMU), else level.
+  Mat3 R_level_start = Mat3::Identity();
+  if (config_.use_imu && init_gravity_start_.norm() > 1e-6) {
+    const Vec3 up = init_gravity_start_.normalized();  // "up" in start axes
+    R_level_start = Eigen::Quaterniond::FromTwoVectors(up, Vec3::UnitZ()).toRotationMatrix();
+  }
+  // 2D Procrustes: p_i ~= Rz(psi) q_i + t, robust (drop > 3 sigma, twice).
+  std::vector<char> use(fixes.size(), 1);
+  double psi = 0;
+  Eigen::Vector2d p_mean, q_mean;
+  double z_off = 0, spread2 = 0;
+  int used = 0;
+  for (int iter = 0; iter < 3; ++iter) {
+    p_mean.setZero(); q_mean.setZero(); z_off = 0; used = 0;
+    for (size_t i = 0; i < fixes.size(); ++i) {
+      if (!use[i]) continue;
+      const Vec3 q = R_level_start * fixes[i]->T_start_body.translation();
+      p_mean += fixes[i]->p_enu.head<2>(); q_mean += q.head<2>();
+      z_off += fixes[i]->p_enu.z() - q.z();
+      ++used;
+    }
+    if (used < 2) return;
+    p_mean /= used; q_mean /= used; z_off /= used;
+    double sxx = 0, sxy = 0;
+    spread2 = 0;
+    for (size_t i = 0; i < fixes.size(); ++i) {
+      if (!use[i]) continue;
+      const Eigen::Vector2d q = (R_level_start * fixes[i]->T_start_body.translation()).head<2>() - q_mean;
+      const Eigen::Vector2d p = fixes[i]->p_enu.head<2>() - p_mean;
+      sxx += q.dot(p);
+      sxy += q.x() * p.y() - q.y() * p.x();
+      spread2 += q.squaredNorm();
+    }
+    psi = std::atan2(sxy, sxx);
+    const Eigen::Rotation2Dd Rz(psi);
+    bool changed = false;
+    for (size_t i = 0; i < fixes.size(); ++i) {
+      const Eigen::Vector2d q = (R_level_start * fixes[i]->T_start_body.translation()).head<2>();
+      const double res = (fixes[i]->p_enu.head<2>() - (Rz * (q - q_mean) + p_mean)).norm();
+      const char keep = res < 3.5 * sigma_h + 1.0;
+      if (keep != use[i]) { use[i] = keep; changed = true; }
+    }
+    if (!changed) break;
+  }
+  if (used < std::max(2, config_.init_min_fixes) || spread2 < min_baseline * min_baseline / 4) return;
+
+  const Mat3 R_enu_start = Eigen::AngleAxisd(psi, Vec3::UnitZ()).toRotationMatrix() * R_level_start;
+  const Vec3 q_now = R_level_start * T_start_body_.translation();
+  const Eigen::Vector2d p_now_xy = Eigen::Rotation2Dd(psi) * (q_now.head<2>() - q_mean) + p_mean;
+  x_ = NominalState{};
+  x_.p_enu_m = Vec3(p_now_xy.x(), p_now_xy.y(), q_now.z() + z_off);
+  x_.R_enu_body = R_enu_start * T_start_body_.linear();
+  x_.v_enu_mps = x_.R_enu_body * last_vo_velocity_body_mps_;
+
+  // Covariance: centroid noise + yaw lever arm.
+  const double var_c = sigma_h * sigma_h / used;
+  const double sigma_psi = sigma_h / std::sqrt(spread2);
+  const Vec3 lever(p_now_xy.x() - p_mean.x(), p_now_xy.y() - p_mean.y(), 0);
+  const Vec3 J_psi = Vec3::UnitZ().cross(lever);
+  const int n = config_.use_imu ? kImuStates + kCloneStates : kPoseStates;
+  const int th = config_.use_imu ? kTh : 3;
+  P_ = Eigen::MatrixXd::Zero(n, n);
+  const double sigma_v = std::max(3.0, 1.5 * sigma_h);
+  P_.block<3, 3>(0, 0).diagonal() << var_c, var_c, sigma_v * sigma_v / used;
+  P_.block<3, 3>(0, 0) += J_psi * J_psi.transpose() * sigma_psi * sigma_psi;
+  P_.block<3, 3>(th, th).diagonal() << std::pow(config_.init_roll_pitch_sigma_rad, 2),
+      std::pow(config_.init_roll_pitch_sigma_rad, 2), sigma_psi * sigma_psi;
+  P_.block<3, 1>(0, th + 2) = J_psi * sigma_psi * sigma_psi;
+  P_.block<1, 3>(th + 2, 0) = (J_psi * sigma_psi * sigma_psi).transpose();
+  if (config_.use_imu) {
+    P_.block<3, 3>(kV, kV).diagonal().setConstant(std::pow(config_.init_velocity_sigma_mps, 2));
+    P_.block<3, 3>(kBa, kBa).diagonal().setConstant(std::pow(config_.init_accel_bias_sigma_mps2, 2));
+    P_.block<3, 3>(kBg, kBg).diagonal().setConstant(std::pow(config_.init_gyro_bias_sigma_radps, 2));
+    Clone();
+  }
+  t_ns_ = t_ns;
+  initialized_ = true;
+  gps_used_ += used;
+  gps_rejected_ += static_cast<int>(fixes.size()) - used;
+  last_gps_accepted_ns_ = fixes.back()->t_ns;
+  init_fixes_.clear();
+}
+
+// ------------------------------------------------------------------ output
+
+FusedPose Ekf::Output(int64_t t_ns, bool vo_ok) const {
+  FusedPose out;
+  out.t_ns = t_ns;
+  out.gps_used = gps_used_;
+  out.gps_rejected = gps_rejected_;
+  out.seconds_since_gps = last_gps_accepted_ns_ ? Seconds(t_ns, *last_gps_accepted_ns_)
+                                                : std::numeric_limits<double>::infinity();
+  if (!initialized_) {
+    out.mode = Mode::kLost;
+    out.covariance = Mat6::Identity() * 1e6;
+    if (enu_.has_origin()) enu_.ToGeodetic(Vec3::Zero(), out.lat_deg, out.lon_deg, out.alt_m);
+    return out;
+  }
+  out.T_enu_body.linear() = x_.R_enu_body;
+  out.T_enu_body.translation() = x_.p_enu_m;
+  out.v_enu_mps = x_.v_enu_mps;
+  enu_.ToGeodetic(x_.p_enu_m, out.lat_deg, out.lon_deg, out.alt_m);
+  const int th = config_.use_imu ? kTh : 3;
+  out.covariance.block<3, 3>(0, 0) = P_.block<3, 3>(0, 0);
+  out.covariance.block<3, 3>(0, 3) = P_.block<3, 3>(0, th);
+  out.covariance.block<3, 3>(3, 0) = P_.block<3, 3>(th, 0);
+  out.covariance.block<3, 3>(3, 3) = P_.block<3, 3>(th, th);
+  if (out.seconds_since_gps > config_.vo_only_after_periods * gps_period_s_) {
+    out.mode = vo_ok ? Mode::kVoOnly : Mode::kLost;
+  } else if (last_gps_rejected_ns_ && Seconds(t_ns, *last_gps_rejected_ns_) < config_.degraded_hold_s) {
+    out.mode = Mode::kGpsDegraded;
+  } else {
+    out.mode = Mode::kGpsFused;
+  }
+  return out;
+}
+
+}  // namespace locaid::fusion

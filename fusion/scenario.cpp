@@ -1,0 +1,204 @@
+#include "fusion/scenario.hpp"
+
+#include <GeographicLib/LocalCartesian.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace locaid::fusion {
+namespace {
+
+constexpr double kNsPerS = 1e9;
+
+[[noreturn]] void Bad(const Scenario& s, const std::string& field, const std::string& why) {
+  throw std::invalid_argument("scenario " + s.name + ": field " + field + ": " + why);
+}
+
+void RequireNonNegative(const Scenario& s, const char* field, double v) {
+  if (!std::isfinite(v) || v < 0) {
+    std::ostringstream os;
+    os << "must be a finite number >= 0, got " << v;
+    Bad(s, field, os.str());
+  }
+}
+
+}  // namespace
+
+const char* ToString(ImuGrade grade) {
+  return grade == ImuGrade::kMems ? "mems" : "as-recorded";
+}
+
+void ValidateScenario(const Scenario& s) {
+  if (!(std::isfinite(s.gps_rate_hz) && s.gps_rate_hz > 0))
+    Bad(s, "gps.rate_hz", "must be > 0, got " + std::to_string(s.gps_rate_hz));
+  RequireNonNegative(s, "gps.sigma_h_m", s.gps_sigma_h_m);
+  RequireNonNegative(s, "gps.sigma_v_m", s.gps_sigma_v_m);
+  RequireNonNegative(s, "gps.bias_sigma_m", s.gps_bias_sigma_m);
+  if (!(std::isfinite(s.gps_bias_tau_s) && s.gps_bias_tau_s > 0))
+    Bad(s, "gps.bias_tau_s", "must be > 0, got " + std::to_string(s.gps_bias_tau_s));
+  if (!(s.jump_probability >= 0 && s.jump_probability <= 1))
+    Bad(s, "gps.jump_probability", "must be in [0, 1], got " + std::to_string(s.jump_probability));
+  RequireNonNegative(s, "gps.jump_size_m", s.jump_size_m);
+  RequireNonNegative(s, "gps.jump_duration_s", s.jump_duration_s);
+  RequireNonNegative(s, "imu.accel_bias_sigma_mps2", s.imu_accel_bias_sigma_mps2);
+  RequireNonNegative(s, "imu.gyro_bias_sigma_radps", s.imu_gyro_bias_sigma_radps);
+  RequireNonNegative(s, "imu.accel_noise_mps2_sqrt_hz", s.imu_accel_noise_mps2_sqrt_hz);
+  RequireNonNegative(s, "imu.gyro_noise_radps_sqrt_hz", s.imu_gyro_noise_radps_sqrt_hz);
+  for (size_t i = 0; i < s.outages.size(); ++i) {
+    const std::string f = "outages[" + std::to_string(i) + "]";
+    if (!(std::isfinite(s.outages[i].start_s) && s.outages[i].start_s >= 0))
+      Bad(s, f + ".start_s", "must be >= 0, got " + std::to_string(s.outages[i].start_s));
+    if (!(std::isfinite(s.outages[i].duration_s) && s.outages[i].duration_s > 0))
+      Bad(s, f + ".duration_s", "must be > 0 (end after start), got " +
+                                    std::to_string(s.outages[i].duration_s));
+  }
+}
+
+std::vector<std::string> BuiltinScenarioNames() {
+  return {"open-sky", "urban-canyon", "tunnel-30s", "intermittent"};
+}
+
+Scenario BuiltinScenario(const std::string& name) {
+  Scenario s;
+  s.name = name;
+  if (name == "open-sky") {
+    s.gps_rate_hz = 10; s.gps_sigma_h_m = 1.5; s.gps_sigma_v_m = 3.0;
+    s.gps_bias_sigma_m = 0.0;
+  } else if (name == "urban-canyon") {
+    s.gps_rate_hz = 1; s.gps_sigma_h_m = 3.0; s.gps_sigma_v_m = 5.0;
+    s.gps_bias_sigma_m = 0.0;
+    s.jump_probability = 0.03; s.jump_size_m = 20.0; s.jump_duration_s = 0.0;
+  } else if (name == "tunnel-30s") {
+    s.gps_rate_hz = 10; s.gps_sigma_h_m = 1.5; s.gps_sigma_v_m = 3.0;
+    s.outages = {{60.0, 30.0, true}};  // middle of the drive once its length is known
+  } else if (name == "intermittent") {
+    s.gps_rate_hz = 5; s.gps_sigma_h_m = 3.0; s.gps_sigma_v_m = 5.0;
+    for (double t = 30; t < 3600; t += 40) s.outages.push_back({t, 5.0});
+  } else {
+    std::string known;
+    for (const auto& n : BuiltinScenarioNames()) known += (known.empty() ? "" : ", ") + n;
+    throw std::invalid_argument("unknown scenario '" + name + "' (built-in: " + known +
+                                "; or a path to a .yaml file)");
+  }
+  return s;
+}
+
+Scenario PlaceOutagesForDrive(Scenario s, double drive_duration_s) {
+  for (auto& o : s.outages) {
+    if (o.centered) {
+      o.start_s = std::max(0.0, 0.5 * (drive_duration_s - o.duration_s));
+      o.centered = false;
+    }
+  }
+  return s;
+}
+
+// ---------------------------------------------------------------- GpsScenario
+
+GpsScenario::GpsScenario(Scenario scenario) : scenario_(std::move(scenario)), rng_(scenario_.seed) {
+  ValidateScenario(scenario_);
+}
+
+bool GpsScenario::InOutage(int64_t t_ns) const {
+  if (forced_outage_) return true;
+  for (const auto& [a, b] : runtime_outages_)
+    if (t_ns >= a && t_ns < b) return true;
+  if (!drive_start_ns_) return false;
+  const double t_s = static_cast<double>(t_ns - *drive_start_ns_) / kNsPerS;
+  for (const auto& o : scenario_.outages)
+    if (t_s >= o.start_s && t_s < o.start_s + o.duration_s) return true;
+  return false;
+}
+
+void GpsScenario::ScheduleOutage(int64_t start_ns, int64_t end_ns) {
+  if (end_ns <= start_ns)
+    throw std::invalid_argument("outage end (" + std::to_string(end_ns) +
+                                " ns) must be after its start (" + std::to_string(start_ns) + " ns)");
+  runtime_outages_.emplace_back(start_ns, end_ns);
+}
+
+std::optional<GpsFix> GpsScenario::Apply(int64_t t_ns, double lat, double lon, double alt) {
+  if (!drive_start_ns_) SetDriveStart(t_ns);
+  if (!bias_initialized_) {
+    bias_initialized_ = true;
+    std::normal_distribution<double> n01;
+    for (int i = 0; i < 3; ++i) bias_enu_m_[i] = scenario_.gps_bias_sigma_m * n01(rng_);
+  }
+  // Bias: first-order Gauss-Markov, advanced on every sample.
+  {
+    const double dt = static_cast<double>(t_ns - last_bias_ns_) / kNsPerS;
+    last_bias_ns_ = t_ns;
+    if (dt > 0 && scenario_.gps_bias_sigma_m > 0) {
+      const double phi = std::exp(-dt / scenario_.gps_bias_tau_s);
+      const double q = scenario_.gps_bias_sigma_m * std::sqrt(1 - phi * phi);
+      std::normal_distribution<double> n01;
+      for (int i = 0; i < 3; ++i) bias_enu_m_[i] = phi * bias_enu_m_[i] + q * n01(rng_);
+    }
+  }
+  const int64_t period_ns = static_cast<int64_t>(std::llround(kNsPerS / scenario_.gps_rate_hz));
+  // Due when one period has passed (with 5 % slack for jittery clocks).
+  if (last_fix_ns_ && t_ns - *last_fix_ns_ < period_ns - period_ns / 20) return std::nullopt;
+  if (InOutage(t_ns)) return std::nullopt;
+  last_fix_ns_ = t_ns;
+
+  std::normal_distribution<double> n01;
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  // Multipath jumps.
+  if (jump_active_ && t_ns >= jump_end_ns_) jump_active_ = false;
+  Eigen::Vector2d jump = Eigen::Vector2d::Zero();
+  if (jump_active_) {
+    jump = jump_en_m_;
+  } else if (scenario_.jump_probability > 0 && u01(rng_) < scenario_.jump_probability) {
+    const double a = 2 * M_PI * u01(rng_);
+    jump_en_m_ = scenario_.jump_size_m * Eigen::Vector2d(std::cos(a), std::sin(a));
+    jump = jump_en_m_;
+    if (scenario_.jump_duration_s > 0) {
+      jump_active_ = true;
+      jump_end_ns_ = t_ns + static_cast<int64_t>(scenario_.jump_duration_s * kNsPerS);
+    }
+  }
+  const Eigen::Vector3d err(scenario_.gps_sigma_h_m * n01(rng_) + bias_enu_m_.x() + jump.x(),
+                            scenario_.gps_sigma_h_m * n01(rng_) + bias_enu_m_.y() + jump.y(),
+                            scenario_.gps_sigma_v_m * n01(rng_) + bias_enu_m_.z());
+  GeographicLib::LocalCartesian lc(lat, lon, alt);
+  GpsFix fix;
+  fix.t_ns = t_ns;
+  lc.Reverse(err.x(), err.y(), err.z(), fix.lat_deg, fix.lon_deg, fix.alt_m);
+  // The receiver claims its white noise plus the bias it cannot see.
+  fix.sigma_h_m = std::hypot(scenario_.gps_sigma_h_m, scenario_.gps_bias_sigma_m);
+  fix.sigma_v_m = std::hypot(scenario_.gps_sigma_v_m, scenario_.gps_bias_sigma_m);
+  return fix;
+}
+
+// ---------------------------------------------------------------- ImuDegrader
+
+ImuDegrader::ImuDegrader(const Scenario& scenario) : scenario_(scenario), rng_(scenario.seed ^ 0x9e3779b97f4a7c15ULL) {
+  if (scenario_.imu_grade == ImuGrade::kMems) {
+    std::normal_distribution<double> n01;
+    for (int i = 0; i < 3; ++i) {
+      accel_bias_mps2_[i] = scenario_.imu_accel_bias_sigma_mps2 * n01(rng_);
+      gyro_bias_radps_[i] = scenario_.imu_gyro_bias_sigma_radps * n01(rng_);
+    }
+  }
+}
+
+ImuSample ImuDegrader::Apply(const ImuSample& in) {
+  if (scenario_.imu_grade == ImuGrade::kAsRecorded) return in;
+  double dt = 0.01;
+  if (last_ns_ && in.t_ns > *last_ns_) dt = static_cast<double>(in.t_ns - *last_ns_) / kNsPerS;
+  last_ns_ = in.t_ns;
+  dt = std::clamp(dt, 1e-3, 1.0);
+  std::normal_distribution<double> n01;
+  ImuSample out = in;
+  const double sa = scenario_.imu_accel_noise_mps2_sqrt_hz / std::sqrt(dt);
+  const double sg = scenario_.imu_gyro_noise_radps_sqrt_hz / std::sqrt(dt);
+  for (int i = 0; i < 3; ++i) {
+    out.accel_mps2[i] += accel_bias_mps2_[i] + sa * n01(rng_);
+    out.gyro_radps[i] += gyro_bias_radps_[i] + sg * n01(rng_);
+  }
+  return out;
+}
+
+}  // namespace locaid::fusion

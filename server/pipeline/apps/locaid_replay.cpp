@@ -1,0 +1,268 @@
+// locaid-replay: VO + degraded GPS (+ IMU) + EKF over a recorded drive, as fast
+// as possible, with accuracy against the untouched OXTS ground truth.
+//
+// Threads (started and joined here): one loader thread decodes and rectifies
+// the images into a bounded queue; the main thread runs VO and the filter.
+#include "kitti/dataset.hpp"
+#include "kitti/oxts_pose.hpp"
+#include "server/pipeline/localizer.hpp"
+#include "server/pipeline/replay_metrics.hpp"
+#include "server/pipeline/scenario_yaml.hpp"
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <GeographicLib/LocalCartesian.hpp>
+
+#include <chrono>
+#include <condition_variable>
+#include <deque>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <mutex>
+#include <optional>
+#include <thread>
+
+using namespace locaid;
+
+namespace {
+
+// Bounded single-producer / single-consumer queue of loaded frames.
+struct LoadedFrame {
+  size_t index = 0;
+  vo::StereoFrame frame;
+  std::string error;
+};
+
+class FrameQueue {
+ public:
+  explicit FrameQueue(size_t capacity) : capacity_(capacity) {}
+  void Push(LoadedFrame f) {
+    std::unique_lock lock(mutex_);
+    not_full_.wait(lock, [&] { return q_.size() < capacity_ || stop_; });
+    if (stop_) return;
+    q_.push_back(std::move(f));
+    not_empty_.notify_one();
+  }
+  std::optional<LoadedFrame> Pop() {
+    std::unique_lock lock(mutex_);
+    not_empty_.wait(lock, [&] { return !q_.empty() || done_; });
+    if (q_.empty()) return std::nullopt;
+    LoadedFrame f = std::move(q_.front());
+    q_.pop_front();
+    not_full_.notify_one();
+    return f;
+  }
+  void Done() { std::lock_guard lock(mutex_); done_ = true; not_empty_.notify_all(); }
+  void Stop() { std::lock_guard lock(mutex_); stop_ = true; not_full_.notify_all(); }
+
+ private:
+  size_t capacity_;
+  std::mutex mutex_;
+  std::condition_variable not_full_, not_empty_;
+  std::deque<LoadedFrame> q_;
+  bool done_ = false, stop_ = false;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"locaid-replay: VO + GPS/IMU fusion over a recorded drive, with outage metrics"};
+  std::string drive_dir, scenario_arg = "open-sky", out_tum, out_csv, vo_method = "default";
+  bool json = false, no_imu = false;
+  int max_frames = 0;
+  int64_t seed = -1;
+  app.add_option("--drive", drive_dir, "drive folder (raw sync/extract, or synthetic)")->required();
+  app.add_option("--scenario", scenario_arg, "built-in scenario name or YAML file");
+  app.add_option("--out-tum", out_tum, "fused poses T_enu_body as TUM");
+  app.add_option("--out-csv", out_csv, "per-frame CSV for clients/plot_outage.py");
+  app.add_flag("--json", json, "print metrics as JSON on stdout");
+  app.add_flag("--no-imu", no_imu, "VO + GPS only (no IMU)");
+  app.add_option("--vo-method", vo_method, "VO method (default, thesis)");
+  app.add_option("--max-frames", max_frames, "stop after N frames (0: all)");
+  app.add_option("--seed", seed, "override the scenario seed");
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    const auto dataset = kitti::OpenDataset(drive_dir);
+    const auto& oxts = dataset->oxts();
+    if (oxts.empty()) throw std::runtime_error(drive_dir + ": no OXTS records (needed for GPS/IMU and ground truth)");
+    size_t n_frames = dataset->size();
+    if (max_frames > 0) n_frames = std::min(n_frames, static_cast<size_t>(max_frames));
+    if (n_frames < 2) throw std::runtime_error(drive_dir + ": fewer than 2 frames");
+
+    fusion::Scenario scenario = pipeline::LoadScenario(scenario_arg);
+    if (seed >= 0) scenario.seed = static_cast<uint64_t>(seed);
+    const double duration_s = static_cast<double>(dataset->time_ns(n_frames - 1) - dataset->time_ns(0)) * 1e-9;
+    scenario = fusion::PlaceOutagesForDrive(scenario, duration_s);
+
+    pipeline::LocalizerOptions options;
+    options.vo_method = vo_method;
+    options.use_imu = !no_imu;
+    pipeline::Localizer localizer(dataset->camera(), dataset->T_cam0_imu(), scenario, options);
+
+    // Loader thread.
+    FrameQueue queue(4);
+    std::thread loader([&] {
+      for (size_t i = 0; i < n_frames; ++i) {
+        LoadedFrame f;
+        f.index = i;
+        f.frame.t_ns = dataset->time_ns(i);
+        if (dataset->has_stereo(i)) {
+          try {
+            auto images = dataset->Load(i);
+            f.frame.left = std::move(images.left);
+            f.frame.right = std::move(images.right);
+          } catch (const std::exception& e) {
+            f.error = e.what();
+          }
+        }
+        queue.Push(std::move(f));
+      }
+      queue.Done();
+    });
+
+    std::vector<pipeline::ReplaySample> samples;
+    std::vector<pipeline::FrameResult> results;
+    std::vector<Eigen::Isometry3d> vo_motion;  // raw VO (body axes) per frame
+    std::vector<std::optional<Eigen::Vector3d>> gps_enu;
+    std::vector<int> gps_rej;
+    size_t next_oxts = 0;
+    const auto wall0 = std::chrono::steady_clock::now();
+    std::optional<GeographicLib::LocalCartesian> gt_enu;
+    std::vector<kitti::TimedPose> gt_poses;
+    auto gt_at = [&](int64_t t_ns) -> std::optional<Eigen::Isometry3d> {
+      return kitti::InterpolatePose(gt_poses, t_ns, static_cast<int64_t>(0.5e9));
+    };
+    int lost_frames = 0;
+    double vo_ms_total = 0;
+    while (auto lf = queue.Pop()) {
+      const size_t i = lf->index;
+      if (!lf->error.empty()) std::cerr << "warning: " << lf->error << "\n";
+      if (!lf->frame.left.empty()) lf->frame.t_ns = dataset->time_ns(i);
+      const int64_t t_ns = dataset->time_ns(i);
+      size_t end = next_oxts;
+      while (end < oxts.size() && oxts[end].t_ns <= t_ns) ++end;
+      auto r = localizer.Process(lf->frame, std::span(oxts.data() + next_oxts, end - next_oxts));
+      next_oxts = end;
+      vo_ms_total += r.vo_ms;
+      if (r.vo.status == vo::Status::kLost) ++lost_frames;
+
+      if (!gt_enu && localizer.has_enu_origin()) {
+        const auto& e = localizer.ekf().enu();
+        gt_enu.emplace(e.origin_lat_deg(), e.origin_lon_deg(), e.origin_alt_m());
+        for (const auto& s : oxts) gt_poses.push_back({s.t_ns, kitti::OxtsToEnuPose(s.record, *gt_enu)});
+      }
+      vo_motion.push_back(r.vo.status == vo::Status::kLost ? Eigen::Isometry3d::Identity()
+                                                           : r.vo_body.T_prev_curr);
+
+      pipeline::ReplaySample s;
+      s.t_s = static_cast<double>(t_ns - dataset->time_ns(0)) * 1e-9;
+      s.initialized = localizer.ekf().initialized();
+      s.mode = r.pose.mode;
+      s.in_outage = r.in_outage;
+      s.p_enu_est_m = r.pose.T_enu_body.translation();
+      s.P_pos_m2 = r.pose.covariance.topLeftCorner<3, 3>();
+      if (gt_enu) {
+        if (auto gt = gt_at(t_ns)) s.p_enu_gt_m = gt->translation();
+        else s.initialized = false;  // no ground truth here: leave out of the metrics
+      }
+      samples.push_back(s);
+      std::optional<Eigen::Vector3d> g;
+      int rej = 0;
+      for (const auto& f : r.gps_feeds) { g = f.p_enu_m; rej = rej || f.rejected; }
+      gps_enu.push_back(g);
+      gps_rej.push_back(rej);
+      results.push_back(std::move(r));
+      if (i % 50 == 0)
+        std::cerr << "\rframe " << i << "/" << n_frames << " mode " << fusion::ToString(results.back().pose.mode)
+                  << "      " << std::flush;
+    }
+    queue.Stop();
+    loader.join();
+    const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+    std::cerr << "\rframes " << samples.size() << " in " << wall_s << " s\n";
+
+    const auto metrics = pipeline::ComputeReplayMetrics(samples, scenario.gps_sigma_h_m);
+    // VO-only track: the raw VO chained in ENU from the ground-truth pose of frame 0.
+    std::vector<Eigen::Isometry3d> vo_only;
+    {
+      Eigen::Isometry3d T = gt_enu ? gt_at(dataset->time_ns(0)).value_or(Eigen::Isometry3d::Identity())
+                                   : Eigen::Isometry3d::Identity();
+      for (size_t k = 0; k < vo_motion.size(); ++k) {
+        if (k > 0) T = T * vo_motion[k];
+        vo_only.push_back(T);
+      }
+    }
+
+    if (!out_csv.empty()) {
+      std::ofstream csv(out_csv);
+      if (!csv) throw std::runtime_error(out_csv + ": cannot write");
+      csv << "t_s,gt_e,gt_n,gt_u,est_e,est_n,est_u,gps_e,gps_n,gps_u,gps_rejected,vo_e,vo_n,vo_u,"
+             "sigma_e,sigma_n,sigma_u,err_h,mode,in_outage,initialized\n";
+      csv << std::fixed << std::setprecision(4);
+      for (size_t k = 0; k < samples.size(); ++k) {
+        const auto& s = samples[k];
+        const auto& v = vo_only[k].translation();
+        csv << s.t_s << ',' << s.p_enu_gt_m.x() << ',' << s.p_enu_gt_m.y() << ',' << s.p_enu_gt_m.z() << ','
+            << s.p_enu_est_m.x() << ',' << s.p_enu_est_m.y() << ',' << s.p_enu_est_m.z() << ',';
+        if (gps_enu[k]) csv << gps_enu[k]->x() << ',' << gps_enu[k]->y() << ',' << gps_enu[k]->z() << ',';
+        else csv << ",,,";
+        csv << gps_rej[k] << ',' << v.x() << ',' << v.y() << ',' << v.z() << ','
+            << std::sqrt(s.P_pos_m2(0, 0)) << ',' << std::sqrt(s.P_pos_m2(1, 1)) << ','
+            << std::sqrt(s.P_pos_m2(2, 2)) << ',' << (s.p_enu_est_m - s.p_enu_gt_m).head<2>().norm() << ','
+            << fusion::ToString(s.mode) << ',' << int(s.in_outage) << ',' << int(s.initialized) << '\n';
+      }
+    }
+    if (!out_tum.empty()) {
+      std::ofstream tum(out_tum);
+      if (!tum) throw std::runtime_error(out_tum + ": cannot write");
+      tum << std::fixed << std::setprecision(6);
+      for (size_t k = 0; k < results.size(); ++k) {
+        if (!samples[k].initialized) continue;
+        const auto& T = results[k].pose.T_enu_body;
+        const Eigen::Quaterniond q(T.linear());
+        tum << dataset->tum_time_s(k) << ' ' << T.translation().x() << ' ' << T.translation().y() << ' '
+            << T.translation().z() << ' ' << q.x() << ' ' << q.y() << ' ' << q.z() << ' ' << q.w() << '\n';
+      }
+    }
+
+    nlohmann::json j;
+    j["drive"] = drive_dir;
+    j["scenario"] = scenario.name;
+    j["use_imu"] = !no_imu;
+    j["vo_method"] = vo_method;
+    j["frames"] = samples.size();
+    j["rmse_gps_m"] = metrics.rmse_gps_m;
+    j["nees_mean"] = metrics.nees_mean;
+    j["frames_per_s"] = samples.size() / wall_s;
+    j["vo_ms_mean"] = vo_ms_total / std::max<size_t>(1, samples.size());
+    j["vo_lost_frames"] = lost_frames;
+    j["gps_used"] = results.back().pose.gps_used;
+    j["gps_rejected"] = results.back().pose.gps_rejected;
+    j["outages"] = nlohmann::json::array();
+    for (const auto& o : metrics.outages) {
+      j["outages"].push_back({{"start_s", o.start_s}, {"duration_s", o.duration_s},
+                              {"distance_m", o.distance_m}, {"end_error_m", o.end_error_m},
+                              {"end_error_pct", o.end_error_pct}, {"max_error_m", o.max_error_m},
+                              {"reconverge_s", o.reconverge_s}, {"max_jump_m", o.max_jump_m}});
+    }
+    if (json) {
+      std::cout << j.dump(2) << std::endl;
+    } else {
+      std::cout << "scenario " << scenario.name << (no_imu ? " (no IMU)" : "") << ": frames "
+                << samples.size() << ", rmse_gps_m " << metrics.rmse_gps_m << ", nees_mean "
+                << metrics.nees_mean << ", frames/s " << samples.size() / wall_s << "\n";
+      for (const auto& o : metrics.outages)
+        std::cout << "  outage at " << o.start_s << " s for " << o.duration_s << " s: "
+                  << o.distance_m << " m driven, end error " << o.end_error_m << " m ("
+                  << o.end_error_pct << " %), max " << o.max_error_m << " m, reconverged after "
+                  << o.reconverge_s << " s\n";
+    }
+    return 0;
+  } catch (const std::exception& e) {
+    std::cerr << "locaid-replay: " << e.what() << "\n";
+    return 1;
+  }
+}

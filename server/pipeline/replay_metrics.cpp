@@ -1,0 +1,53 @@
+#include "server/pipeline/replay_metrics.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace locaid::pipeline {
+
+ReplayMetrics ComputeReplayMetrics(const std::vector<ReplaySample>& s, double sigma_h) {
+  ReplayMetrics m;
+  m.frames = static_cast<int>(s.size());
+  auto err_h = [&](size_t i) { return (s[i].p_enu_est_m - s[i].p_enu_gt_m).head<2>().norm(); };
+  double sum2 = 0, nees = 0;
+  int n = 0;
+  for (size_t i = 0; i < s.size(); ++i) {
+    if (!s[i].initialized) continue;
+    const Eigen::Vector3d e = s[i].p_enu_est_m - s[i].p_enu_gt_m;
+    const double q = e.dot(s[i].P_pos_m2.ldlt().solve(e));
+    if (std::isfinite(q)) { nees += q; ++m.nees_frames; }
+    const bool gps_in_use = !s[i].in_outage &&
+        (s[i].mode == fusion::Mode::kGpsFused || s[i].mode == fusion::Mode::kGpsDegraded);
+    if (gps_in_use) { sum2 += err_h(i) * err_h(i); ++n; }
+  }
+  m.rmse_gps_m = n ? std::sqrt(sum2 / n) : std::nan("");
+  m.nees_mean = m.nees_frames ? nees / m.nees_frames : std::nan("");
+
+  for (size_t i = 0; i < s.size(); ++i) {
+    if (!s[i].in_outage || (i > 0 && s[i - 1].in_outage)) continue;
+    size_t j = i;
+    while (j + 1 < s.size() && s[j + 1].in_outage) ++j;
+    OutageStats o;
+    o.start_s = s[i].t_s;
+    o.duration_s = (j + 1 < s.size() ? s[j + 1].t_s : s[j].t_s) - s[i].t_s;
+    const size_t first = i > 0 ? i - 1 : i;  // last frame with GPS before the outage
+    for (size_t k = first + 1; k <= j; ++k)
+      o.distance_m += (s[k].p_enu_gt_m - s[k - 1].p_enu_gt_m).norm();
+    for (size_t k = i; k <= j; ++k)
+      if (s[k].initialized) o.max_error_m = std::max(o.max_error_m, err_h(k));
+    o.end_error_m = s[j].initialized ? err_h(j) : std::nan("");
+    o.end_error_pct = o.distance_m > 0 ? 100.0 * o.end_error_m / o.distance_m : std::nan("");
+    for (size_t k = j + 1; k < s.size() && !s[k].in_outage; ++k) {
+      if (err_h(k) <= 2 * sigma_h) { o.reconverge_s = s[k].t_s - s[j].t_s; break; }
+    }
+    for (size_t k = j + 1; k < s.size() && s[k].t_s - s[j].t_s <= 10.0; ++k) {
+      const Eigen::Vector3d d_est = s[k].p_enu_est_m - s[k - 1].p_enu_est_m;
+      const Eigen::Vector3d d_gt = s[k].p_enu_gt_m - s[k - 1].p_enu_gt_m;
+      o.max_jump_m = std::max(o.max_jump_m, (d_est - d_gt).head<2>().norm());
+    }
+    m.outages.push_back(o);
+  }
+  return m;
+}
+
+}  // namespace locaid::pipeline

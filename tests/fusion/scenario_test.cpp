@@ -1,0 +1,125 @@
+// GPS/IMU degradation scenarios and scenario files.
+#include "fusion/geodesy.hpp"
+#include "fusion/scenario.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace locaid::fusion {
+namespace {
+
+constexpr double kLat = 49.0, kLon = 8.4, kAlt = 110.0;
+constexpr int64_t kOxtsStepNs = 100'000'000;  // 10 Hz OXTS
+
+struct Collected {
+  std::vector<GpsFix> fixes;
+  std::vector<Eigen::Vector3d> errors;
+};
+
+Collected RunScenario(GpsScenario& gps, double duration_s) {
+  EnuFrame enu;
+  enu.SetOrigin(kLat, kLon, kAlt);
+  Collected c;
+  for (int64_t t = 0; t <= static_cast<int64_t>(duration_s * 1e9); t += kOxtsStepNs) {
+    if (auto f = gps.Apply(t + 5'000'000'000LL, kLat, kLon, kAlt)) {
+      c.fixes.push_back(*f);
+      c.errors.push_back(enu.ToEnu(f->lat_deg, f->lon_deg, f->alt_m));
+    }
+  }
+  return c;
+}
+
+TEST(GpsScenario, RateNoiseAndRepeatability) {
+  Scenario s = BuiltinScenario("urban-canyon");
+  s.jump_probability = 0;
+  GpsScenario a(s), b(s);
+  const auto ca = RunScenario(a, 600), cb = RunScenario(b, 600);
+  // 1 Hz over 600 s.
+  EXPECT_NEAR(static_cast<double>(ca.fixes.size()), 601, 2);
+  ASSERT_EQ(ca.fixes.size(), cb.fixes.size());
+  for (size_t i = 0; i < ca.fixes.size(); ++i) EXPECT_EQ(ca.fixes[i].lat_deg, cb.fixes[i].lat_deg);
+  double s2 = 0;
+  for (const auto& e : ca.errors) s2 += e.head<2>().squaredNorm() / 2;
+  const double sigma = std::sqrt(s2 / ca.errors.size());
+  constexpr double kSigmaTolFraction = 0.1;  // ~1200 samples: 2 % std error
+  EXPECT_NEAR(sigma, s.gps_sigma_h_m, kSigmaTolFraction * s.gps_sigma_h_m);
+  Scenario other = s;
+  other.seed = 2;
+  GpsScenario c(other);
+  EXPECT_NE(RunScenario(c, 10).fixes[0].lat_deg, ca.fixes[0].lat_deg);
+}
+
+TEST(GpsScenario, OutagesDropFixes) {
+  Scenario s = BuiltinScenario("open-sky");
+  s.outages = {{10.0, 5.0}};
+  GpsScenario gps(s);
+  gps.ScheduleOutage(5'000'000'000LL + 30'000'000'000LL, 5'000'000'000LL + 32'000'000'000LL);
+  const auto c = RunScenario(gps, 40);
+  for (const auto& f : c.fixes) {
+    const double t = static_cast<double>(f.t_ns - 5'000'000'000LL) * 1e-9;
+    EXPECT_FALSE(t >= 10.0 - 1e-9 && t < 15.0 - 1e-9) << "fix inside the scheduled outage at " << t;
+    EXPECT_FALSE(t >= 30.0 - 1e-9 && t < 32.0 - 1e-9) << "fix inside the run-time outage at " << t;
+  }
+  EXPECT_NEAR(static_cast<double>(c.fixes.size()), 401 - 50 - 20, 2);
+  gps.SetForcedOutage(true);
+  EXPECT_FALSE(gps.Apply(100'000'000'000LL, kLat, kLon, kAlt).has_value());
+  EXPECT_THROW(gps.ScheduleOutage(10, 5), std::invalid_argument);
+}
+
+TEST(GpsScenario, JumpsHaveTheConfiguredSize) {
+  Scenario s = BuiltinScenario("urban-canyon");
+  s.gps_sigma_h_m = 0.01;
+  s.gps_sigma_v_m = 0.01;
+  s.jump_probability = 0.2;
+  s.jump_size_m = 25;
+  GpsScenario gps(s);
+  const auto c = RunScenario(gps, 300);
+  int jumps = 0;
+  for (const auto& e : c.errors) {
+    const double h = e.head<2>().norm();
+    if (h > 1) { ++jumps; EXPECT_NEAR(h, 25.0, 0.1); }
+  }
+  EXPECT_NEAR(jumps / static_cast<double>(c.errors.size()), 0.2, 0.06);
+}
+
+TEST(ImuDegrader, MemsAddsBiasAsRecordedDoesNot) {
+  Scenario s = BuiltinScenario("open-sky");
+  ImuSample in;
+  in.t_ns = 0;
+  in.accel_mps2 = {0.1, 0.2, 9.81};
+  ImuDegrader same(s);
+  const auto out = same.Apply(in);
+  EXPECT_EQ(out.accel_mps2, in.accel_mps2);
+  s.imu_grade = ImuGrade::kMems;
+  s.imu_accel_noise_mps2_sqrt_hz = 0;
+  s.imu_gyro_noise_radps_sqrt_hz = 0;
+  ImuDegrader mems(s);
+  const auto out2 = mems.Apply(in);
+  EXPECT_TRUE((out2.accel_mps2 - in.accel_mps2).isApprox(mems.accel_bias_mps2()));
+  EXPECT_GT(mems.accel_bias_mps2().norm(), 0);
+}
+
+TEST(Scenario, ValidationNamesTheField) {
+  Scenario s;
+  s.name = "bad";
+  s.gps_sigma_h_m = -1;
+  try {
+    ValidateScenario(s);
+    FAIL() << "negative sigma accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("gps.sigma_h_m"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(BuiltinScenario("moon"), std::invalid_argument);
+  for (const auto& n : BuiltinScenarioNames()) EXPECT_NO_THROW(ValidateScenario(BuiltinScenario(n))) << n;
+}
+
+TEST(Scenario, TunnelIsPlacedInTheMiddle) {
+  const Scenario s = PlaceOutagesForDrive(BuiltinScenario("tunnel-30s"), 200);
+  ASSERT_EQ(s.outages.size(), 1u);
+  EXPECT_DOUBLE_EQ(s.outages[0].start_s, 85.0);
+  EXPECT_DOUBLE_EQ(s.outages[0].duration_s, 30.0);
+}
+
+}  // namespace
+}  // namespace locaid::fusion
