@@ -1,0 +1,493 @@
+// locaid: command-line client of locaid-server.
+//
+//   locaid health
+//   locaid session start --kitti PATH | --synthetic SEED | --live-json ... [--scenario NAME|--scenario-file F]
+//   locaid session list | get ID | stop ID [--remove]
+//   locaid subscribe ID [--from-start] [--format print|tum|kitti|csv|geojson] [--out FILE] [--max N]
+//   locaid outage start ID [--duration S] | stop ID | window ID --start S --duration S
+//   locaid scenario ID (--name NAME | --file YAML)
+//   locaid stats ID
+// Every call carries a deadline (--timeout-s; subscribe: --stream-timeout-s).
+#include "locaid/v1/localization.grpc.pb.h"
+
+#include <CLI/CLI.hpp>
+#include <grpcpp/grpcpp.h>
+#include <grpcpp/generic/generic_stub.h>
+
+#include <Eigen/Geometry>
+
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <fstream>
+#include <future>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <sstream>
+#include <string>
+
+namespace v1 = locaid::v1;
+
+namespace {
+
+struct Common {
+  std::string server = "127.0.0.1:50051";
+  std::string token;
+  std::string tls_ca;
+  double timeout_s = 10;
+};
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("cannot read '" + path + "'");
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+std::shared_ptr<grpc::Channel> MakeChannel(const Common& c) {
+  grpc::ChannelArguments args;
+  args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, 30000);
+  args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
+  args.SetMaxReceiveMessageSize(64 * 1024 * 1024);
+  std::shared_ptr<grpc::ChannelCredentials> creds;
+  if (!c.tls_ca.empty()) {
+    grpc::SslCredentialsOptions ssl;
+    ssl.pem_root_certs = ReadFile(c.tls_ca);
+    creds = grpc::SslCredentials(ssl);
+  } else {
+    creds = grpc::InsecureChannelCredentials();
+  }
+  return grpc::CreateCustomChannel(c.server, creds, args);
+}
+
+void Prepare(const Common& c, grpc::ClientContext* ctx, double timeout_s) {
+  ctx->set_deadline(std::chrono::system_clock::now() +
+                    std::chrono::milliseconds(static_cast<int64_t>(timeout_s * 1000)));
+  if (!c.token.empty()) ctx->AddMetadata("authorization", "Bearer " + c.token);
+}
+
+const char* CodeName(grpc::StatusCode code) {
+  switch (code) {
+    case grpc::OK: return "OK";
+    case grpc::CANCELLED: return "CANCELLED";
+    case grpc::UNKNOWN: return "UNKNOWN";
+    case grpc::INVALID_ARGUMENT: return "INVALID_ARGUMENT";
+    case grpc::DEADLINE_EXCEEDED: return "DEADLINE_EXCEEDED";
+    case grpc::NOT_FOUND: return "NOT_FOUND";
+    case grpc::ALREADY_EXISTS: return "ALREADY_EXISTS";
+    case grpc::PERMISSION_DENIED: return "PERMISSION_DENIED";
+    case grpc::UNAUTHENTICATED: return "UNAUTHENTICATED";
+    case grpc::RESOURCE_EXHAUSTED: return "RESOURCE_EXHAUSTED";
+    case grpc::FAILED_PRECONDITION: return "FAILED_PRECONDITION";
+    case grpc::ABORTED: return "ABORTED";
+    case grpc::OUT_OF_RANGE: return "OUT_OF_RANGE";
+    case grpc::UNIMPLEMENTED: return "UNIMPLEMENTED";
+    case grpc::INTERNAL: return "INTERNAL";
+    case grpc::UNAVAILABLE: return "UNAVAILABLE";
+    case grpc::DATA_LOSS: return "DATA_LOSS";
+    default: return "?";
+  }
+}
+
+// Exit codes: 0 OK, 1 RPC error (status printed), 2 usage error.
+int Fail(const grpc::Status& s) {
+  std::cerr << "error: " << CodeName(s.error_code()) << ": " << s.error_message() << "\n";
+  return 1;
+}
+
+const char* ModeName(v1::Mode m) {
+  switch (m) {
+    case v1::MODE_GPS_FUSED: return "GPS_FUSED";
+    case v1::MODE_GPS_DEGRADED: return "GPS_DEGRADED";
+    case v1::MODE_VO_ONLY: return "VO_ONLY";
+    case v1::MODE_LOST: return "LOST";
+    default: return "UNSPECIFIED";
+  }
+}
+
+const char* StateName(v1::SessionState s) {
+  switch (s) {
+    case v1::SESSION_STATE_STARTING: return "STARTING";
+    case v1::SESSION_STATE_RUNNING: return "RUNNING";
+    case v1::SESSION_STATE_FINISHED: return "FINISHED";
+    case v1::SESSION_STATE_STOPPED: return "STOPPED";
+    case v1::SESSION_STATE_FAILED: return "FAILED";
+    default: return "UNSPECIFIED";
+  }
+}
+
+void PrintSession(const v1::Session& s) {
+  std::cout << s.id() << " " << StateName(s.state()) << " source=" << s.source() << " vo=" << s.vo_method()
+            << " scenario=" << s.scenario() << " rate=" << s.playback_rate()
+            << " frames=" << s.stats().frames_processed() << "/" << s.total_frames()
+            << " subscribers=" << s.stats().subscribers();
+  if (!s.error().empty()) std::cout << " error=\"" << s.error() << "\"";
+  std::cout << "\n";
+}
+
+void PrintStats(const v1::SessionStats& s) {
+  std::cout << "frames_in " << s.frames_in() << "\nframes_processed " << s.frames_processed()
+            << "\nframes_skipped " << s.frames_skipped() << "\nframes_corrupt " << s.frames_corrupt()
+            << "\noxts_bad_lines " << s.oxts_bad_lines() << "\nfps " << s.fps() << "\nlatency_mean_ms "
+            << s.latency_mean_ms() << "\nlatency_max_ms " << s.latency_max_ms() << "\nposes_published "
+            << s.poses_published() << "\nsubscribers " << s.subscribers() << "\ndropped_total "
+            << s.dropped_total() << "\n";
+  if (!s.last_input_error().empty()) std::cout << "last_input_error " << s.last_input_error() << "\n";
+  for (const auto& sub : s.subscriber()) {
+    std::cout << "subscriber " << sub.id() << " peer=" << sub.peer() << " delivered=" << sub.delivered()
+              << " dropped=" << sub.dropped() << " queued=" << sub.queued() << "\n";
+  }
+}
+
+// ------------------------------------------------------------- recording --
+
+// Column list shared with clients/python/locaid_client.py (CSV_COLUMNS).
+const char* kCsvHeader =
+    "t_s,frame_index,sequence,e_m,n_m,u_m,lat_deg,lon_deg,alt_m,qw,qx,qy,qz,ve_mps,vn_mps,vu_mps,"
+    "sigma_e_m,sigma_n_m,sigma_u_m,mode,seconds_since_gps,vo_inliers,gps_used,gps_rejected,"
+    "gps_outage,processing_latency_ms,delay_ms,dropped";
+
+// Every record is appended and flushed, so a killed client leaves a valid
+// file (GeoJSON: the closing brackets are rewritten after each feature).
+class Recorder {
+ public:
+  Recorder(const std::string& format, const std::string& path) : format_(format) {
+    if (format_ == "print") return;
+    if (path.empty()) throw std::runtime_error("--out is required for --format " + format_);
+    out_.open(path, std::ios::out | std::ios::trunc);
+    if (!out_) throw std::runtime_error("cannot write '" + path + "'");
+    out_ << std::setprecision(12);
+    if (format_ == "csv") out_ << kCsvHeader << "\n";
+    if (format_ == "geojson") {
+      out_ << "{\"type\":\"FeatureCollection\",\"features\":[";
+      tail_pos_ = out_.tellp();
+      out_ << "]}\n";
+    }
+    out_.flush();
+  }
+
+  void Add(const v1::PoseUpdate& p, double delay_ms) {
+    const auto& t = p.position_enu_m();
+    const auto& q = p.orientation_enu_body();
+    const double t_s = static_cast<double>(p.t_ns()) * 1e-9;
+    if (format_ == "print") {
+      std::cout << std::fixed << std::setprecision(3) << "seq=" << p.sequence() << " t=" << t_s << " enu=("
+                << t.x() << "," << t.y() << "," << t.z() << ") lat=" << std::setprecision(7) << p.latitude_deg()
+                << " lon=" << p.longitude_deg() << std::setprecision(3) << " mode=" << ModeName(p.mode())
+                << " since_gps=" << p.seconds_since_gps() << " inliers=" << p.vo_inliers()
+                << " latency_ms=" << p.processing_latency_ms() << " delay_ms=" << delay_ms
+                << " dropped=" << p.dropped_for_subscriber() << "\n"
+                << std::defaultfloat << std::flush;
+      return;
+    }
+    const Eigen::Quaterniond quat(q.w(), q.x(), q.y(), q.z());
+    const Eigen::Matrix3d R = quat.normalized().toRotationMatrix();
+    if (format_ == "tum") {
+      out_ << t_s << " " << t.x() << " " << t.y() << " " << t.z() << " " << q.x() << " " << q.y() << " " << q.z()
+           << " " << q.w() << "\n";
+    } else if (format_ == "kitti") {
+      for (int r = 0; r < 3; ++r) {
+        out_ << (r ? " " : "") << R(r, 0) << " " << R(r, 1) << " " << R(r, 2) << " "
+             << (r == 0 ? t.x() : r == 1 ? t.y() : t.z());
+      }
+      out_ << "\n";
+    } else if (format_ == "csv") {
+      auto sigma = [&](int i) {
+        return p.covariance_size() == 36 ? std::sqrt(std::max(0.0, p.covariance(i * 6 + i))) : NAN;
+      };
+      out_ << t_s << "," << p.frame_index() << "," << p.sequence() << "," << t.x() << "," << t.y() << "," << t.z()
+           << "," << p.latitude_deg() << "," << p.longitude_deg() << "," << p.altitude_m() << "," << q.w() << ","
+           << q.x() << "," << q.y() << "," << q.z() << "," << p.velocity_enu_mps().x() << ","
+           << p.velocity_enu_mps().y() << "," << p.velocity_enu_mps().z() << "," << sigma(0) << "," << sigma(1)
+           << "," << sigma(2) << "," << ModeName(p.mode()) << "," << p.seconds_since_gps() << ","
+           << p.vo_inliers() << "," << p.gps_used() << "," << p.gps_rejected() << ","
+           << (p.gps_outage_active() ? 1 : 0) << "," << p.processing_latency_ms() << "," << delay_ms << ","
+           << p.dropped_for_subscriber() << "\n";
+    } else if (format_ == "geojson") {
+      out_.seekp(tail_pos_);
+      out_ << (features_++ ? "," : "") << "{\"type\":\"Feature\",\"geometry\":{\"type\":\"Point\",\"coordinates\":["
+           << std::setprecision(10) << p.longitude_deg() << "," << p.latitude_deg() << "," << p.altitude_m()
+           << "]},\"properties\":{\"t_s\":" << std::setprecision(12) << t_s << ",\"sequence\":" << p.sequence()
+           << ",\"mode\":\"" << ModeName(p.mode()) << "\"}}";
+      tail_pos_ = out_.tellp();
+      out_ << "]}\n";
+    }
+    out_.flush();
+  }
+
+ private:
+  std::string format_;
+  std::ofstream out_;
+  std::streampos tail_pos_{};
+  size_t features_ = 0;
+};
+
+std::unique_ptr<grpc::ClientContext> g_stream_ctx;
+
+void OnSignal(int) {
+  if (g_stream_ctx) g_stream_ctx->TryCancel();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Common c;
+  CLI::App app{"locaid: client of locaid-server"};
+  app.require_subcommand(1);
+  app.add_option("--server", c.server, "host:port")->capture_default_str();
+  app.add_option("--token", c.token, "bearer token");
+  app.add_option("--tls-ca", c.tls_ca, "PEM file of the CA (or self-signed cert) to trust; enables TLS");
+  app.add_option("--timeout-s", c.timeout_s, "deadline of unary calls, seconds")->capture_default_str();
+
+  auto* health = app.add_subcommand("health", "grpc.health.v1 check: prints SERVING / NOT_SERVING");
+  std::string health_service;
+  health->add_option("--service", health_service, "service name (empty = whole server)");
+
+  auto* session = app.add_subcommand("session", "start, list, get or stop sessions");
+  session->require_subcommand(1);
+  auto* start = session->add_subcommand("start", "start a session; prints its id");
+  std::string kitti_path, scenario_name, scenario_file, vo_method;
+  int64_t first_frame = 0, last_frame = -1;
+  uint64_t synth_seed = 0;
+  uint32_t synth_frames = 0, history = 0;
+  double rate = 0;
+  auto* o_kitti = start->add_option("--kitti", kitti_path, "KITTI raw drive or odometry sequence folder (server side)");
+  auto* o_synth = start->add_option("--synthetic", synth_seed, "render a synthetic drive with this seed");
+  o_kitti->excludes(o_synth);
+  start->add_option("--frames", synth_frames, "synthetic: number of frames");
+  start->add_option("--first", first_frame, "kitti: first frame");
+  start->add_option("--last", last_frame, "kitti: last frame (default: to the end)");
+  start->add_option("--scenario", scenario_name, "built-in GPS scenario");
+  start->add_option("--scenario-file", scenario_file, "scenario YAML file (sent as text)");
+  start->add_option("--vo", vo_method, "VO method");
+  start->add_option("--rate", rate, "playback: 0 = as fast as possible, 1 = real time, N = N x")->capture_default_str();
+  start->add_option("--history", history, "poses kept for --from-start subscribers");
+  auto* list = session->add_subcommand("list", "list sessions");
+  auto* get = session->add_subcommand("get", "show one session");
+  auto* stop = session->add_subcommand("stop", "stop a session");
+  std::string session_id;
+  bool remove = false;
+  get->add_option("id", session_id)->required();
+  stop->add_option("id", session_id)->required();
+  stop->add_flag("--remove", remove, "also forget it");
+
+  auto* subscribe = app.add_subcommand("subscribe", "stream a session's poses");
+  std::string format = "print", out_path;
+  bool from_start = false, progress = false;
+  uint64_t max_poses = 0;
+  uint32_t queue = 0;
+  double stream_timeout_s = 24 * 3600;
+  subscribe->add_option("id", session_id)->required();
+  subscribe->add_flag("--from-start", from_start, "begin with the session's history");
+  subscribe->add_option("--format", format, "print|tum|kitti|csv|geojson")
+      ->check(CLI::IsMember({"print", "tum", "kitti", "csv", "geojson"}))
+      ->capture_default_str();
+  subscribe->add_option("--out", out_path, "record file (formats other than print)");
+  subscribe->add_option("--max", max_poses, "stop after N poses (0 = until the stream ends)");
+  subscribe->add_option("--queue", queue, "server-side queue length for this subscriber");
+  subscribe->add_flag("--progress", progress, "print progress to stderr");
+  subscribe->add_option("--stream-timeout-s", stream_timeout_s, "deadline of the stream")->capture_default_str();
+
+  auto* outage = app.add_subcommand("outage", "inject GPS outages into a running session");
+  outage->require_subcommand(1);
+  double o_start = 0, o_duration = 0;
+  auto* o_start_cmd = outage->add_subcommand("start", "GPS dropout from now");
+  o_start_cmd->add_option("id", session_id)->required();
+  o_start_cmd->add_option("--duration", o_duration, "seconds of sensor time (0 = until 'outage stop')");
+  auto* o_stop_cmd = outage->add_subcommand("stop", "end injected dropouts now");
+  o_stop_cmd->add_option("id", session_id)->required();
+  auto* o_window_cmd = outage->add_subcommand("window", "dropout in [start, start+duration) since the first frame");
+  o_window_cmd->add_option("id", session_id)->required();
+  o_window_cmd->add_option("--start", o_start, "seconds since the first frame")->required();
+  o_window_cmd->add_option("--duration", o_duration, "seconds")->required();
+
+  auto* scenario = app.add_subcommand("scenario", "change a running session's GPS scenario");
+  scenario->add_option("id", session_id)->required();
+  auto* sc_name = scenario->add_option("--name", scenario_name, "built-in scenario");
+  auto* sc_file = scenario->add_option("--file", scenario_file, "scenario YAML file");
+  sc_name->excludes(sc_file);
+
+  auto* stats = app.add_subcommand("stats", "session statistics");
+  stats->add_option("id", session_id)->required();
+
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    auto channel = MakeChannel(c);
+    auto stub = v1::Localization::NewStub(channel);
+
+    if (health->parsed()) {
+      // grpc.health.v1.Health/Check through the generic stub: the request is
+      // {1: service (string)}, the response {1: status (enum, 1 = SERVING)}.
+      grpc::GenericStub generic(channel);
+      grpc::ClientContext ctx;
+      Prepare(c, &ctx, c.timeout_s);
+      std::string req_bytes;
+      if (!health_service.empty()) {
+        req_bytes.push_back(0x0a);
+        req_bytes.push_back(static_cast<char>(health_service.size()));
+        req_bytes += health_service;
+      }
+      grpc::Slice slice(req_bytes);
+      grpc::ByteBuffer request(&slice, 1), response;
+      std::promise<grpc::Status> done;
+      generic.UnaryCall(&ctx, "/grpc.health.v1.Health/Check", grpc::StubOptions(), &request, &response,
+                        [&done](grpc::Status st) { done.set_value(st); });
+      const grpc::Status s = done.get_future().get();
+      if (!s.ok()) return Fail(s);
+      std::vector<grpc::Slice> slices;
+      (void)response.Dump(&slices);
+      std::string resp_bytes;
+      for (const auto& sl : slices) resp_bytes.append(reinterpret_cast<const char*>(sl.begin()), sl.size());
+      const int status = resp_bytes.size() >= 2 && resp_bytes[0] == 0x08 ? resp_bytes[1] : 0;
+      const bool serving = status == 1;
+      std::cout << (serving ? "SERVING" : status == 2 ? "NOT_SERVING" : "UNKNOWN") << "\n";
+      return serving ? 0 : 3;
+    }
+
+    auto scenario_msg = [&](v1::Scenario* out) {
+      if (!scenario_file.empty()) out->set_yaml(ReadFile(scenario_file));
+      else if (!scenario_name.empty()) out->set_name(scenario_name);
+    };
+
+    if (start->parsed()) {
+      v1::StartSessionRequest req;
+      if (!kitti_path.empty()) {
+        req.mutable_kitti()->set_path(kitti_path);
+        req.mutable_kitti()->set_first_frame(first_frame);
+        req.mutable_kitti()->set_last_frame(last_frame);
+      } else if (o_synth->count() > 0) {
+        req.mutable_synthetic()->set_seed(synth_seed);
+        req.mutable_synthetic()->set_frames(synth_frames);
+      } else {
+        std::cerr << "error: session start needs --kitti PATH or --synthetic SEED\n";
+        return 2;
+      }
+      scenario_msg(req.mutable_scenario());
+      req.set_vo_method(vo_method);
+      req.set_playback_rate(rate);
+      req.set_history_size(history);
+      grpc::ClientContext ctx;
+      Prepare(c, &ctx, c.timeout_s);
+      v1::Session resp;
+      const grpc::Status s = stub->StartSession(&ctx, req, &resp);
+      if (!s.ok()) return Fail(s);
+      std::cout << resp.id() << "\n";
+      return 0;
+    }
+    if (list->parsed()) {
+      grpc::ClientContext ctx;
+      Prepare(c, &ctx, c.timeout_s);
+      v1::ListSessionsResponse resp;
+      const grpc::Status s = stub->ListSessions(&ctx, {}, &resp);
+      if (!s.ok()) return Fail(s);
+      for (const auto& sess : resp.sessions()) PrintSession(sess);
+      return 0;
+    }
+    if (get->parsed()) {
+      grpc::ClientContext ctx;
+      Prepare(c, &ctx, c.timeout_s);
+      v1::GetSessionRequest req;
+      req.set_session_id(session_id);
+      v1::Session resp;
+      const grpc::Status s = stub->GetSession(&ctx, req, &resp);
+      if (!s.ok()) return Fail(s);
+      PrintSession(resp);
+      return 0;
+    }
+    if (stop->parsed()) {
+      grpc::ClientContext ctx;
+      Prepare(c, &ctx, c.timeout_s);
+      v1::StopSessionRequest req;
+      req.set_session_id(session_id);
+      req.set_remove(remove);
+      v1::Session resp;
+      const grpc::Status s = stub->StopSession(&ctx, req, &resp);
+      if (!s.ok()) return Fail(s);
+      PrintSession(resp);
+      return 0;
+    }
+    if (stats->parsed()) {
+      grpc::ClientContext ctx;
+      Prepare(c, &ctx, c.timeout_s);
+      v1::GetStatsRequest req;
+      req.set_session_id(session_id);
+      v1::SessionStats resp;
+      const grpc::Status s = stub->GetStats(&ctx, req, &resp);
+      if (!s.ok()) return Fail(s);
+      PrintStats(resp);
+      return 0;
+    }
+    if (outage->parsed()) {
+      v1::InjectOutageRequest req;
+      req.set_session_id(session_id);
+      req.set_start_s(o_start);
+      req.set_duration_s(o_duration);
+      req.set_action(o_start_cmd->parsed()  ? v1::InjectOutageRequest::START_NOW
+                     : o_stop_cmd->parsed() ? v1::InjectOutageRequest::STOP_NOW
+                                            : v1::InjectOutageRequest::WINDOW);
+      grpc::ClientContext ctx;
+      Prepare(c, &ctx, c.timeout_s);
+      v1::Session resp;
+      const grpc::Status s = stub->InjectOutage(&ctx, req, &resp);
+      if (!s.ok()) return Fail(s);
+      PrintSession(resp);
+      return 0;
+    }
+    if (scenario->parsed()) {
+      v1::SetScenarioRequest req;
+      req.set_session_id(session_id);
+      scenario_msg(req.mutable_scenario());
+      grpc::ClientContext ctx;
+      Prepare(c, &ctx, c.timeout_s);
+      v1::Session resp;
+      const grpc::Status s = stub->SetScenario(&ctx, req, &resp);
+      if (!s.ok()) return Fail(s);
+      PrintSession(resp);
+      return 0;
+    }
+    if (subscribe->parsed()) {
+      Recorder recorder(format, out_path);
+      v1::StreamPosesRequest req;
+      req.set_session_id(session_id);
+      req.set_from_start(from_start);
+      req.set_queue_size(queue);
+      g_stream_ctx = std::make_unique<grpc::ClientContext>();
+      Prepare(c, g_stream_ctx.get(), stream_timeout_s);
+      std::signal(SIGINT, OnSignal);
+      std::signal(SIGTERM, OnSignal);
+      auto reader = stub->StreamPoses(g_stream_ctx.get(), req);
+      v1::PoseUpdate pose;
+      uint64_t n = 0, dropped = 0;
+      while (reader->Read(&pose)) {
+        const auto now_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                std::chrono::system_clock::now().time_since_epoch())
+                                .count();
+        const double delay_ms = static_cast<double>(now_ns - pose.published_unix_ns()) * 1e-6;
+        recorder.Add(pose, delay_ms);
+        ++n;
+        dropped = pose.dropped_for_subscriber();
+        if (progress && n % 50 == 0) {
+          std::cerr << "received " << n << " poses (seq " << pose.sequence() << ", dropped " << dropped
+                    << ", mode " << ModeName(pose.mode()) << ")\n";
+        }
+        if (max_poses > 0 && n >= max_poses) {
+          g_stream_ctx->TryCancel();
+          break;
+        }
+      }
+      const grpc::Status s = reader->Finish();
+      if (progress || format != "print") {
+        std::cerr << "received " << n << " poses, dropped " << dropped << "\n";
+      }
+      if (max_poses > 0 && n >= max_poses) return 0;
+      if (!s.ok() && s.error_code() != grpc::CANCELLED) return Fail(s);
+      return 0;
+    }
+  } catch (const std::exception& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 2;
+  }
+  return 0;
+}

@@ -1,0 +1,142 @@
+#!/usr/bin/python3
+"""Python client of locaid-server.
+
+Stubs are generated at build time into <build>/python (proto/CMakeLists.txt);
+put that folder on PYTHONPATH (or pass --stubs DIR):
+
+  PYTHONPATH=build/python /usr/bin/python3 clients/python/locaid_client.py \
+      --server 127.0.0.1:50051 subscribe s1 --from-start --csv poses.csv
+
+The CSV has the same columns as `locaid subscribe --format csv`
+(CSV_COLUMNS below), which clients/plot_outage.py reads.
+"""
+import argparse
+import csv
+import math
+import os
+import sys
+import time
+
+CSV_COLUMNS = [
+    "t_s", "frame_index", "sequence", "e_m", "n_m", "u_m", "lat_deg", "lon_deg", "alt_m",
+    "qw", "qx", "qy", "qz", "ve_mps", "vn_mps", "vu_mps", "sigma_e_m", "sigma_n_m", "sigma_u_m",
+    "mode", "seconds_since_gps", "vo_inliers", "gps_used", "gps_rejected", "gps_outage",
+    "processing_latency_ms", "delay_ms", "dropped",
+]
+
+MODE_NAMES = {0: "UNSPECIFIED", 1: "GPS_FUSED", 2: "GPS_DEGRADED", 3: "VO_ONLY", 4: "LOST"}
+
+
+def _import_stubs(stubs_dir):
+    if stubs_dir:
+        sys.path.insert(0, stubs_dir)
+    try:
+        import grpc  # noqa: F401
+        from locaid.v1 import localization_pb2, localization_pb2_grpc
+    except ImportError as e:
+        sys.exit("error: cannot import the generated stubs (%s); build the project and set "
+                 "PYTHONPATH=<build>/python or pass --stubs" % e)
+    return localization_pb2, localization_pb2_grpc
+
+
+def make_channel(args):
+    import grpc
+    options = [("grpc.keepalive_time_ms", 30000), ("grpc.max_receive_message_length", 64 << 20)]
+    if args.tls_ca:
+        with open(args.tls_ca, "rb") as f:
+            creds = grpc.ssl_channel_credentials(root_certificates=f.read())
+        return grpc.secure_channel(args.server, creds, options=options)
+    return grpc.insecure_channel(args.server, options=options)
+
+
+def metadata(args):
+    return [("authorization", "Bearer " + args.token)] if args.token else []
+
+
+def pose_row(p, delay_ms):
+    cov = list(p.covariance)
+    sigma = [math.sqrt(max(0.0, cov[i * 7])) if len(cov) == 36 else float("nan") for i in range(3)]
+    return [
+        "%.12g" % (p.t_ns * 1e-9), p.frame_index, p.sequence,
+        p.position_enu_m.x, p.position_enu_m.y, p.position_enu_m.z,
+        p.latitude_deg, p.longitude_deg, p.altitude_m,
+        p.orientation_enu_body.w, p.orientation_enu_body.x, p.orientation_enu_body.y, p.orientation_enu_body.z,
+        p.velocity_enu_mps.x, p.velocity_enu_mps.y, p.velocity_enu_mps.z,
+        sigma[0], sigma[1], sigma[2],
+        MODE_NAMES.get(p.mode, str(p.mode)), p.seconds_since_gps, p.vo_inliers, p.gps_used, p.gps_rejected,
+        1 if p.gps_outage_active else 0, p.processing_latency_ms, delay_ms, p.dropped_for_subscriber,
+    ]
+
+
+def subscribe(args, pb2, pb2_grpc):
+    import grpc
+    stub = pb2_grpc.LocalizationStub(make_channel(args))
+    req = pb2.StreamPosesRequest(session_id=args.session, from_start=args.from_start, queue_size=args.queue)
+    out = None
+    writer = None
+    if args.csv:
+        out = open(args.csv, "w", newline="")
+        writer = csv.writer(out)
+        writer.writerow(CSV_COLUMNS)
+        out.flush()
+    n = 0
+    try:
+        for p in stub.StreamPoses(req, timeout=args.stream_timeout_s, metadata=metadata(args)):
+            delay_ms = (time.time_ns() - p.published_unix_ns) * 1e-6
+            n += 1
+            if writer:
+                writer.writerow(pose_row(p, delay_ms))
+                out.flush()  # a killed client leaves a valid file
+            else:
+                print("seq=%d t=%.3f enu=(%.3f,%.3f,%.3f) mode=%s delay_ms=%.3f dropped=%d" % (
+                    p.sequence, p.t_ns * 1e-9, p.position_enu_m.x, p.position_enu_m.y, p.position_enu_m.z,
+                    MODE_NAMES.get(p.mode, "?"), delay_ms, p.dropped_for_subscriber), flush=True)
+            if args.max and n >= args.max:
+                break
+    except grpc.RpcError as e:
+        sys.stderr.write("error: %s: %s\n" % (e.code().name, e.details()))
+        return 1
+    finally:
+        if out:
+            out.close()
+    sys.stderr.write("received %d poses\n" % n)
+    return 0
+
+
+def stats(args, pb2, pb2_grpc):
+    import grpc
+    stub = pb2_grpc.LocalizationStub(make_channel(args))
+    try:
+        s = stub.GetStats(pb2.GetStatsRequest(session_id=args.session), timeout=args.timeout_s,
+                          metadata=metadata(args))
+    except grpc.RpcError as e:
+        sys.stderr.write("error: %s: %s\n" % (e.code().name, e.details()))
+        return 1
+    print(s)
+    return 0
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--server", default="127.0.0.1:50051")
+    ap.add_argument("--token", default=os.environ.get("LOCAID_TOKEN", ""))
+    ap.add_argument("--tls-ca", default="")
+    ap.add_argument("--stubs", default="", help="folder with the generated locaid/v1/*_pb2.py")
+    ap.add_argument("--timeout-s", type=float, default=10.0)
+    sub = ap.add_subparsers(dest="command", required=True)
+    s = sub.add_parser("subscribe", help="stream poses; print or record CSV")
+    s.add_argument("session")
+    s.add_argument("--from-start", action="store_true")
+    s.add_argument("--csv", default="", help="record to this CSV file")
+    s.add_argument("--max", type=int, default=0)
+    s.add_argument("--queue", type=int, default=0)
+    s.add_argument("--stream-timeout-s", type=float, default=24 * 3600.0)
+    st = sub.add_parser("stats", help="session statistics")
+    st.add_argument("session")
+    args = ap.parse_args(argv)
+    pb2, pb2_grpc = _import_stubs(args.stubs)
+    return {"subscribe": subscribe, "stats": stats}[args.command](args, pb2, pb2_grpc)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

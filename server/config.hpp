@@ -1,0 +1,48 @@
+// Server configuration: command-line flags (CLI11) plus an optional YAML file,
+// validated once in ValidateConfig with messages naming the field.
+#pragma once
+
+#include <cstddef>
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace locaid::server {
+
+class ConfigError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct ServerConfig {
+  std::string listen = "127.0.0.1:50051";  // host:port; port 0 picks a free one
+  std::string tls_cert_file;               // PEM; TLS when cert and key are set
+  std::string tls_key_file;
+  std::string token;                       // bearer token; empty = no auth
+  std::string token_file;                  // alternative: first line of this file
+  size_t max_receive_mb = 32;              // largest accepted message (pushed frames)
+  size_t history_size = 1000;              // default poses kept per session
+  size_t max_history_size = 100000;        // upper bound for a session's history
+  size_t queue_size = 256;                 // default per-subscriber queue (poses)
+  size_t max_queue_size = 10000;
+  size_t max_sessions = 16;
+  size_t max_subscribers_per_session = 4096;
+  std::string work_dir;                    // synthetic drives; empty = $TMPDIR/locaid-server-<pid>
+  std::string default_scenario = "open-sky";
+  std::string default_vo_method = "default";
+  size_t synthetic_default_frames = 100;
+  double keepalive_time_s = 20;            // HTTP/2 pings on idle connections
+  double keepalive_timeout_s = 10;
+  double shutdown_grace_s = 1.5;           // open streams are cancelled after this
+  std::string port_file;                   // write the bound port here once listening
+};
+
+// Applies a YAML file (keys = field names above) onto `config`. Throws
+// ConfigError "FILE: key 'x': reason" for unknown keys or wrong types.
+void ApplyYamlConfig(const std::filesystem::path& file, ServerConfig* config);
+// Throws ConfigError naming the field when a value is out of range or a file
+// is unreadable; reads token_file into token.
+void ValidateConfig(ServerConfig* config);
+
+}  // namespace locaid::server

@@ -1,0 +1,211 @@
+#include "server/frame_source.hpp"
+
+#include "kitti/oxts.hpp"
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <chrono>
+#include <stdexcept>
+
+namespace locaid::server {
+
+DatasetFrameSource::DatasetFrameSource(std::unique_ptr<kitti::StereoDataset> dataset, int64_t first,
+                                       int64_t last)
+    : dataset_(std::move(dataset)) {
+  const auto n = static_cast<int64_t>(dataset_->size());
+  first_ = std::clamp<int64_t>(first, 0, n);
+  end_ = last < 0 ? n : std::clamp<int64_t>(last + 1, first_, n);
+  next_ = first_;
+  // OXTS samples before the first frame are not fed.
+  if (first_ < n) {
+    const int64_t t0 = dataset_->time_ns(static_cast<size_t>(first_));
+    const auto& oxts = dataset_->oxts();
+    while (next_oxts_ < oxts.size() && oxts[next_oxts_].t_ns < t0) ++next_oxts_;
+  }
+}
+
+double DatasetFrameSource::duration_s() const {
+  if (end_ - first_ < 2) return 0;
+  return static_cast<double>(dataset_->time_ns(static_cast<size_t>(end_ - 1)) -
+                             dataset_->time_ns(static_cast<size_t>(first_))) * 1e-9;
+}
+
+SourceItem DatasetFrameSource::Next() {
+  SourceItem item;
+  if (next_ >= end_) {
+    item.kind = SourceItem::Kind::kEnd;
+    return item;
+  }
+  const auto i = static_cast<size_t>(next_++);
+  item.index = static_cast<int64_t>(i);
+  item.t_ns = dataset_->time_ns(i);
+  const auto& oxts = dataset_->oxts();
+  while (next_oxts_ < oxts.size() && oxts[next_oxts_].t_ns <= item.t_ns) {
+    item.oxts.push_back(oxts[next_oxts_++]);
+  }
+  if (!dataset_->has_stereo(i)) {
+    item.kind = SourceItem::Kind::kSkipped;
+    item.error = "frame " + std::to_string(i) + ": left or right image missing";
+    return item;
+  }
+  try {
+    kitti::StereoImages images = dataset_->Load(i);
+    item.left = std::move(images.left);
+    item.right = std::move(images.right);
+    item.kind = SourceItem::Kind::kFrame;
+  } catch (const std::exception& e) {
+    item.kind = SourceItem::Kind::kCorrupt;
+    item.error = e.what();
+  }
+  return item;
+}
+
+cv::Mat DecodeLiveImage(const std::string& bytes, bool png, const kitti::StereoCamera& camera,
+                        const char* which) {
+  const std::string prefix = std::string(which) + " image: ";
+  if (bytes.empty()) throw std::invalid_argument(prefix + "empty");
+  cv::Mat image;
+  if (png) {
+    const cv::Mat raw(1, static_cast<int>(bytes.size()), CV_8UC1,
+                      const_cast<char*>(bytes.data()));
+    image = cv::imdecode(raw, cv::IMREAD_GRAYSCALE);
+    if (image.empty()) throw std::invalid_argument(prefix + "cannot decode " + std::to_string(bytes.size()) + " bytes");
+  } else {
+    const size_t expected = static_cast<size_t>(camera.width) * static_cast<size_t>(camera.height);
+    if (bytes.size() != expected) {
+      throw std::invalid_argument(prefix + "GRAY8 has " + std::to_string(bytes.size()) +
+                                  " bytes, expected " + std::to_string(expected) + " (" +
+                                  std::to_string(camera.width) + "x" + std::to_string(camera.height) + ")");
+    }
+    image = cv::Mat(camera.height, camera.width, CV_8UC1, const_cast<char*>(bytes.data())).clone();
+  }
+  if (image.cols != camera.width || image.rows != camera.height) {
+    throw std::invalid_argument(prefix + "size " + std::to_string(image.cols) + "x" + std::to_string(image.rows) +
+                                ", expected " + std::to_string(camera.width) + "x" + std::to_string(camera.height));
+  }
+  return image;
+}
+
+LiveFrameSource::LiveFrameSource(LiveCameraSetup setup, size_t capacity)
+    : setup_(std::move(setup)), capacity_(std::max<size_t>(capacity, 1)) {}
+
+bool LiveFrameSource::Push(LiveItem item, std::function<void()> resume) {
+  std::lock_guard lock(mu_);
+  if (closed_ || cancelled_) return true;  // dropped: the session has ended
+  if (queue_.size() < capacity_) {
+    queue_.push_back(std::move(item));
+    cv_.notify_one();
+    return true;
+  }
+  pending_ = std::move(item);
+  resume_ = std::move(resume);
+  return false;
+}
+
+void LiveFrameSource::CloseInput() {
+  std::lock_guard lock(mu_);
+  closed_ = true;
+  cv_.notify_all();
+}
+
+void LiveFrameSource::Cancel() {
+  std::function<void()> resume;
+  {
+    std::lock_guard lock(mu_);
+    cancelled_ = true;
+    pending_.reset();
+    resume.swap(resume_);
+    cv_.notify_all();
+  }
+  if (resume) resume();
+}
+
+void LiveFrameSource::Wake() {
+  std::lock_guard lock(mu_);
+  woken_ = true;
+  cv_.notify_all();
+}
+
+SourceItem LiveFrameSource::Next() {
+  SourceItem out;
+  for (;;) {
+    LiveItem item;
+    std::function<void()> resume;
+    {
+      std::unique_lock lock(mu_);
+      if (queue_.empty() && !closed_ && !cancelled_ && !woken_) {
+        cv_.wait_for(lock, std::chrono::milliseconds(50));
+      }
+      if (std::exchange(woken_, false)) {
+        out.kind = SourceItem::Kind::kIdle;
+        return out;
+      }
+      if (cancelled_ || (queue_.empty() && closed_)) {
+        out.kind = SourceItem::Kind::kEnd;
+        return out;
+      }
+      if (queue_.empty()) {
+        out.kind = SourceItem::Kind::kIdle;
+        out.oxts_bad_lines = std::exchange(bad_lines_, 0);
+        if (out.oxts_bad_lines > 0) out.error = last_error_;
+        return out;
+      }
+      item = std::move(queue_.front());
+      queue_.pop_front();
+      if (pending_) {
+        queue_.push_back(std::move(*pending_));
+        pending_.reset();
+        resume.swap(resume_);
+      }
+    }
+    if (resume) resume();
+
+    if (item.kind == LiveItem::Kind::kOxts) {
+      const int64_t n = oxts_count_++;
+      try {
+        kitti::OxtsSample s;
+        s.t_ns = item.t_ns;
+        s.index = static_cast<int>(n);
+        s.record = kitti::ParseOxtsLine(item.oxts_line, "pushed oxts record " + std::to_string(n));
+        if (!oxts_.empty() && s.t_ns <= oxts_.back().t_ns) {
+          throw std::invalid_argument("pushed oxts record " + std::to_string(n) + ": t_ns " +
+                                      std::to_string(s.t_ns) + " not after the previous record");
+        }
+        oxts_.push_back(s);
+      } catch (const std::exception& e) {
+        ++bad_lines_;
+        last_error_ = e.what();
+      }
+      continue;
+    }
+
+    out.index = frames_++;
+    out.t_ns = item.t_ns;
+    out.oxts_bad_lines = std::exchange(bad_lines_, 0);
+    if (out.oxts_bad_lines > 0) out.error = last_error_;
+    // Hand over the samples up to the frame time; later ones wait.
+    auto split = std::find_if(oxts_.begin(), oxts_.end(),
+                              [&](const kitti::OxtsSample& s) { return s.t_ns > item.t_ns; });
+    out.oxts.assign(oxts_.begin(), split);
+    oxts_.erase(oxts_.begin(), split);
+    if (item.t_ns <= last_frame_ns_) {
+      out.kind = SourceItem::Kind::kCorrupt;
+      out.error = "pushed frame " + std::to_string(out.index) + ": t_ns " + std::to_string(item.t_ns) +
+                  " not after the previous frame (" + std::to_string(last_frame_ns_) + ")";
+      return out;
+    }
+    try {
+      out.left = DecodeLiveImage(item.left, item.png, setup_.camera, "left");
+      out.right = DecodeLiveImage(item.right, item.png, setup_.camera, "right");
+      out.kind = SourceItem::Kind::kFrame;
+      last_frame_ns_ = item.t_ns;
+    } catch (const std::exception& e) {
+      out.kind = SourceItem::Kind::kCorrupt;
+      out.error = "pushed frame " + std::to_string(out.index) + ": " + e.what();
+    }
+    return out;
+  }
+}
+
+}  // namespace locaid::server

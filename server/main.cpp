@@ -1,0 +1,103 @@
+// locaid-server: the gRPC localization service.
+#include "server/config.hpp"
+#include "server/service.hpp"
+
+#include <CLI/CLI.hpp>
+#include <opencv2/core.hpp>
+
+#include <csignal>
+#include <cstdio>
+#include <iostream>
+#include <thread>
+
+namespace {
+
+int WaitForSignal() {
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGTERM);
+  int sig = 0;
+  sigwait(&set, &sig);
+  return sig;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using locaid::server::ServerConfig;
+  // Block the signals in every thread; main waits for them with sigwait.
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &set, nullptr);
+
+  ServerConfig cli;
+  std::string config_file;
+  CLI::App app{"locaid-server: stereo VO + GPS/IMU EKF localization over gRPC (health + reflection on)"};
+  app.add_option("--config", config_file, "YAML file with any of the settings below (flags override it)")
+      ->check(CLI::ExistingFile);
+  app.add_option("--listen", cli.listen, "host:port to listen on (port 0: pick one)")->capture_default_str();
+  app.add_option("--tls-cert", cli.tls_cert_file, "PEM certificate chain (TLS when given with --tls-key)");
+  app.add_option("--tls-key", cli.tls_key_file, "PEM private key");
+  app.add_option("--token", cli.token, "require 'authorization: Bearer TOKEN' on every call");
+  app.add_option("--token-file", cli.token_file, "read the token from the first line of this file");
+  app.add_option("--max-receive-mb", cli.max_receive_mb, "largest accepted message, MiB")->capture_default_str();
+  app.add_option("--history-size", cli.history_size, "default poses kept per session")->capture_default_str();
+  app.add_option("--queue-size", cli.queue_size, "default per-subscriber queue, poses")->capture_default_str();
+  app.add_option("--max-sessions", cli.max_sessions, "running sessions at once")->capture_default_str();
+  app.add_option("--work-dir", cli.work_dir, "where synthetic drives are rendered");
+  app.add_option("--default-scenario", cli.default_scenario, "GPS scenario when a session names none")
+      ->capture_default_str();
+  app.add_option("--default-vo", cli.default_vo_method, "VO method when a session names none")->capture_default_str();
+  app.add_option("--shutdown-grace-s", cli.shutdown_grace_s, "streams are cancelled this long after SIGTERM")
+      ->capture_default_str();
+  app.add_option("--port-file", cli.port_file, "write the bound port to this file once listening");
+  CLI11_PARSE(app, argc, argv);
+
+  ServerConfig config;
+  try {
+    if (!config_file.empty()) locaid::server::ApplyYamlConfig(config_file, &config);
+    // Flags given on the command line override the file.
+    const ServerConfig defaults;
+    auto take = [&](const char* flag, auto member) {
+      if (app.count(flag) > 0) config.*member = cli.*member;
+    };
+    take("--listen", &ServerConfig::listen);
+    take("--tls-cert", &ServerConfig::tls_cert_file);
+    take("--tls-key", &ServerConfig::tls_key_file);
+    take("--token", &ServerConfig::token);
+    take("--token-file", &ServerConfig::token_file);
+    take("--max-receive-mb", &ServerConfig::max_receive_mb);
+    take("--history-size", &ServerConfig::history_size);
+    take("--queue-size", &ServerConfig::queue_size);
+    take("--max-sessions", &ServerConfig::max_sessions);
+    take("--work-dir", &ServerConfig::work_dir);
+    take("--default-scenario", &ServerConfig::default_scenario);
+    take("--default-vo", &ServerConfig::default_vo_method);
+    take("--shutdown-grace-s", &ServerConfig::shutdown_grace_s);
+    take("--port-file", &ServerConfig::port_file);
+    (void)defaults;
+    locaid::server::ValidateConfig(&config);
+  } catch (const std::exception& e) {
+    std::cerr << "locaid-server: config: " << e.what() << "\n";
+    return 2;
+  }
+
+  cv::setNumThreads(1);  // one pipeline thread per session; no nested pools
+  try {
+    locaid::server::LocalizationServer server(config);
+    std::cout << "locaid-server listening on " << config.listen.substr(0, config.listen.rfind(':')) << ":"
+              << server.port() << (config.tls_cert_file.empty() ? "" : " (TLS)")
+              << (config.token.empty() ? "" : " (token)") << std::endl;
+    const int sig = WaitForSignal();
+    std::cout << "locaid-server: signal " << sig << ", shutting down" << std::endl;
+    server.Shutdown();
+  } catch (const std::exception& e) {
+    std::cerr << "locaid-server: " << e.what() << "\n";
+    return 1;
+  }
+  std::cout << "locaid-server: stopped" << std::endl;
+  return 0;
+}

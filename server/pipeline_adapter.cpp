@@ -1,0 +1,88 @@
+// The server's only contact with locaid_pipeline / locaid_fusion.
+#include "server/source_pipeline.hpp"
+
+#ifdef LOCAID_HAVE_PIPELINE
+#include "server/pipeline/localizer.hpp"
+#include "server/pipeline/scenario_yaml.hpp"
+#endif
+
+#include <stdexcept>
+
+namespace locaid::server {
+
+#ifdef LOCAID_HAVE_PIPELINE
+namespace {
+
+class LocalizerEstimator : public FrameEstimator {
+ public:
+  explicit LocalizerEstimator(const EstimatorSetup& setup)
+      : localizer_(setup.camera, setup.T_cam0_imu, setup.scenario, Options(setup)) {}
+
+  static pipeline::LocalizerOptions Options(const EstimatorSetup& setup) {
+    pipeline::LocalizerOptions options;
+    options.vo_method = setup.vo_method;
+    return options;
+  }
+
+  Estimate Process(const vo::StereoFrame& frame, std::span<const kitti::OxtsSample> oxts) override {
+    const pipeline::FrameResult r = localizer_.Process(frame, oxts);
+    Estimate e;
+    e.pose = r.pose;
+    e.vo_inliers = r.vo.inliers;
+    e.vo_status = r.vo.status;
+    e.in_outage = r.in_outage;
+    return e;
+  }
+  void ScheduleOutage(int64_t start_ns, int64_t end_ns) override { localizer_.ScheduleOutage(start_ns, end_ns); }
+  void StartOutageNow() override { localizer_.StartOutageNow(); }
+  void StopOutageNow() override { localizer_.StopOutageNow(); }
+  void SetScenario(const fusion::Scenario& scenario) override { localizer_.SetScenario(scenario); }
+  bool origin(double*, double*, double*) const override { return false; }
+
+ private:
+  pipeline::Localizer localizer_;
+};
+
+}  // namespace
+
+std::unique_ptr<FrameEstimator> MakeLocalizerEstimator(const EstimatorSetup& setup) {
+  return std::make_unique<LocalizerEstimator>(setup);
+}
+
+fusion::Scenario ScenarioFromName(const std::string& name) {
+  fusion::Scenario s = fusion::BuiltinScenario(name);
+  fusion::ValidateScenario(s);
+  return s;
+}
+
+fusion::Scenario ScenarioFromYaml(const std::string& yaml) {
+  try {
+    fusion::Scenario s = pipeline::ParseScenarioYaml(yaml, "scenario.yaml");
+    fusion::ValidateScenario(s);
+    return s;
+  } catch (const pipeline::ScenarioError& e) {
+    throw std::invalid_argument(e.what());
+  }
+}
+
+fusion::Scenario PlaceScenarioOutages(fusion::Scenario scenario, double drive_duration_s) {
+  return fusion::PlaceOutagesForDrive(std::move(scenario), drive_duration_s);
+}
+
+#else  // Built before locaid_pipeline exists: sessions cannot localize.
+
+std::unique_ptr<FrameEstimator> MakeLocalizerEstimator(const EstimatorSetup&) {
+  throw std::invalid_argument("this server was built without locaid_pipeline (server/pipeline)");
+}
+fusion::Scenario ScenarioFromName(const std::string& name) {
+  if (name != "open-sky") throw std::invalid_argument("unknown scenario '" + name + "' (known: open-sky)");
+  return fusion::Scenario{};
+}
+fusion::Scenario ScenarioFromYaml(const std::string&) {
+  throw std::invalid_argument("YAML scenarios need locaid_pipeline");
+}
+fusion::Scenario PlaceScenarioOutages(fusion::Scenario scenario, double) { return scenario; }
+
+#endif
+
+}  // namespace locaid::server

@@ -1,0 +1,202 @@
+// Fan-out of one producer's messages to many subscribers.
+//
+// One bounded queue per subscriber. Publish() never waits for a subscriber:
+// when a queue is full its OLDEST item is dropped and that subscriber's drop
+// counter grows, so a slow subscriber always gets the newest items and never
+// slows the producer or the other subscribers. Items are shared (one
+// allocation per publish, whatever the number of subscribers), so memory is
+// bounded by history_capacity + sum(queue capacities) pointers.
+//
+// A subscriber is woken through its `wake` callback after every push and on
+// Close(); the callback must be cheap and must not call back into the hub
+// while holding locks the hub could wait on (it is called with no hub lock
+// held). Thread-safe: one producer thread, any number of consumer threads.
+#pragma once
+
+#include <algorithm>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace locaid::server {
+
+struct SubscriberInfo {
+  uint64_t id = 0;
+  std::string peer;
+  uint64_t delivered = 0;  // items popped by the consumer
+  uint64_t dropped = 0;    // items dropped because the queue was full
+  size_t queued = 0;
+};
+
+struct HubStats {
+  uint64_t published = 0;
+  size_t history = 0;
+  uint64_t dropped_total = 0;  // includes subscribers that have left
+  std::vector<SubscriberInfo> subscribers;
+};
+
+template <typename T>
+class PoseHub {
+ public:
+  using Item = std::shared_ptr<const T>;
+
+  class Subscriber {
+   public:
+    enum class PopResult { kItem, kEmpty, kEnd };
+    // kItem: *out is the oldest queued item and *dropped the number of items
+    // this subscriber has lost so far. kEnd: the hub is closed and the queue
+    // drained. kEmpty: wait for the next wake.
+    PopResult Pop(Item* out, uint64_t* dropped) {
+      std::lock_guard lock(mu_);
+      if (queue_.empty()) return closed_ ? PopResult::kEnd : PopResult::kEmpty;
+      *out = std::move(queue_.front());
+      queue_.pop_front();
+      ++delivered_;
+      if (dropped) *dropped = dropped_;
+      return PopResult::kItem;
+    }
+    uint64_t id() const { return id_; }
+    SubscriberInfo info() const {
+      std::lock_guard lock(mu_);
+      return {id_, peer_, delivered_, dropped_, queue_.size()};
+    }
+
+   private:
+    friend class PoseHub;
+    Subscriber(uint64_t id, std::string peer, size_t capacity, std::function<void()> wake)
+        : id_(id), peer_(std::move(peer)), capacity_(capacity), wake_(std::move(wake)) {}
+    // Returns the number of items dropped by this push (0 or 1).
+    uint64_t Push(const Item& item) {
+      std::lock_guard lock(mu_);
+      if (closed_) return 0;
+      uint64_t lost = 0;
+      if (queue_.size() >= capacity_) {
+        queue_.pop_front();
+        ++dropped_;
+        lost = 1;
+      }
+      queue_.push_back(item);
+      return lost;
+    }
+    void MarkClosed() {
+      std::lock_guard lock(mu_);
+      closed_ = true;
+    }
+    void Wake() const {
+      if (wake_) wake_();
+    }
+
+    const uint64_t id_;
+    const std::string peer_;
+    const size_t capacity_;
+    const std::function<void()> wake_;
+    mutable std::mutex mu_;
+    std::deque<Item> queue_;
+    uint64_t delivered_ = 0, dropped_ = 0;
+    bool closed_ = false;
+  };
+  using SubscriberPtr = std::shared_ptr<Subscriber>;
+
+  explicit PoseHub(size_t history_capacity) : history_capacity_(history_capacity) {}
+
+  // Registers a subscriber with a queue of `queue_capacity` (>= 1) items.
+  // from_start: the queue is first filled with the history (its capacity
+  // grows by the history size so nothing of it is dropped at once). On a
+  // closed hub the subscriber gets the history (if asked) and then kEnd.
+  SubscriberPtr Subscribe(size_t queue_capacity, bool from_start, std::function<void()> wake,
+                          std::string peer = {}) {
+    queue_capacity = std::max<size_t>(queue_capacity, 1);
+    std::lock_guard lock(mu_);
+    const size_t extra = from_start ? history_.size() : 0;
+    SubscriberPtr sub(new Subscriber(next_id_++, std::move(peer), queue_capacity + extra, std::move(wake)));
+    if (from_start) {
+      for (const Item& item : history_) sub->queue_.push_back(item);
+    }
+    if (closed_) {
+      sub->closed_ = true;
+    } else {
+      subscribers_.push_back(sub);
+    }
+    return sub;
+  }
+
+  void Unsubscribe(const SubscriberPtr& sub) {
+    if (!sub) return;
+    std::lock_guard lock(mu_);
+    auto it = std::find(subscribers_.begin(), subscribers_.end(), sub);
+    if (it != subscribers_.end()) {
+      dropped_departed_ += (*it)->info().dropped;
+      subscribers_.erase(it);
+    }
+  }
+
+  // Appends to the history and to every subscriber queue, then wakes them.
+  void Publish(Item item) {
+    std::vector<SubscriberPtr> targets;
+    {
+      std::lock_guard lock(mu_);
+      if (closed_) return;
+      ++published_;
+      if (history_capacity_ > 0) {
+        if (history_.size() >= history_capacity_) history_.pop_front();
+        history_.push_back(item);
+      }
+      targets = subscribers_;
+    }
+    for (const SubscriberPtr& sub : targets) sub->Push(item);
+    for (const SubscriberPtr& sub : targets) sub->Wake();
+  }
+
+  // No more items: subscribers drain their queues, then Pop() returns kEnd.
+  void Close() {
+    std::vector<SubscriberPtr> targets;
+    {
+      std::lock_guard lock(mu_);
+      if (closed_) return;
+      closed_ = true;
+      targets = subscribers_;
+    }
+    for (const SubscriberPtr& sub : targets) sub->MarkClosed();
+    for (const SubscriberPtr& sub : targets) sub->Wake();
+  }
+
+  bool closed() const {
+    std::lock_guard lock(mu_);
+    return closed_;
+  }
+
+  size_t subscriber_count() const {
+    std::lock_guard lock(mu_);
+    return subscribers_.size();
+  }
+
+  HubStats stats() const {
+    std::lock_guard lock(mu_);
+    HubStats s;
+    s.published = published_;
+    s.history = history_.size();
+    s.dropped_total = dropped_departed_;
+    for (const SubscriberPtr& sub : subscribers_) {
+      s.subscribers.push_back(sub->info());
+      s.dropped_total += s.subscribers.back().dropped;
+    }
+    return s;
+  }
+
+ private:
+  const size_t history_capacity_;
+  mutable std::mutex mu_;
+  std::deque<Item> history_;
+  std::vector<SubscriberPtr> subscribers_;
+  uint64_t next_id_ = 1;
+  uint64_t published_ = 0;
+  uint64_t dropped_departed_ = 0;
+  bool closed_ = false;
+};
+
+}  // namespace locaid::server

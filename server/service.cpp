@@ -1,0 +1,793 @@
+#include "server/service.hpp"
+
+#include "kitti/dataset.hpp"
+#include "server/frame_source.hpp"
+#include "server/synthetic_drive.hpp"
+
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/health_check_service_interface.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+namespace locaid::server {
+namespace {
+
+namespace v1 = locaid::v1;
+using grpc::Status;
+using grpc::StatusCode;
+
+grpc::ServerUnaryReactor* Reply(grpc::CallbackServerContext* ctx, const Status& status) {
+  auto* reactor = ctx->DefaultReactor();
+  reactor->Finish(status);
+  return reactor;
+}
+
+Status Invalid(const std::string& msg) { return {StatusCode::INVALID_ARGUMENT, msg}; }
+
+// ------------------------------------------------------------ StreamPoses --
+
+class PoseWriter final : public grpc::ServerWriteReactor<v1::PoseUpdate>, public StreamTarget {
+ public:
+  PoseWriter(LocalizationService* service, std::shared_ptr<Session> session, const v1::StreamPosesRequest& req,
+             std::string peer, size_t queue_size)
+      : service_(service), session_(std::move(session)), waker_(std::make_shared<Waker>()) {
+    waker_->target = this;
+    service_->Register(waker_);
+    std::weak_ptr<Waker> weak = waker_;
+    sub_ = session_->hub().Subscribe(
+        queue_size, req.from_start(),
+        [weak] {
+          if (auto w = weak.lock()) w->Wake();
+        },
+        std::move(peer));
+    Wake();
+  }
+
+  void Wake() override {
+    std::lock_guard lock(mu_);
+    WriteNextLocked();
+  }
+  void Abort(const Status& status) override {
+    std::lock_guard lock(mu_);
+    FinishLocked(status);
+  }
+  void OnWriteDone(bool ok) override {
+    std::lock_guard lock(mu_);
+    writing_ = false;
+    if (!ok) {
+      FinishLocked(Status(StatusCode::UNAVAILABLE, "write failed (client gone)"));
+      return;
+    }
+    if (finish_) {
+      FinishLocked(*finish_);
+      return;
+    }
+    WriteNextLocked();
+  }
+  void OnCancel() override {
+    std::lock_guard lock(mu_);
+    FinishLocked(Status::CANCELLED);
+  }
+  void OnDone() override {
+    {
+      std::lock_guard lock(waker_->mu);
+      waker_->target = nullptr;
+    }
+    session_->hub().Unsubscribe(sub_);
+    service_->Unregister(waker_);
+    delete this;
+  }
+
+ private:
+  void WriteNextLocked() {
+    if (writing_ || finished_ || finish_) return;
+    Hub::Item item;
+    uint64_t dropped = 0;
+    switch (sub_->Pop(&item, &dropped)) {
+      case Hub::Subscriber::PopResult::kItem:
+        msg_ = *item;
+        msg_.set_dropped_for_subscriber(dropped);
+        writing_ = true;
+        StartWrite(&msg_);
+        return;
+      case Hub::Subscriber::PopResult::kEnd:
+        FinishLocked(session_->state() == v1::SESSION_STATE_FAILED
+                         ? Status(StatusCode::ABORTED, "session " + session_->id() + " failed: " +
+                                                           session_->ToProto().error())
+                         : Status::OK);
+        return;
+      case Hub::Subscriber::PopResult::kEmpty:
+        return;
+    }
+  }
+  // Finish once; with a write in flight, after it completes.
+  void FinishLocked(const Status& status) {
+    if (finished_) return;
+    if (writing_) {
+      if (!finish_) finish_ = status;
+      return;
+    }
+    finished_ = true;
+    Finish(status);
+  }
+
+  LocalizationService* service_;
+  std::shared_ptr<Session> session_;
+  std::shared_ptr<Waker> waker_;
+  Hub::SubscriberPtr sub_;
+  std::mutex mu_;
+  v1::PoseUpdate msg_;
+  bool writing_ = false, finished_ = false;
+  std::optional<Status> finish_;
+};
+
+// --------------------------------------------------------- PushSensorData --
+
+class PushReactor final : public grpc::ServerBidiReactor<v1::PushRequest, v1::PushResponse>,
+                          public StreamTarget {
+ public:
+  PushReactor(LocalizationService* service, std::string peer)
+      : service_(service), peer_(std::move(peer)), waker_(std::make_shared<Waker>()) {
+    waker_->target = this;
+    service_->Register(waker_);
+    StartRead(&req_);
+  }
+
+  void OnReadDone(bool ok) override {
+    if (!ok) {  // client half-closed (or went away)
+      std::lock_guard lock(mu_);
+      reads_done_ = true;
+      if (live_) {
+        live_->CloseInput();
+      } else {
+        FinishLocked(Invalid("stream closed before a 'start' message"));
+      }
+      return;
+    }
+    if (!session_) {
+      OnStart();
+      return;
+    }
+    switch (req_.item_case()) {
+      case v1::PushRequest::kFrame: {
+        const v1::StereoFrame& f = req_.frame();
+        const int64_t index = frames_++;
+        if (f.encoding() != v1::IMAGE_ENCODING_PNG && f.encoding() != v1::IMAGE_ENCODING_GRAY8) {
+          Reject("frame", index, "encoding: must be IMAGE_ENCODING_PNG or IMAGE_ENCODING_GRAY8");
+          break;
+        }
+        LiveItem item;
+        item.kind = LiveItem::Kind::kFrame;
+        item.t_ns = f.t_ns();
+        item.png = f.encoding() == v1::IMAGE_ENCODING_PNG;
+        item.left = std::move(*req_.mutable_frame()->mutable_left());
+        item.right = std::move(*req_.mutable_frame()->mutable_right());
+        PushToSession(std::move(item));
+        return;
+      }
+      case v1::PushRequest::kOxts: {
+        LiveItem item;
+        item.kind = LiveItem::Kind::kOxts;
+        item.t_ns = req_.oxts().t_ns();
+        item.oxts_line = req_.oxts().line();
+        ++oxts_;
+        PushToSession(std::move(item));
+        return;
+      }
+      case v1::PushRequest::kStart:
+        Reject("start", 0, "the stream already has a session; 'start' must be the first message only");
+        break;
+      case v1::PushRequest::ITEM_NOT_SET:
+        Reject("empty", 0, "message without frame or oxts");
+        break;
+    }
+    StartReadIfOpen();
+  }
+
+  void Wake() override {
+    std::lock_guard lock(mu_);
+    WriteNextLocked();
+  }
+  void Resume() override { StartReadIfOpen(); }
+  void Abort(const Status& status) override {
+    std::lock_guard lock(mu_);
+    FinishLocked(status);
+  }
+  void OnWriteDone(bool ok) override {
+    std::lock_guard lock(mu_);
+    writing_ = false;
+    if (!ok) {
+      FinishLocked(Status(StatusCode::UNAVAILABLE, "write failed (client gone)"));
+      return;
+    }
+    if (finish_) {
+      FinishLocked(*finish_);
+      return;
+    }
+    WriteNextLocked();
+  }
+  void OnCancel() override {
+    std::lock_guard lock(mu_);
+    FinishLocked(Status::CANCELLED);
+  }
+  void OnDone() override {
+    {
+      std::lock_guard lock(waker_->mu);
+      waker_->target = nullptr;
+    }
+    if (session_) {
+      session_->hub().Unsubscribe(sub_);
+      if (live_ && !reads_done_) live_->CloseInput();
+    }
+    service_->Unregister(waker_);
+    delete this;
+  }
+
+ private:
+  void OnStart() {
+    if (req_.item_case() != v1::PushRequest::kStart) {
+      std::lock_guard lock(mu_);
+      FinishLocked(Invalid("first message must be 'start' (got " +
+                           std::string(req_.item_case() == v1::PushRequest::kFrame ? "frame" : "oxts") + ")"));
+      return;
+    }
+    std::shared_ptr<Session> session;
+    LiveFrameSource* live = nullptr;
+    const Status status = service_->StartLive(req_.start(), &session, &live);
+    std::lock_guard lock(mu_);
+    if (!status.ok()) {
+      FinishLocked(status);
+      return;
+    }
+    session_ = std::move(session);
+    live_ = live;
+    std::weak_ptr<Waker> weak = waker_;
+    sub_ = session_->hub().Subscribe(
+        service_->config().queue_size, false,
+        [weak] {
+          if (auto w = weak.lock()) w->Wake();
+        },
+        peer_);
+    v1::PushResponse first;
+    *first.mutable_session() = session_->ToProto();
+    control_.push_back(std::move(first));
+    WriteNextLocked();
+    if (!finished_ && !finish_) StartRead(&req_);
+  }
+
+  void PushToSession(LiveItem item) {
+    std::weak_ptr<Waker> weak = waker_;
+    const bool room = live_->Push(std::move(item), [weak] {
+      if (auto w = weak.lock()) w->Resume();
+    });
+    if (room) StartReadIfOpen();
+  }
+
+  void StartReadIfOpen() {
+    std::lock_guard lock(mu_);
+    if (!finished_ && !finish_ && !reads_done_) StartRead(&req_);
+  }
+
+  void Reject(const std::string& kind, int64_t index, const std::string& reason) {
+    v1::PushResponse r;
+    r.mutable_rejected()->set_kind(kind);
+    r.mutable_rejected()->set_index(index);
+    r.mutable_rejected()->set_reason(reason);
+    std::lock_guard lock(mu_);
+    if (control_.size() < 64) control_.push_back(std::move(r));
+    WriteNextLocked();
+  }
+
+  void WriteNextLocked() {
+    if (writing_ || finished_ || finish_) return;
+    if (!control_.empty()) {
+      out_ = std::move(control_.front());
+      control_.pop_front();
+      writing_ = true;
+      StartWrite(&out_);
+      return;
+    }
+    if (!sub_) return;
+    Hub::Item item;
+    uint64_t dropped = 0;
+    switch (sub_->Pop(&item, &dropped)) {
+      case Hub::Subscriber::PopResult::kItem:
+        out_.Clear();
+        *out_.mutable_pose() = *item;
+        out_.mutable_pose()->set_dropped_for_subscriber(dropped);
+        writing_ = true;
+        StartWrite(&out_);
+        return;
+      case Hub::Subscriber::PopResult::kEnd:
+        FinishLocked(Status::OK);
+        return;
+      case Hub::Subscriber::PopResult::kEmpty:
+        return;
+    }
+  }
+
+  void FinishLocked(const Status& status) {
+    if (finished_) return;
+    if (writing_) {
+      if (!finish_) finish_ = status;
+      return;
+    }
+    finished_ = true;
+    Finish(status);
+  }
+
+  LocalizationService* service_;
+  std::string peer_;
+  std::shared_ptr<Waker> waker_;
+  v1::PushRequest req_;
+  std::shared_ptr<Session> session_;
+  LiveFrameSource* live_ = nullptr;
+  Hub::SubscriberPtr sub_;
+  std::mutex mu_;
+  std::deque<v1::PushResponse> control_;
+  v1::PushResponse out_;
+  bool writing_ = false, finished_ = false, reads_done_ = false;
+  std::optional<Status> finish_;
+  int64_t frames_ = 0, oxts_ = 0;
+};
+
+bool Finite(double x) { return std::isfinite(x); }
+
+Status ParseLiveSource(const v1::LiveSource& l, LiveCameraSetup* out) {
+  for (const auto& [name, v] : {std::pair{"fx", l.fx()}, {"fy", l.fy()}, {"baseline_m", l.baseline_m()}}) {
+    if (!Finite(v) || v <= 0) return Invalid(std::string("live.") + name + ": must be finite and > 0, got " + std::to_string(v));
+  }
+  for (const auto& [name, v] : {std::pair{"cx", l.cx()}, {"cy", l.cy()}}) {
+    if (!Finite(v)) return Invalid(std::string("live.") + name + ": must be finite");
+  }
+  if (l.width() < 16 || l.height() < 16 || l.width() > 8192 || l.height() > 8192) {
+    return Invalid("live.width/height: must be in [16, 8192], got " + std::to_string(l.width()) + "x" +
+                   std::to_string(l.height()));
+  }
+  out->camera = kitti::StereoCamera{l.fx(), l.fy(), l.cx(), l.cy(), l.baseline_m(), l.width(), l.height()};
+  if (l.t_cam0_imu_size() == 0) {
+    out->T_cam0_imu = KittiRigTcam0Imu();
+  } else if (l.t_cam0_imu_size() == 12) {
+    Eigen::Matrix<double, 3, 4> m;
+    for (int i = 0; i < 12; ++i) {
+      if (!Finite(l.t_cam0_imu(i))) return Invalid("live.T_cam0_imu[" + std::to_string(i) + "]: not finite");
+      m(i / 4, i % 4) = l.t_cam0_imu(i);
+    }
+    const Eigen::Matrix3d R = m.leftCols<3>();
+    if ((R * R.transpose() - Eigen::Matrix3d::Identity()).norm() > 1e-6 || R.determinant() < 0) {
+      return Invalid("live.T_cam0_imu: rotation part is not orthonormal");
+    }
+    out->T_cam0_imu.linear() = R;
+    out->T_cam0_imu.translation() = m.col(3);
+  } else {
+    return Invalid("live.T_cam0_imu: expected 0 or 12 values, got " + std::to_string(l.t_cam0_imu_size()));
+  }
+  return Status::OK;
+}
+
+
+}  // namespace
+
+// -------------------------------------------------------------- service --
+
+LocalizationService::LocalizationService(ServerConfig config, EstimatorFactory estimator_factory)
+    : config_(std::move(config)), estimator_factory_(std::move(estimator_factory)) {}
+
+LocalizationService::~LocalizationService() {
+  BeginShutdown();
+  JoinSessions();
+}
+
+Status LocalizationService::Authorize(const grpc::CallbackServerContext* ctx) const {
+  if (config_.token.empty()) return Status::OK;
+  const auto& md = ctx->client_metadata();
+  auto it = md.find("authorization");
+  if (it == md.end()) return {StatusCode::UNAUTHENTICATED, "missing 'authorization: Bearer <token>' metadata"};
+  const std::string value(it->second.data(), it->second.size());
+  if (value != "Bearer " + config_.token) return {StatusCode::UNAUTHENTICATED, "invalid bearer token"};
+  return Status::OK;
+}
+
+Status LocalizationService::FindSession(const std::string& id, std::shared_ptr<Session>* out) const {
+  if (id.empty()) return Invalid("session_id: required");
+  std::lock_guard lock(mu_);
+  auto it = sessions_.find(id);
+  if (it == sessions_.end()) return {StatusCode::NOT_FOUND, "session '" + id + "' not found"};
+  *out = it->second.session;
+  return Status::OK;
+}
+
+void LocalizationService::Register(const std::shared_ptr<Waker>& waker) {
+  std::lock_guard lock(mu_);
+  streams_.insert(waker);
+}
+
+void LocalizationService::Unregister(const std::shared_ptr<Waker>& waker) {
+  std::lock_guard lock(mu_);
+  streams_.erase(waker);
+}
+
+Status LocalizationService::ResolveScenario(const v1::Scenario& s, fusion::Scenario* out, std::string* name) const {
+  try {
+    switch (s.kind_case()) {
+      case v1::Scenario::kYaml:
+        *out = ScenarioFromYaml(s.yaml());
+        *name = out->name.empty() ? "yaml" : out->name;
+        break;
+      case v1::Scenario::kName:
+        *out = ScenarioFromName(s.name());
+        *name = s.name();
+        break;
+      case v1::Scenario::KIND_NOT_SET:
+        *out = ScenarioFromName(config_.default_scenario);
+        *name = config_.default_scenario;
+        break;
+    }
+  } catch (const std::exception& e) {
+    return Invalid(std::string("scenario: ") + e.what());
+  }
+  return Status::OK;
+}
+
+Status LocalizationService::AddSession(SessionOptions options, std::unique_ptr<SessionPipeline> pipeline,
+                                       LiveFrameSource* live, std::string* id) {
+  std::lock_guard lock(mu_);
+  if (shutting_down_) return {StatusCode::UNAVAILABLE, "server is shutting down"};
+  size_t active = 0;
+  for (const auto& [k, e] : sessions_) {
+    const auto st = e.session->state();
+    active += (st == v1::SESSION_STATE_RUNNING || st == v1::SESSION_STATE_STARTING) ? 1 : 0;
+  }
+  if (active >= config_.max_sessions) {
+    return {StatusCode::RESOURCE_EXHAUSTED,
+            "max_sessions (" + std::to_string(config_.max_sessions) + ") sessions are running; stop one first"};
+  }
+  options.id = "s" + std::to_string(next_id_++);
+  *id = options.id;
+  auto session = std::make_shared<Session>(std::move(options), std::move(pipeline));
+  sessions_[*id] = Entry{session, live, false};
+  session->Start();
+  return Status::OK;
+}
+
+Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::string* id) {
+  if (!Finite(req.playback_rate()) || req.playback_rate() < 0) {
+    return Invalid("playback_rate: must be finite and >= 0 (0 = as fast as possible), got " +
+                   std::to_string(req.playback_rate()));
+  }
+  SessionOptions options;
+  options.playback_rate = req.playback_rate();
+  options.vo_method = req.vo_method().empty() ? config_.default_vo_method : req.vo_method();
+  options.history_size = req.history_size() == 0 ? config_.history_size
+                                                  : std::min<size_t>(req.history_size(), config_.max_history_size);
+  EstimatorSetup setup;
+  setup.vo_method = options.vo_method;
+  if (Status s = ResolveScenario(req.scenario(), &setup.scenario, &options.scenario); !s.ok()) return s;
+
+  std::unique_ptr<FrameSource> source;
+  LiveFrameSource* live = nullptr;
+  try {
+    switch (req.source_case()) {
+      case v1::StartSessionRequest::kKitti: {
+        const auto& k = req.kitti();
+        if (k.path().empty()) return Invalid("kitti.path: required");
+        std::error_code ec;
+        if (!std::filesystem::exists(k.path(), ec)) return Invalid("kitti.path '" + k.path() + "': does not exist");
+        if (!std::filesystem::is_directory(k.path(), ec)) {
+          return Invalid("kitti.path '" + k.path() + "': not a directory");
+        }
+        if (k.first_frame() < 0) return Invalid("kitti.first_frame: must be >= 0");
+        auto dataset = kitti::OpenDataset(k.path());
+        if (dataset->size() == 0) return {StatusCode::FAILED_PRECONDITION, "kitti.path '" + k.path() + "': no frames"};
+        if (static_cast<size_t>(k.first_frame()) >= dataset->size()) {
+          return Invalid("kitti.first_frame " + std::to_string(k.first_frame()) + ": the drive has " +
+                         std::to_string(dataset->size()) + " frames");
+        }
+        options.source = "kitti:" + k.path();
+        source = std::make_unique<DatasetFrameSource>(std::move(dataset), k.first_frame(),
+                                                      k.last_frame() <= 0 ? -1 : k.last_frame());
+        break;
+      }
+      case v1::StartSessionRequest::kSynthetic: {
+        const auto& s = req.synthetic();
+        const size_t frames = s.frames() == 0 ? config_.synthetic_default_frames : s.frames();
+        if (frames < 2 || frames > 100000) return Invalid("synthetic.frames: must be in [2, 100000]");
+        auto dataset = MakeSyntheticDrive(config_.work_dir, s.seed(), frames, s.options_yaml());
+        options.source = "synthetic:seed=" + std::to_string(s.seed()) + ",frames=" + std::to_string(frames);
+        source = std::make_unique<DatasetFrameSource>(std::move(dataset), 0, -1);
+        break;
+      }
+      case v1::StartSessionRequest::kLive: {
+        LiveCameraSetup cam;
+        if (Status st = ParseLiveSource(req.live(), &cam); !st.ok()) return st;
+        auto src = std::make_unique<LiveFrameSource>(cam);
+        live = src.get();
+        options.source = "live";
+        source = std::move(src);
+        break;
+      }
+      case v1::StartSessionRequest::SOURCE_NOT_SET:
+        return Invalid("source: one of kitti, synthetic or live is required");
+    }
+  } catch (const kitti::Error& e) {
+    return {StatusCode::FAILED_PRECONDITION, std::string("cannot open input: ") + e.what()};
+  } catch (const SyntheticError& e) {
+    return {StatusCode::FAILED_PRECONDITION, std::string("synthetic drive: ") + e.what()};
+  } catch (const std::invalid_argument& e) {
+    return Invalid(e.what());
+  }
+  setup.camera = source->camera();
+  setup.T_cam0_imu = source->T_cam0_imu();
+  // Scenarios like "tunnel-30s" place their outage relative to the drive.
+  if (source->duration_s() > 0) setup.scenario = PlaceScenarioOutages(setup.scenario, source->duration_s());
+  std::unique_ptr<FrameEstimator> estimator;
+  try {
+    estimator = estimator_factory_(setup);
+  } catch (const std::exception& e) {
+    return Invalid(std::string("vo_method/scenario: ") + e.what());
+  }
+  return AddSession(std::move(options), std::make_unique<SourcePipeline>(std::move(source), std::move(estimator)),
+                    live, id);
+}
+
+Status LocalizationService::StartLive(const v1::PushStart& start, std::shared_ptr<Session>* session,
+                                      LiveFrameSource** live) {
+  if (!start.session_id().empty()) {
+    std::lock_guard lock(mu_);
+    auto it = sessions_.find(start.session_id());
+    if (it == sessions_.end()) return {StatusCode::NOT_FOUND, "session '" + start.session_id() + "' not found"};
+    if (!it->second.live) {
+      return {StatusCode::FAILED_PRECONDITION, "session '" + start.session_id() + "' is not a live session"};
+    }
+    if (it->second.live_attached) {
+      return {StatusCode::FAILED_PRECONDITION,
+              "session '" + start.session_id() + "' already has a PushSensorData stream"};
+    }
+    if (it->second.session->state() != v1::SESSION_STATE_RUNNING) {
+      return {StatusCode::FAILED_PRECONDITION, "session '" + start.session_id() + "' is not running"};
+    }
+    it->second.live_attached = true;
+    *session = it->second.session;
+    *live = it->second.live;
+    return Status::OK;
+  }
+  v1::StartSessionRequest req;
+  *req.mutable_live() = start.live();
+  *req.mutable_scenario() = start.scenario();
+  req.set_vo_method(start.vo_method());
+  req.set_history_size(start.history_size());
+  std::string id;
+  if (Status s = DoStart(req, &id); !s.ok()) return s;
+  std::lock_guard lock(mu_);
+  auto& e = sessions_.at(id);
+  e.live_attached = true;
+  *session = e.session;
+  *live = e.live;
+  return Status::OK;
+}
+
+grpc::ServerUnaryReactor* LocalizationService::StartSession(grpc::CallbackServerContext* ctx,
+                                                            const v1::StartSessionRequest* req, v1::Session* resp) {
+  if (Status s = Authorize(ctx); !s.ok()) return Reply(ctx, s);
+  std::string id;
+  Status s = DoStart(*req, &id);
+  if (s.ok()) {
+    std::shared_ptr<Session> session;
+    s = FindSession(id, &session);
+    if (s.ok()) *resp = session->ToProto();
+  }
+  return Reply(ctx, s);
+}
+
+grpc::ServerUnaryReactor* LocalizationService::GetSession(grpc::CallbackServerContext* ctx,
+                                                          const v1::GetSessionRequest* req, v1::Session* resp) {
+  if (Status s = Authorize(ctx); !s.ok()) return Reply(ctx, s);
+  std::shared_ptr<Session> session;
+  Status s = FindSession(req->session_id(), &session);
+  if (s.ok()) *resp = session->ToProto();
+  return Reply(ctx, s);
+}
+
+grpc::ServerUnaryReactor* LocalizationService::ListSessions(grpc::CallbackServerContext* ctx,
+                                                            const v1::ListSessionsRequest*,
+                                                            v1::ListSessionsResponse* resp) {
+  if (Status s = Authorize(ctx); !s.ok()) return Reply(ctx, s);
+  std::vector<std::shared_ptr<Session>> all;
+  {
+    std::lock_guard lock(mu_);
+    for (const auto& [id, e] : sessions_) all.push_back(e.session);
+  }
+  for (const auto& s : all) *resp->add_sessions() = s->ToProto();
+  return Reply(ctx, Status::OK);
+}
+
+grpc::ServerUnaryReactor* LocalizationService::StopSession(grpc::CallbackServerContext* ctx,
+                                                           const v1::StopSessionRequest* req, v1::Session* resp) {
+  if (Status s = Authorize(ctx); !s.ok()) return Reply(ctx, s);
+  std::shared_ptr<Session> session;
+  Status s = FindSession(req->session_id(), &session);
+  if (!s.ok()) return Reply(ctx, s);
+  session->Stop();
+  session->Join();
+  *resp = session->ToProto();
+  if (req->remove()) {
+    std::lock_guard lock(mu_);
+    sessions_.erase(req->session_id());
+  }
+  return Reply(ctx, Status::OK);
+}
+
+grpc::ServerUnaryReactor* LocalizationService::GetStats(grpc::CallbackServerContext* ctx,
+                                                        const v1::GetStatsRequest* req, v1::SessionStats* resp) {
+  if (Status s = Authorize(ctx); !s.ok()) return Reply(ctx, s);
+  std::shared_ptr<Session> session;
+  Status s = FindSession(req->session_id(), &session);
+  if (s.ok()) *resp = session->Stats();
+  return Reply(ctx, s);
+}
+
+grpc::ServerWriteReactor<v1::PoseUpdate>* LocalizationService::StreamPoses(grpc::CallbackServerContext* ctx,
+                                                                           const v1::StreamPosesRequest* req) {
+  auto fail = [](const Status& s) {
+    class Failed : public grpc::ServerWriteReactor<v1::PoseUpdate> {
+     public:
+      explicit Failed(const Status& s) { Finish(s); }
+      void OnDone() override { delete this; }
+    };
+    return new Failed(s);
+  };
+  if (Status s = Authorize(ctx); !s.ok()) return fail(s);
+  if (shutting_down_) return fail(Status(StatusCode::UNAVAILABLE, "server is shutting down"));
+  std::shared_ptr<Session> session;
+  if (Status s = FindSession(req->session_id(), &session); !s.ok()) return fail(s);
+  if (req->queue_size() > config_.max_queue_size) {
+    return fail(Invalid("queue_size: " + std::to_string(req->queue_size()) + " exceeds the server's max_queue_size " +
+                        std::to_string(config_.max_queue_size)));
+  }
+  if (session->hub().subscriber_count() >= config_.max_subscribers_per_session) {
+    return fail(Status(StatusCode::RESOURCE_EXHAUSTED, "session '" + req->session_id() + "' has " +
+                                                           std::to_string(config_.max_subscribers_per_session) +
+                                                           " subscribers (max_subscribers_per_session)"));
+  }
+  const size_t queue = req->queue_size() == 0 ? config_.queue_size : req->queue_size();
+  return new PoseWriter(this, std::move(session), *req, ctx->peer(), queue);
+}
+
+grpc::ServerUnaryReactor* LocalizationService::InjectOutage(grpc::CallbackServerContext* ctx,
+                                                            const v1::InjectOutageRequest* req, v1::Session* resp) {
+  if (Status s = Authorize(ctx); !s.ok()) return Reply(ctx, s);
+  std::shared_ptr<Session> session;
+  if (Status s = FindSession(req->session_id(), &session); !s.ok()) return Reply(ctx, s);
+  const double start_s = req->start_s(), duration_s = req->duration_s();
+  if (!Finite(start_s) || !Finite(duration_s) || duration_s < 0) {
+    return Reply(ctx, Invalid("start_s/duration_s: must be finite, duration_s >= 0"));
+  }
+  switch (req->action()) {
+    case v1::InjectOutageRequest::START_NOW:
+      session->Post([duration_s](SessionPipeline& p) { p.StartOutageNow(duration_s); });
+      break;
+    case v1::InjectOutageRequest::STOP_NOW:
+      session->Post([](SessionPipeline& p) { p.StopOutage(); });
+      break;
+    case v1::InjectOutageRequest::WINDOW:
+      if (start_s < 0 || duration_s <= 0) {
+        return Reply(ctx, Invalid("WINDOW: start_s must be >= 0 and duration_s > 0"));
+      }
+      session->Post([start_s, duration_s](SessionPipeline& p) { p.AddOutageWindow(start_s, duration_s); });
+      break;
+    default:
+      return Reply(ctx, Invalid("action: must be START_NOW, STOP_NOW or WINDOW"));
+  }
+  *resp = session->ToProto();
+  return Reply(ctx, Status::OK);
+}
+
+grpc::ServerUnaryReactor* LocalizationService::SetScenario(grpc::CallbackServerContext* ctx,
+                                                           const v1::SetScenarioRequest* req, v1::Session* resp) {
+  if (Status s = Authorize(ctx); !s.ok()) return Reply(ctx, s);
+  std::shared_ptr<Session> session;
+  if (Status s = FindSession(req->session_id(), &session); !s.ok()) return Reply(ctx, s);
+  if (req->scenario().kind_case() == v1::Scenario::KIND_NOT_SET) return Reply(ctx, Invalid("scenario: required"));
+  fusion::Scenario scenario;
+  std::string name;
+  if (Status s = ResolveScenario(req->scenario(), &scenario, &name); !s.ok()) return Reply(ctx, s);
+  session->Post([scenario](SessionPipeline& p) { p.SetScenario(scenario); });
+  session->set_scenario_name(name);
+  *resp = session->ToProto();
+  return Reply(ctx, Status::OK);
+}
+
+grpc::ServerBidiReactor<v1::PushRequest, v1::PushResponse>* LocalizationService::PushSensorData(
+    grpc::CallbackServerContext* ctx) {
+  if (Status s = Authorize(ctx); !s.ok() || shutting_down_) {
+    class Failed : public grpc::ServerBidiReactor<v1::PushRequest, v1::PushResponse> {
+     public:
+      explicit Failed(const Status& s) { Finish(s); }
+      void OnDone() override { delete this; }
+    };
+    return new Failed(s.ok() ? Status(StatusCode::UNAVAILABLE, "server is shutting down") : s);
+  }
+  return new PushReactor(this, ctx->peer());
+}
+
+void LocalizationService::BeginShutdown() {
+  shutting_down_ = true;
+  std::vector<std::shared_ptr<Session>> sessions;
+  std::vector<std::shared_ptr<Waker>> streams;
+  {
+    std::lock_guard lock(mu_);
+    for (const auto& [id, e] : sessions_) sessions.push_back(e.session);
+    streams.assign(streams_.begin(), streams_.end());
+  }
+  for (const auto& s : sessions) s->Stop();
+  for (const auto& w : streams) {
+    std::lock_guard lock(w->mu);
+    if (w->target) w->target->Abort(Status(StatusCode::UNAVAILABLE, "server shutting down"));
+  }
+}
+
+void LocalizationService::JoinSessions() {
+  std::vector<std::shared_ptr<Session>> sessions;
+  {
+    std::lock_guard lock(mu_);
+    for (const auto& [id, e] : sessions_) sessions.push_back(e.session);
+  }
+  for (const auto& s : sessions) s->Join();
+}
+
+// --------------------------------------------------------------- server --
+
+LocalizationServer::LocalizationServer(ServerConfig config, EstimatorFactory estimator_factory)
+    : config_(std::move(config)) {
+  ValidateConfig(&config_);
+  service_ = std::make_unique<LocalizationService>(config_, std::move(estimator_factory));
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+  grpc::ServerBuilder builder;
+  std::shared_ptr<grpc::ServerCredentials> creds;
+  if (!config_.tls_cert_file.empty()) {
+    auto read = [](const std::string& path) {
+      std::ifstream in(path);
+      return std::string(std::istreambuf_iterator<char>(in), {});
+    };
+    grpc::SslServerCredentialsOptions ssl;
+    ssl.pem_key_cert_pairs.push_back({read(config_.tls_key_file), read(config_.tls_cert_file)});
+    creds = grpc::SslServerCredentials(ssl);
+  } else {
+    creds = grpc::InsecureServerCredentials();
+  }
+  builder.AddListeningPort(config_.listen, creds, &port_);
+  builder.RegisterService(service_.get());
+  builder.SetMaxReceiveMessageSize(static_cast<int>(config_.max_receive_mb * 1024 * 1024));
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, static_cast<int>(config_.keepalive_time_s * 1000));
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, static_cast<int>(config_.keepalive_timeout_s * 1000));
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PINGS_WITHOUT_DATA, 0);
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 5000);
+  server_ = builder.BuildAndStart();
+  if (!server_ || port_ == 0) throw std::runtime_error("listen " + config_.listen + ": cannot bind");
+  server_->GetHealthCheckService()->SetServingStatus(true);
+  if (!config_.port_file.empty()) {
+    std::ofstream(config_.port_file) << port_ << "\n";
+  }
+}
+
+LocalizationServer::~LocalizationServer() { Shutdown(); }
+
+void LocalizationServer::Shutdown() {
+  std::call_once(shutdown_once_, [this] {
+    server_->GetHealthCheckService()->SetServingStatus(false);
+    service_->BeginShutdown();
+    const auto deadline = std::chrono::system_clock::now() +
+                          std::chrono::milliseconds(static_cast<int64_t>(config_.shutdown_grace_s * 1000));
+    server_->Shutdown(deadline);
+    service_->JoinSessions();
+  });
+}
+
+void LocalizationServer::Wait() { server_->Wait(); }
+
+}  // namespace locaid::server

@@ -1,0 +1,133 @@
+// The gRPC service (callback API) and the server that hosts it.
+#pragma once
+
+#include "locaid/v1/localization.grpc.pb.h"
+#include "server/config.hpp"
+#include "server/session.hpp"
+#include "server/source_pipeline.hpp"
+
+#include <grpcpp/grpcpp.h>
+
+#include <atomic>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <set>
+#include <string>
+
+namespace locaid::server {
+
+class LiveFrameSource;
+
+// Something that streams to a client and can be woken by the hub or ended by
+// the server. Reached through a Waker so callbacks never touch a deleted
+// reactor.
+class StreamTarget {
+ public:
+  virtual ~StreamTarget() = default;
+  virtual void Wake() = 0;
+  virtual void Abort(const grpc::Status& status) = 0;
+  virtual void Resume() {}
+};
+
+struct Waker {
+  std::mutex mu;
+  StreamTarget* target = nullptr;
+  void Wake() {
+    std::lock_guard lock(mu);
+    if (target) target->Wake();
+  }
+  void Resume() {
+    std::lock_guard lock(mu);
+    if (target) target->Resume();
+  }
+};
+
+class LocalizationService final : public locaid::v1::Localization::CallbackService {
+ public:
+  LocalizationService(ServerConfig config, EstimatorFactory estimator_factory);
+  ~LocalizationService() override;
+
+  grpc::ServerUnaryReactor* StartSession(grpc::CallbackServerContext* ctx,
+                                         const locaid::v1::StartSessionRequest* req,
+                                         locaid::v1::Session* resp) override;
+  grpc::ServerUnaryReactor* GetSession(grpc::CallbackServerContext* ctx,
+                                       const locaid::v1::GetSessionRequest* req,
+                                       locaid::v1::Session* resp) override;
+  grpc::ServerUnaryReactor* ListSessions(grpc::CallbackServerContext* ctx,
+                                         const locaid::v1::ListSessionsRequest* req,
+                                         locaid::v1::ListSessionsResponse* resp) override;
+  grpc::ServerUnaryReactor* StopSession(grpc::CallbackServerContext* ctx,
+                                        const locaid::v1::StopSessionRequest* req,
+                                        locaid::v1::Session* resp) override;
+  grpc::ServerUnaryReactor* GetStats(grpc::CallbackServerContext* ctx,
+                                     const locaid::v1::GetStatsRequest* req,
+                                     locaid::v1::SessionStats* resp) override;
+  grpc::ServerWriteReactor<locaid::v1::PoseUpdate>* StreamPoses(
+      grpc::CallbackServerContext* ctx, const locaid::v1::StreamPosesRequest* req) override;
+  grpc::ServerUnaryReactor* InjectOutage(grpc::CallbackServerContext* ctx,
+                                         const locaid::v1::InjectOutageRequest* req,
+                                         locaid::v1::Session* resp) override;
+  grpc::ServerUnaryReactor* SetScenario(grpc::CallbackServerContext* ctx,
+                                        const locaid::v1::SetScenarioRequest* req,
+                                        locaid::v1::Session* resp) override;
+  grpc::ServerBidiReactor<locaid::v1::PushRequest, locaid::v1::PushResponse>* PushSensorData(
+      grpc::CallbackServerContext* ctx) override;
+
+  // Stops every session and ends every open stream with UNAVAILABLE.
+  void BeginShutdown();
+  // Joins every session thread.
+  void JoinSessions();
+
+  // Internal, used by the reactors.
+  grpc::Status Authorize(const grpc::CallbackServerContext* ctx) const;
+  grpc::Status FindSession(const std::string& id, std::shared_ptr<Session>* out) const;
+  grpc::Status StartLive(const locaid::v1::PushStart& start, std::shared_ptr<Session>* session,
+                         LiveFrameSource** live);
+  void Register(const std::shared_ptr<Waker>& waker);
+  void Unregister(const std::shared_ptr<Waker>& waker);
+  const ServerConfig& config() const { return config_; }
+  bool shutting_down() const { return shutting_down_; }
+
+ private:
+  struct Entry {
+    std::shared_ptr<Session> session;
+    LiveFrameSource* live = nullptr;  // owned by the session's pipeline
+    bool live_attached = false;
+  };
+  grpc::Status DoStart(const locaid::v1::StartSessionRequest& req, std::string* id);
+  grpc::Status ResolveScenario(const locaid::v1::Scenario& s, fusion::Scenario* out, std::string* name) const;
+  grpc::Status AddSession(SessionOptions options, std::unique_ptr<SessionPipeline> pipeline,
+                          LiveFrameSource* live, std::string* id);
+
+  const ServerConfig config_;
+  const EstimatorFactory estimator_factory_;
+  mutable std::mutex mu_;
+  std::map<std::string, Entry> sessions_;
+  uint64_t next_id_ = 1;
+  std::set<std::shared_ptr<Waker>> streams_;
+  std::atomic<bool> shutting_down_{false};
+};
+
+// Owns the grpc::Server, health and reflection.
+class LocalizationServer {
+ public:
+  // Builds and starts the server; throws ConfigError / std::runtime_error
+  // (e.g. "listen 127.0.0.1:80: cannot bind").
+  LocalizationServer(ServerConfig config, EstimatorFactory estimator_factory = MakeLocalizerEstimator);
+  ~LocalizationServer();
+  int port() const { return port_; }
+  // Health NOT_SERVING, sessions stopped, streams ended with UNAVAILABLE,
+  // grpc Shutdown with deadline now + shutdown_grace_s, sessions joined.
+  void Shutdown();
+  void Wait();
+
+ private:
+  ServerConfig config_;
+  std::unique_ptr<LocalizationService> service_;
+  std::unique_ptr<grpc::Server> server_;
+  int port_ = 0;
+  std::once_flag shutdown_once_;
+};
+
+}  // namespace locaid::server

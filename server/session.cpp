@@ -1,0 +1,265 @@
+#include "server/session.hpp"
+
+#include <Eigen/Geometry>
+
+#include <cmath>
+#include <exception>
+
+namespace locaid::server {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+locaid::v1::Mode ToProtoMode(fusion::Mode m) {
+  switch (m) {
+    case fusion::Mode::kGpsFused: return locaid::v1::MODE_GPS_FUSED;
+    case fusion::Mode::kGpsDegraded: return locaid::v1::MODE_GPS_DEGRADED;
+    case fusion::Mode::kVoOnly: return locaid::v1::MODE_VO_ONLY;
+    case fusion::Mode::kLost: return locaid::v1::MODE_LOST;
+  }
+  return locaid::v1::MODE_UNSPECIFIED;
+}
+
+locaid::v1::VoStatus ToProtoVo(vo::Status s) {
+  switch (s) {
+    case vo::Status::kOk: return locaid::v1::VO_STATUS_OK;
+    case vo::Status::kDegraded: return locaid::v1::VO_STATUS_DEGRADED;
+    case vo::Status::kLost: return locaid::v1::VO_STATUS_LOST;
+  }
+  return locaid::v1::VO_STATUS_UNSPECIFIED;
+}
+
+}  // namespace
+
+int64_t UnixNowNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+void FillPoseUpdate(const StepResult& r, double latency_ms, PoseMessage* out) {
+  const fusion::FusedPose& p = r.pose;
+  out->set_frame_index(r.frame_index);
+  out->set_t_ns(p.t_ns);
+  const Eigen::Vector3d t = p.T_enu_body.translation();
+  auto* pos = out->mutable_position_enu_m();
+  pos->set_x(t.x());
+  pos->set_y(t.y());
+  pos->set_z(t.z());
+  const Eigen::Quaterniond q(p.T_enu_body.rotation());
+  auto* o = out->mutable_orientation_enu_body();
+  o->set_w(q.w());
+  o->set_x(q.x());
+  o->set_y(q.y());
+  o->set_z(q.z());
+  out->set_latitude_deg(p.lat_deg);
+  out->set_longitude_deg(p.lon_deg);
+  out->set_altitude_m(p.alt_m);
+  auto* v = out->mutable_velocity_enu_mps();
+  v->set_x(p.v_enu_mps.x());
+  v->set_y(p.v_enu_mps.y());
+  v->set_z(p.v_enu_mps.z());
+  out->mutable_covariance()->Reserve(36);
+  out->clear_covariance();
+  for (int i = 0; i < 6; ++i) {
+    for (int j = 0; j < 6; ++j) out->add_covariance(p.covariance(i, j));
+  }
+  out->set_mode(ToProtoMode(p.mode));
+  out->set_seconds_since_gps(p.seconds_since_gps);
+  out->set_vo_inliers(r.vo_inliers);
+  out->set_vo_status(ToProtoVo(r.vo_status));
+  out->set_gps_used(static_cast<uint32_t>(std::max(0, p.gps_used)));
+  out->set_gps_rejected(static_cast<uint32_t>(std::max(0, p.gps_rejected)));
+  out->set_gps_outage_active(r.gps_outage_active);
+  out->set_processing_latency_ms(latency_ms);
+}
+
+Session::Session(SessionOptions options, std::unique_ptr<SessionPipeline> pipeline)
+    : options_(std::move(options)),
+      pipeline_(std::move(pipeline)),
+      hub_(options_.history_size),
+      created_unix_ns_(UnixNowNs()),
+      total_frames_(pipeline_->total_frames()) {}
+
+Session::~Session() {
+  Stop();
+  Join();
+}
+
+void Session::Start() {
+  state_ = locaid::v1::SESSION_STATE_RUNNING;
+  thread_ = std::thread([this] { Run(); });
+}
+
+void Session::Stop() {
+  stop_ = true;
+  {
+    std::lock_guard lock(wait_mu_);
+  }
+  wait_cv_.notify_all();
+  pipeline_->Cancel();
+}
+
+void Session::Join() {
+  if (thread_.joinable()) thread_.join();
+  hub_.Close();
+}
+
+void Session::Post(Command command) {
+  std::lock_guard lock(commands_mu_);
+  commands_.push_back(std::move(command));
+  pipeline_->Wake();
+}
+
+void Session::set_scenario_name(const std::string& name) {
+  std::lock_guard lock(stats_mu_);
+  options_.scenario = name;
+}
+
+void Session::RunCommands() {
+  std::deque<Command> todo;
+  {
+    std::lock_guard lock(commands_mu_);
+    todo.swap(commands_);
+  }
+  for (Command& c : todo) {
+    try {
+      c(*pipeline_);
+    } catch (const std::exception& e) {
+      std::lock_guard lock(stats_mu_);
+      error_ = std::string("command failed: ") + e.what();
+    }
+  }
+}
+
+bool Session::Pace(int64_t t_ns) {
+  if (options_.playback_rate <= 0) return !stop_;
+  if (!paced_) {
+    paced_ = true;
+    pace_t0_ns_ = t_ns;
+    pace_w0_ = Clock::now();
+    return !stop_;
+  }
+  const double dt_s = static_cast<double>(t_ns - pace_t0_ns_) * 1e-9 / options_.playback_rate;
+  const auto due = pace_w0_ + std::chrono::duration_cast<Clock::duration>(
+                                  std::chrono::duration<double>(std::max(0.0, dt_s)));
+  std::unique_lock lock(wait_mu_);
+  wait_cv_.wait_until(lock, due, [this] { return stop_.load(); });
+  return !stop_;
+}
+
+void Session::Record(const StepResult& r, double latency_ms) {
+  std::lock_guard lock(stats_mu_);
+  if (r.kind != StepResult::Kind::kIdle && r.kind != StepResult::Kind::kEnd) {
+    stats_.set_frames_in(stats_.frames_in() + 1);
+  }
+  stats_.set_oxts_bad_lines(stats_.oxts_bad_lines() + static_cast<uint64_t>(std::max(0, r.oxts_bad_lines)));
+  if (!r.error.empty()) stats_.set_last_input_error(r.error);
+  if (r.kind == StepResult::Kind::kSkipped) stats_.set_frames_skipped(stats_.frames_skipped() + 1);
+  if (r.kind == StepResult::Kind::kCorrupt) stats_.set_frames_corrupt(stats_.frames_corrupt() + 1);
+  if (r.kind == StepResult::Kind::kPose) {
+    stats_.set_frames_processed(stats_.frames_processed() + 1);
+    latency_sum_ms_ += latency_ms;
+    stats_.set_latency_mean_ms(latency_sum_ms_ / static_cast<double>(stats_.frames_processed()));
+    stats_.set_latency_max_ms(std::max(stats_.latency_max_ms(), latency_ms));
+    const auto now = Clock::now();
+    recent_.push_back(now);
+    while (!recent_.empty() && now - recent_.front() > std::chrono::seconds(2)) recent_.pop_front();
+    if (!has_origin_) {
+      has_origin_ = pipeline_->origin(&origin_[0], &origin_[1], &origin_[2]);
+    }
+  }
+}
+
+void Session::Run() {
+  try {
+    while (!stop_) {
+      RunCommands();
+      const auto t0 = Clock::now();
+      StepResult r = pipeline_->Step();
+      const auto t1 = Clock::now();
+      if (r.kind == StepResult::Kind::kEnd) {
+        if (!stop_) state_ = locaid::v1::SESSION_STATE_FINISHED;
+        break;
+      }
+      if (r.kind == StepResult::Kind::kIdle) {
+        if (r.oxts_bad_lines > 0) Record(r, 0);
+        continue;
+      }
+      double latency_ms = r.processing_ms >= 0
+                              ? r.processing_ms
+                              : std::chrono::duration<double, std::milli>(t1 - t0).count();
+      if (r.kind != StepResult::Kind::kPose) {
+        Record(r, latency_ms);
+        continue;
+      }
+      if (!Pace(r.t_ns)) break;
+      auto msg = std::make_shared<PoseMessage>();
+      FillPoseUpdate(r, latency_ms, msg.get());
+      msg->set_session_id(options_.id);
+      msg->set_sequence(sequence_++);
+      Record(r, latency_ms);
+      msg->set_published_unix_ns(UnixNowNs());
+      hub_.Publish(std::move(msg));
+    }
+  } catch (const std::exception& e) {
+    std::lock_guard lock(stats_mu_);
+    error_ = e.what();
+    state_ = locaid::v1::SESSION_STATE_FAILED;
+  }
+  if (stop_ && state_ == locaid::v1::SESSION_STATE_RUNNING) state_ = locaid::v1::SESSION_STATE_STOPPED;
+  hub_.Close();
+}
+
+locaid::v1::SessionStats Session::Stats() const {
+  locaid::v1::SessionStats s;
+  {
+    std::lock_guard lock(stats_mu_);
+    s = stats_;
+    const auto now = Clock::now();
+    size_t n = 0;
+    for (const auto& t : recent_) n += (now - t <= std::chrono::seconds(2)) ? 1 : 0;
+    if (n >= 2) {
+      const double span_s = std::chrono::duration<double>(recent_.back() - recent_[recent_.size() - n]).count();
+      s.set_fps(span_s > 0 ? static_cast<double>(n - 1) / span_s : 0.0);
+    }
+  }
+  const HubStats h = hub_.stats();
+  s.set_poses_published(h.published);
+  s.set_subscribers(static_cast<uint32_t>(h.subscribers.size()));
+  s.set_dropped_total(h.dropped_total);
+  for (const SubscriberInfo& i : h.subscribers) {
+    auto* out = s.add_subscriber();
+    out->set_id(i.id);
+    out->set_peer(i.peer);
+    out->set_delivered(i.delivered);
+    out->set_dropped(i.dropped);
+    out->set_queued(static_cast<uint32_t>(i.queued));
+  }
+  return s;
+}
+
+locaid::v1::Session Session::ToProto() const {
+  locaid::v1::Session out;
+  out.set_id(options_.id);
+  out.set_state(state_.load());
+  out.set_source(options_.source);
+  out.set_vo_method(options_.vo_method);
+  out.set_playback_rate(options_.playback_rate);
+  out.set_total_frames(total_frames_);
+  out.set_created_unix_ns(created_unix_ns_);
+  out.set_history_capacity(static_cast<uint32_t>(options_.history_size));
+  {
+    std::lock_guard lock(stats_mu_);
+    out.set_scenario(options_.scenario);
+    out.set_error(error_.empty() ? stats_.last_input_error() : error_);
+    out.set_has_origin(has_origin_);
+    out.set_origin_latitude_deg(origin_[0]);
+    out.set_origin_longitude_deg(origin_[1]);
+    out.set_origin_altitude_m(origin_[2]);
+  }
+  *out.mutable_stats() = Stats();
+  return out;
+}
+
+}  // namespace locaid::server

@@ -1,0 +1,105 @@
+// One localization session: a SessionPipeline run by one thread, started by
+// Start() and joined by Join()/the destructor, publishing into a PoseHub.
+#pragma once
+
+#include "locaid/v1/localization.pb.h"
+#include "server/pose_hub.hpp"
+#include "server/session_pipeline.hpp"
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+namespace locaid::server {
+
+using PoseMessage = locaid::v1::PoseUpdate;
+using Hub = PoseHub<PoseMessage>;
+
+struct SessionOptions {
+  std::string id;
+  std::string source;        // "kitti:/path", "synthetic:seed=1", "live"
+  std::string vo_method = "default";
+  std::string scenario = "open-sky";
+  double playback_rate = 0;  // 0 = as fast as possible, N = N x real time
+  size_t history_size = 1000;
+};
+
+class Session {
+ public:
+  using Command = std::function<void(SessionPipeline&)>;
+
+  Session(SessionOptions options, std::unique_ptr<SessionPipeline> pipeline);
+  ~Session();  // Stop() + Join()
+  Session(const Session&) = delete;
+  Session& operator=(const Session&) = delete;
+
+  void Start();
+  // Asks the thread to stop after the current frame; the hub is closed when
+  // the thread ends (streams drain their queues and end with OK).
+  void Stop();
+  void Join();
+
+  // Runs `command` on the session thread before the next frame (so the
+  // pipeline is never touched by two threads).
+  void Post(Command command);
+  void set_scenario_name(const std::string& name);
+
+  const std::string& id() const { return options_.id; }
+  Hub& hub() { return hub_; }
+  locaid::v1::Session ToProto() const;
+  locaid::v1::SessionStats Stats() const;
+  locaid::v1::SessionState state() const { return state_.load(); }
+
+ private:
+  void Run();
+  void RunCommands();
+  // Sleeps until the wall time at which sensor time t_ns is due; false if
+  // stopped meanwhile.
+  bool Pace(int64_t t_ns);
+  void Record(const StepResult& r, double latency_ms);
+
+  SessionOptions options_;
+  std::unique_ptr<SessionPipeline> pipeline_;
+  Hub hub_;
+  std::thread thread_;
+  const int64_t created_unix_ns_;
+  const int64_t total_frames_;
+
+  std::atomic<locaid::v1::SessionState> state_{locaid::v1::SESSION_STATE_STARTING};
+  std::atomic<bool> stop_{false};
+  std::mutex wait_mu_;
+  std::condition_variable wait_cv_;
+
+  std::mutex commands_mu_;
+  std::deque<Command> commands_;
+
+  // Guarded by stats_mu_.
+  mutable std::mutex stats_mu_;
+  locaid::v1::SessionStats stats_;
+  std::deque<std::chrono::steady_clock::time_point> recent_;  // publish times, last 2 s
+  double latency_sum_ms_ = 0;
+  bool has_origin_ = false;
+  double origin_[3] = {0, 0, 0};
+  std::string error_;
+
+  // Pacing state (session thread only).
+  bool paced_ = false;
+  int64_t pace_t0_ns_ = 0;
+  std::chrono::steady_clock::time_point pace_w0_;
+  uint64_t sequence_ = 0;
+};
+
+// Fills a PoseUpdate (everything except session_id, sequence,
+// published_unix_ns and dropped_for_subscriber).
+void FillPoseUpdate(const StepResult& r, double latency_ms, PoseMessage* out);
+
+int64_t UnixNowNs();
+
+}  // namespace locaid::server

@@ -1,0 +1,63 @@
+// What a session runs: "give me the next fused pose". Implementations adapt a
+// frame source (KITTI dataset, synthetic drive, frames pushed by a client)
+// and the Localizer (VO -> EKF). Tests and benchmarks plug in their own.
+//
+// Threading: every method is called from the session thread only, except
+// Cancel(), which may be called from any thread to unblock Step().
+#pragma once
+
+#include "fusion/scenario.hpp"
+#include "fusion/types.hpp"
+#include "vo/stereo_odometry.hpp"
+
+#include <cstdint>
+#include <string>
+
+namespace locaid::server {
+
+struct StepResult {
+  enum class Kind {
+    kPose,     // `pose` is valid
+    kSkipped,  // frame without both images: skipped (error says which)
+    kCorrupt,  // frame could not be decoded / wrong size: skipped
+    kIdle,     // nothing available yet (live input): call again
+    kEnd,      // input exhausted
+  };
+  Kind kind = Kind::kIdle;
+  int64_t frame_index = -1;
+  int64_t t_ns = 0;  // sensor time of the frame (also for skipped frames)
+  fusion::FusedPose pose;
+  int vo_inliers = 0;
+  vo::Status vo_status = vo::Status::kLost;
+  bool gps_outage_active = false;
+  int oxts_bad_lines = 0;  // bad OXTS records met while producing this result
+  std::string error;       // kSkipped / kCorrupt / bad OXTS: file and reason
+  // Wall time spent on this frame (decode, VO, EKF), ms. < 0: the session
+  // measures the duration of Step() instead (right for file sources).
+  double processing_ms = -1;
+};
+
+class SessionPipeline {
+ public:
+  virtual ~SessionPipeline() = default;
+  virtual StepResult Step() = 0;
+  // Unblocks a Step() waiting for input (live sessions); Step then returns
+  // kEnd. Thread-safe.
+  virtual void Cancel() {}
+  // Makes a Step() that waits for input return kIdle soon, so commands
+  // posted to the session apply before the next frame. Thread-safe.
+  virtual void Wake() {}
+  // Frames in the input, 0 when unknown (live).
+  virtual int64_t total_frames() const { return 0; }
+  // GPS control, applied from the next frame on. Sensor times are relative to
+  // the first frame of the session.
+  virtual void StartOutageNow(double duration_s) = 0;  // 0 = until StopOutage
+  virtual void StopOutage() = 0;
+  virtual void AddOutageWindow(double start_s, double duration_s) = 0;
+  // Throws std::invalid_argument when the scenario is invalid.
+  virtual void SetScenario(const fusion::Scenario& scenario) = 0;
+  // ENU origin once known.
+  virtual bool origin(double* lat_deg, double* lon_deg, double* alt_m) const = 0;
+};
+
+}  // namespace locaid::server

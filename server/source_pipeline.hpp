@@ -1,0 +1,77 @@
+// SessionPipeline = FrameSource + FrameEstimator. The estimator is the
+// Localizer (VO -> EKF) in the server; tests and benchmarks may plug another.
+#pragma once
+
+#include "server/frame_source.hpp"
+#include "server/session_pipeline.hpp"
+
+#include <functional>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+
+namespace locaid::server {
+
+struct Estimate {
+  fusion::FusedPose pose;
+  int vo_inliers = 0;
+  vo::Status vo_status = vo::Status::kLost;
+  bool in_outage = false;
+};
+
+class FrameEstimator {
+ public:
+  virtual ~FrameEstimator() = default;
+  virtual Estimate Process(const vo::StereoFrame& frame, std::span<const kitti::OxtsSample> oxts) = 0;
+  virtual void ScheduleOutage(int64_t start_ns, int64_t end_ns) = 0;
+  virtual void StartOutageNow() = 0;
+  virtual void StopOutageNow() = 0;
+  virtual void SetScenario(const fusion::Scenario& scenario) = 0;
+  virtual bool origin(double* lat_deg, double* lon_deg, double* alt_m) const = 0;
+};
+
+struct EstimatorSetup {
+  kitti::StereoCamera camera;
+  Eigen::Isometry3d T_cam0_imu = Eigen::Isometry3d::Identity();
+  fusion::Scenario scenario;
+  std::string vo_method = "default";
+};
+// Throws std::invalid_argument (unknown VO method, bad scenario).
+using EstimatorFactory = std::function<std::unique_ptr<FrameEstimator>(const EstimatorSetup&)>;
+
+// The production estimator: pipeline::Localizer (pipeline_adapter.cpp).
+std::unique_ptr<FrameEstimator> MakeLocalizerEstimator(const EstimatorSetup& setup);
+
+// Scenario from a built-in name or YAML text, validated; throws
+// std::invalid_argument with the reason (pipeline_adapter.cpp).
+fusion::Scenario ScenarioFromName(const std::string& name);
+fusion::Scenario ScenarioFromYaml(const std::string& yaml);
+fusion::Scenario PlaceScenarioOutages(fusion::Scenario scenario, double drive_duration_s);
+
+class SourcePipeline : public SessionPipeline {
+ public:
+  SourcePipeline(std::unique_ptr<FrameSource> source, std::unique_ptr<FrameEstimator> estimator)
+      : source_(std::move(source)), estimator_(std::move(estimator)) {}
+
+  StepResult Step() override;
+  void Cancel() override { source_->Cancel(); }
+  void Wake() override { source_->Wake(); }
+  int64_t total_frames() const override { return source_->total_frames(); }
+  void StartOutageNow(double duration_s) override;
+  void StopOutage() override { estimator_->StopOutageNow(); }
+  void AddOutageWindow(double start_s, double duration_s) override;
+  void SetScenario(const fusion::Scenario& scenario) override { estimator_->SetScenario(scenario); }
+  bool origin(double* lat_deg, double* lon_deg, double* alt_m) const override {
+    return estimator_->origin(lat_deg, lon_deg, alt_m);
+  }
+
+ private:
+  std::unique_ptr<FrameSource> source_;
+  std::unique_ptr<FrameEstimator> estimator_;
+  std::optional<int64_t> first_t_ns_;
+  int64_t last_t_ns_ = 0;
+  std::vector<std::pair<double, double>> early_windows_;  // before the first frame
+};
+
+}  // namespace locaid::server

@@ -1,0 +1,30 @@
+// Synthetic drives for sessions: rendered by the kitti synth library into the
+// server's work directory, then opened like any KITTI raw drive.
+#pragma once
+
+#include "kitti/dataset.hpp"
+
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+namespace locaid::server {
+
+class SyntheticError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Renders (or reuses, same seed/frames/options) a drive under work_dir and
+// opens it. Throws SyntheticError when the generator is unavailable or fails.
+std::unique_ptr<kitti::StereoDataset> MakeSyntheticDrive(const std::string& work_dir, uint64_t seed,
+                                                         size_t frames, const std::string& options_yaml);
+
+// cam0 (rectified) <- imu of the KITTI 2011_09_26 rig, from its calibration
+// files (R_rect_00 * T_cam0_velo * T_velo_imu); default for live sessions.
+Eigen::Isometry3d KittiRigTcam0Imu();
+
+}  // namespace locaid::server

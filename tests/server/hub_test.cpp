@@ -1,0 +1,159 @@
+// PoseHub alone: ordering, no loss for subscribers that keep up, newest-kept
+// drops for slow ones, bounded memory, history, close, concurrent use.
+#include "server/pose_hub.hpp"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <condition_variable>
+#include <thread>
+
+namespace locaid::server {
+namespace {
+
+using IntHub = PoseHub<int>;
+
+std::vector<int> Drain(const IntHub::SubscriberPtr& sub) {
+  std::vector<int> out;
+  IntHub::Item item;
+  uint64_t dropped = 0;
+  while (sub->Pop(&item, &dropped) == IntHub::Subscriber::PopResult::kItem) out.push_back(*item);
+  return out;
+}
+
+TEST(PoseHub, SubscriberThatKeepsUpGetsEverythingInOrder) {
+  IntHub hub(/*history_capacity=*/0);
+  auto sub = hub.Subscribe(/*queue_capacity=*/4, false, nullptr);
+  std::vector<int> got;
+  for (int i = 0; i < 100; ++i) {
+    hub.Publish(std::make_shared<const int>(i));
+    for (int v : Drain(sub)) got.push_back(v);
+  }
+  ASSERT_EQ(got.size(), 100u);
+  for (int i = 0; i < 100; ++i) EXPECT_EQ(got[static_cast<size_t>(i)], i);
+  EXPECT_EQ(sub->info().dropped, 0u);
+  EXPECT_EQ(sub->info().delivered, 100u);
+}
+
+TEST(PoseHub, SlowSubscriberKeepsNewestAndCountsDropsWithoutAffectingOthers) {
+  IntHub hub(0);
+  constexpr size_t kCapacity = 4;
+  constexpr int kCount = 50;
+  auto slow = hub.Subscribe(kCapacity, false, nullptr);
+  auto fast = hub.Subscribe(kCapacity, false, nullptr);
+  std::vector<int> fast_got;
+  for (int i = 0; i < kCount; ++i) {
+    hub.Publish(std::make_shared<const int>(i));
+    for (int v : Drain(fast)) fast_got.push_back(v);
+    EXPECT_LE(slow->info().queued, kCapacity);  // memory bounded
+  }
+  EXPECT_EQ(fast_got.size(), static_cast<size_t>(kCount));
+  EXPECT_EQ(fast->info().dropped, 0u);
+  EXPECT_EQ(slow->info().dropped, static_cast<uint64_t>(kCount) - kCapacity);
+  const std::vector<int> newest = Drain(slow);
+  ASSERT_EQ(newest.size(), kCapacity);
+  for (size_t i = 0; i < kCapacity; ++i) EXPECT_EQ(newest[i], kCount - static_cast<int>(kCapacity) + static_cast<int>(i));
+  EXPECT_EQ(hub.stats().dropped_total, static_cast<uint64_t>(kCount) - kCapacity);
+}
+
+TEST(PoseHub, FromStartReplaysBoundedHistory) {
+  constexpr size_t kHistory = 10;
+  IntHub hub(kHistory);
+  for (int i = 0; i < 25; ++i) hub.Publish(std::make_shared<const int>(i));
+  auto late = hub.Subscribe(2, /*from_start=*/true, nullptr);
+  auto now = hub.Subscribe(2, /*from_start=*/false, nullptr);
+  hub.Publish(std::make_shared<const int>(25));
+  const std::vector<int> got = Drain(late);
+  ASSERT_EQ(got.size(), kHistory + 1);
+  EXPECT_EQ(got.front(), 25 - static_cast<int>(kHistory));
+  EXPECT_EQ(got.back(), 25);
+  EXPECT_EQ(late->info().dropped, 0u);
+  EXPECT_EQ(Drain(now), std::vector<int>{25});
+  EXPECT_EQ(hub.stats().history, kHistory);
+}
+
+TEST(PoseHub, CloseEndsAfterDrainAndLateSubscribersSeeEnd) {
+  IntHub hub(5);
+  int wakes = 0;
+  auto sub = hub.Subscribe(8, false, [&] { ++wakes; });
+  hub.Publish(std::make_shared<const int>(1));
+  hub.Close();
+  hub.Publish(std::make_shared<const int>(2));  // ignored after close
+  EXPECT_EQ(wakes, 2);                          // one publish, one close
+  IntHub::Item item;
+  EXPECT_EQ(sub->Pop(&item, nullptr), IntHub::Subscriber::PopResult::kItem);
+  EXPECT_EQ(*item, 1);
+  EXPECT_EQ(sub->Pop(&item, nullptr), IntHub::Subscriber::PopResult::kEnd);
+  auto late = hub.Subscribe(8, true, nullptr);
+  EXPECT_EQ(late->Pop(&item, nullptr), IntHub::Subscriber::PopResult::kItem);
+  EXPECT_EQ(late->Pop(&item, nullptr), IntHub::Subscriber::PopResult::kEnd);
+}
+
+// Consumers on their own threads, woken through the callback; one subscriber
+// never reads. Queues are large enough for the consumers to keep up however
+// the threads are scheduled, so they must receive every item in order; the
+// stalled one must stay at its capacity.
+TEST(PoseHub, ConcurrentConsumersLoseNothingWhileStalledOneStaysBounded) {
+  constexpr int kItems = 5000;
+  constexpr int kConsumers = 4;
+  constexpr size_t kStalledCapacity = 16;
+  IntHub hub(100);
+  struct Consumer {
+    std::mutex mu;
+    std::condition_variable cv;
+    bool signalled = false;
+    IntHub::SubscriberPtr sub;
+    std::vector<int> got;
+  };
+  std::vector<std::unique_ptr<Consumer>> consumers;
+  for (int c = 0; c < kConsumers; ++c) {
+    auto consumer = std::make_unique<Consumer>();
+    Consumer* raw = consumer.get();
+    raw->sub = hub.Subscribe(kItems, false, [raw] {
+      std::lock_guard lock(raw->mu);
+      raw->signalled = true;
+      raw->cv.notify_one();
+    });
+    consumers.push_back(std::move(consumer));
+  }
+  auto stalled = hub.Subscribe(kStalledCapacity, false, nullptr);
+  std::vector<std::thread> threads;
+  for (auto& consumer : consumers) {
+    threads.emplace_back([c = consumer.get()] {
+      for (;;) {
+        IntHub::Item item;
+        const auto r = c->sub->Pop(&item, nullptr);
+        if (r == IntHub::Subscriber::PopResult::kEnd) return;
+        if (r == IntHub::Subscriber::PopResult::kItem) {
+          c->got.push_back(*item);
+          continue;
+        }
+        std::unique_lock lock(c->mu);
+        c->cv.wait_for(lock, std::chrono::milliseconds(20), [c] { return c->signalled; });
+        c->signalled = false;
+      }
+    });
+  }
+  // A subscriber that joins and leaves repeatedly while publishing.
+  std::thread churn([&hub] {
+    for (int i = 0; i < 200; ++i) {
+      auto s = hub.Subscribe(2, i % 2 == 0, nullptr);
+      hub.Unsubscribe(s);
+    }
+  });
+  for (int i = 0; i < kItems; ++i) hub.Publish(std::make_shared<const int>(i));
+  hub.Close();
+  churn.join();
+  for (auto& t : threads) t.join();
+  for (auto& consumer : consumers) {
+    ASSERT_EQ(consumer->got.size(), static_cast<size_t>(kItems));
+    for (int i = 0; i < kItems; ++i) ASSERT_EQ(consumer->got[static_cast<size_t>(i)], i);
+    EXPECT_EQ(consumer->sub->info().dropped, 0u);
+  }
+  EXPECT_EQ(stalled->info().queued, kStalledCapacity);
+  EXPECT_EQ(stalled->info().dropped, static_cast<uint64_t>(kItems) - kStalledCapacity);
+  EXPECT_EQ(hub.stats().published, static_cast<uint64_t>(kItems));
+}
+
+}  // namespace
+}  // namespace locaid::server
