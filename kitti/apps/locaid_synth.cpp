@@ -30,7 +30,7 @@ int main(int argc, char** argv) {
   app.add_option("--date", cfg.date, "date folder / timestamp date, YYYY_MM_DD");
   app.add_option("--drive", cfg.drive_number, "drive number")->check(CLI::Range(0, 9999));
   app.add_option("--noise", cfg.noise_sigma_dn, "sensor noise sigma (grey levels)")->check(CLI::Range(0.0, 50.0));
-  app.add_option("--png-level", cfg.png_compression, "PNG zlib level 0..9")->check(CLI::Range(0, 9));
+  app.add_option("--png-level", cfg.png_compression, "PNG zlib level 0..9, -1 = fast (SUB filter, level 1, RLE)")->check(CLI::Range(-1, 9));
   app.add_flag("--quiet,-q", quiet, "no progress output");
   CLI11_PARSE(app, argc, argv);
 

@@ -40,7 +40,6 @@ void Renderer::Render(const std::vector<const Poly*>& polys, const Eigen::Isomet
   const Eigen::Matrix3d R_cw = T_cw.linear();
   const Eigen::Vector3d t_cw = T_cw.translation();
   std::fill(inv_z_.begin(), inv_z_.end(), 0.0f);
-  std::fill(color_.begin(), color_.end(), 0.0f);
   // Front-to-back order so the depth test rejects hidden pixels before texturing.
   sorted_.clear();
   const Eigen::RowVector3d r2 = R_cw.row(2);

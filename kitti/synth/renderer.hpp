@@ -51,6 +51,9 @@ class Renderer {
   void Render(const std::vector<const Poly*>& polys, const Eigen::Isometry3d& T_world_cam,
               const Photometry& photometry, cv::Mat& image_u8);
 
+  // Inverse depth (1/z, 0 = sky) of the last rendered image, row-major.
+  const std::vector<float>& inverse_depth() const { return inv_z_; }
+
   double near_m = 0.3;
   double fog_start_m = 45, fog_end_m = 185;  // haze: none before start, full at end
   float haze_dn = 175, sky_zenith_dn = 140;

@@ -43,7 +43,10 @@ template <typename M>
 std::string Row(const std::string& key, const M& m) {  // row-major
   std::string s = key + ":";
   for (int i = 0; i < m.rows(); ++i)
-    for (int j = 0; j < m.cols(); ++j) s += " " + E(m(i, j));
+    for (int j = 0; j < m.cols(); ++j) {
+      s += ' ';
+      s += E(m(i, j));
+    }
   return s + "\n";
 }
 
@@ -154,7 +157,10 @@ std::string FormatOxtsLine(const OxtsRecord& r) {
     if (!s.empty()) s += ' ';
     s += buf;
   }
-  for (int x : {r.navstat, r.numsats, r.posmode, r.velmode, r.orimode}) s += " " + std::to_string(x);
+  for (int x : {r.navstat, r.numsats, r.posmode, r.velmode, r.orimode}) {
+    s += ' ';
+    s += std::to_string(x);
+  }
   return s;
 }
 
@@ -166,9 +172,12 @@ SynthCalib MakeSynthCalib(int width, int height) {
   const Eigen::Matrix3d R_rect_00 = RoundM<3, 3>(SmallRot(0.00431, -0.00744, 0.00986));
   const Eigen::Matrix3d R_0x[4] = {Eigen::Matrix3d::Identity(), SmallRot(-0.0087, -0.0307, -0.0188),
                                    SmallRot(-0.0034, -0.0046, 0.0052), SmallRot(-0.0018, -0.0243, -0.0170)};
-  std::string cc = "calib_time: 17-May-2024 09:12:31\ncorner_dist: " + E(0.0995) + "\n";
+  std::string cc = "calib_time: 17-May-2024 09:12:31\ncorner_dist: ";
+  cc += E(0.0995);
+  cc += '\n';
   for (int i = 0; i < 4; ++i) {
-    const std::string id = "0" + std::to_string(i);
+    std::string id = "0";
+    id += std::to_string(i);
     Eigen::Matrix3d K;
     K << f, 0, cx, 0, f, cy, 0, 0, 1;
     const Eigen::Matrix3d R = RoundM<3, 3>(R_0x[i]);
@@ -221,7 +230,7 @@ SynthSummary GenerateDrive(const SynthConfig& cfg, const std::filesystem::path& 
   if (!(cfg.frame_rate_hz > 0.5 && cfg.frame_rate_hz <= 100)) throw Error("synth: frame_rate_hz must be in (0.5, 100]");
   if (!std::regex_match(cfg.date, std::regex("[0-9]{4}_[0-9]{2}_[0-9]{2}")))
     throw Error("synth: date '" + cfg.date + "' is not YYYY_MM_DD");
-  if (cfg.png_compression < 0 || cfg.png_compression > 9) throw Error("synth: png_compression must be 0..9");
+  if (cfg.png_compression < -1 || cfg.png_compression > 9) throw Error("synth: png_compression must be -1..9");
 
   const SynthCalib calib = MakeSynthCalib(cfg.width, cfg.height);
   const double dt = 1.0 / cfg.frame_rate_hz;
@@ -296,7 +305,10 @@ SynthSummary GenerateDrive(const SynthConfig& cfg, const std::filesystem::path& 
   const double lr_gain = 1.0 - prng.Uniform(0.01, 0.04), lr_offset = prng.Uniform(-2, 2);
   const Eigen::Vector3d acc_bias(prng.Normal() * 0.02, prng.Normal() * 0.02, prng.Normal() * 0.02);
   const Eigen::Vector3d gyro_bias(prng.Normal() * 2e-4, prng.Normal() * 2e-4, prng.Normal() * 2e-4);
-  const std::vector<int> png_params = {cv::IMWRITE_PNG_COMPRESSION, cfg.png_compression};
+  // -1: OpenCV's fast PNG path (SUB filter, zlib level 1, RLE strategy); 0..9: zlib level with
+  // libpng's adaptive filters (smaller, slower).
+  std::vector<int> png_params;
+  if (cfg.png_compression >= 0) png_params = {cv::IMWRITE_PNG_COMPRESSION, cfg.png_compression};
 
   std::string gt_kitti, gt_tum;
   Eigen::Isometry3d T_enu_world = Eigen::Isometry3d::Identity();

@@ -37,7 +37,7 @@ struct SynthConfig {
   double noise_sigma_dn = 1.2;       // sensor noise
   double oxts_time_offset_max_s = 0.004;  // |t_oxts - t_image| <= this (sync data are not exact)
   double frame_jitter_max_s = 0.0015;     // image timestamp jitter around 1/rate
-  int png_compression = 1;           // 0..9 (zlib level)
+  int png_compression = -1;          // -1: fast (SUB filter, zlib level 1, RLE); 0..9: zlib level, adaptive filters
 };
 
 struct SynthSummary {

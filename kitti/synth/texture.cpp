@@ -23,7 +23,7 @@ void AddValueNoise(Img& img, int cx, int cy, float amp, Rng& rng) {
   std::vector<float> g(static_cast<size_t>(gw) * gh);
   for (auto& v : g) v = static_cast<float>(rng.Uniform(-1, 1));
   std::vector<int> x0(img.w), x1(img.w);
-  std::vector<float> fx(img.w);
+  std::vector<float> fx(img.w), row(gw);
   for (int x = 0; x < img.w; ++x) {
     const float gx = static_cast<float>(x) / cx;
     x0[x] = static_cast<int>(gx) % gw;
@@ -36,11 +36,12 @@ void AddValueNoise(Img& img, int cx, int cy, float amp, Rng& rng) {
     const float fy = SmoothF(gy - std::floor(gy));
     const float* r0 = &g[static_cast<size_t>(y0) * gw];
     const float* r1 = &g[static_cast<size_t>(y1) * gw];
+    for (int i = 0; i < gw; ++i) row[i] = amp * (r0[i] + (r1[i] - r0[i]) * fy);
     float* out = &img.px[static_cast<size_t>(y) * img.w];
-    for (int x = 0; x < img.w; ++x) {
-      const float a = r0[x0[x]] + (r0[x1[x]] - r0[x0[x]]) * fx[x];
-      const float b = r1[x0[x]] + (r1[x1[x]] - r1[x0[x]]) * fx[x];
-      out[x] += amp * (a + (b - a) * fy);
+    if (cx == 1) {
+      for (int x = 0; x < img.w; ++x) out[x] += row[x];
+    } else {
+      for (int x = 0; x < img.w; ++x) out[x] += row[x0[x]] + (row[x1[x]] - row[x0[x]]) * fx[x];
     }
   }
 }
