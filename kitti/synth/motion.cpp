@@ -80,7 +80,7 @@ Route::Route(const RouteConfig& config) : length_m_(config.length_m) {
           seg_end = si + rng.Uniform(30, 70);
         } else {
           target = first ? 9.0 : rng.Uniform(config.v_min_mps + 3, config.v_max_mps);
-          seg_end = si + rng.Uniform(150, 400);
+          seg_end = si + (first ? rng.Uniform(40, 90) : rng.Uniform(150, 400));
         }
         first = false;
       }

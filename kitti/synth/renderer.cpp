@@ -168,7 +168,8 @@ void Renderer::DrawPoly(const Poly& poly, const Eigen::Matrix3d& R_cw, const Eig
       const double dudx = zm * (Uc[0] - um * Wc[0]), dudy = zm * (Uc[1] - um * Wc[1]);
       const double dvdx = zm * (Vc[0] - vm * Wc[0]), dvdy = zm * (Vc[1] - vm * Wc[1]);
       const double rho2 = std::max(dudx * dudx + dvdx * dvdx, dudy * dudy + dvdy * dvdy);
-      int level = rho2 > 1 ? static_cast<int>(0.5 * std::log2(rho2) + 0.5) : 0;
+      // round(log2(rho)) = floor(log2(2 rho^2) / 2)
+      int level = rho2 > 1 ? std::ilogb(2 * rho2) / 2 : 0;
       level = std::min(level, max_level);
       const uint8_t* texels = tex.levels[level].data();
       const int lw = tex.log2_w - level, lh = tex.log2_h - level;
@@ -216,19 +217,22 @@ void Renderer::PostProcess(const Eigen::Matrix3d& R_cw, const Photometry& ph, cv
   const Eigen::Vector3d up_c = R_cw * Eigen::Vector3d::UnitZ();
   const float lut_scale = static_cast<float>(fog_lut_.size() / fog_lut_max_inv_z_);
   const int lut_n = static_cast<int>(fog_lut_.size());
+  const float ifx = static_cast<float>(1.0 / K_.fx), cxf = static_cast<float>(K_.cx);
+  const float ux = static_cast<float>(up_c.x()), uy = static_cast<float>(up_c.y()), uz = static_cast<float>(up_c.z());
+  const float haze = haze_dn, zenith = sky_zenith_dn;
   for (int y = 0; y < H; ++y) {
-    const double ry = (y - K_.cy) / K_.fy;
+    const float ry = static_cast<float>((y - K_.cy) / K_.fy);
+    const float ry2 = ry * ry + 1.0f, sy = uy * ry + uz;
     float* c = &color_[static_cast<size_t>(y) * W];
     const float* iz = &inv_z_[static_cast<size_t>(y) * W];
     for (int x = 0; x < W; ++x) {
       if (iz[x] == 0.0f) {
-        const double rx = (x - K_.cx) / K_.fx;
-        const double s = (up_c.x() * rx + up_c.y() * ry + up_c.z()) / std::sqrt(rx * rx + ry * ry + 1);
-        const double t = std::clamp(s * 2.5, 0.0, 1.0);
-        c[x] = static_cast<float>(haze_dn + (sky_zenith_dn - haze_dn) * t);
+        const float rx = (static_cast<float>(x) - cxf) * ifx;
+        const float t = std::clamp((ux * rx + sy) / std::sqrt(rx * rx + ry2) * 2.5f, 0.0f, 1.0f);
+        c[x] = haze + (zenith - haze) * t;
       } else {
         const int k = static_cast<int>(iz[x] * lut_scale);
-        if (k < lut_n) c[x] += (haze_dn - c[x]) * fog_lut_[k];
+        if (k < lut_n) c[x] += (haze - c[x]) * fog_lut_[k];
       }
     }
   }
