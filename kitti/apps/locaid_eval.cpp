@@ -11,6 +11,7 @@
 #include "kitti/eval/evaluate.hpp"
 #include "kitti/types.hpp"
 
+#include <algorithm>
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
@@ -151,6 +152,10 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"se3", "none"}));
   app.add_option("--max-dt", config.max_dt_s, "TUM timestamp association tolerance [s]")
       ->check(CLI::NonNegativeNumber);
+  app.add_option("--lengths", config.devkit.lengths_m,
+                 "segment lengths in metres (devkit: 100 200 ... 800; short drives: 25 50 75 100)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -161,7 +166,10 @@ int main(int argc, char** argv) {
   }
   config.alignment = align == "none" ? locaid::kitti::eval::Alignment::kNone
                                      : locaid::kitti::eval::Alignment::kSe3;
-  const float shortest_m = config.devkit.lengths_m.empty() ? 0.0f : config.devkit.lengths_m.front();
+  const float shortest_m = config.devkit.lengths_m.empty()
+                               ? 0.0f
+                               : *std::min_element(config.devkit.lengths_m.begin(),
+                                                   config.devkit.lengths_m.end());
   try {
     const auto matched =
         locaid::kitti::eval::LoadMatchedPoses(gt_path, est_path, config.max_dt_s, config.read);
