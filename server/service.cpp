@@ -495,10 +495,19 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
         const auto& s = req.synthetic();
         const size_t frames = s.frames() == 0 ? config_.synthetic_default_frames : s.frames();
         if (frames < 2 || frames > 100000) return Invalid("synthetic.frames: must be in [2, 100000]");
-        auto dataset = MakeSyntheticDrive(config_.work_dir, s.seed(), frames, s.options_yaml());
         options.source = "synthetic:seed=" + std::to_string(s.seed()) + ",frames=" + std::to_string(frames);
-        source = std::make_unique<DatasetFrameSource>(std::move(dataset), 0, -1);
-        break;
+        // Rendered on the session thread (can take seconds); failures fail the session.
+        auto factory = [work_dir = config_.work_dir, seed = s.seed(), frames, yaml = s.options_yaml(), setup,
+                        make = estimator_factory_]() mutable -> std::unique_ptr<SessionPipeline> {
+          auto src = std::make_unique<DatasetFrameSource>(MakeSyntheticDrive(work_dir, seed, frames, yaml), 0, -1);
+          setup.camera = src->camera();
+          setup.T_cam0_imu = src->T_cam0_imu();
+          if (src->duration_s() > 0) setup.scenario = PlaceScenarioOutages(setup.scenario, src->duration_s());
+          return std::make_unique<SourcePipeline>(std::move(src), make(setup));
+        };
+        return AddSession(std::move(options),
+                          std::make_unique<DeferredPipeline>(std::move(factory), static_cast<int64_t>(frames)),
+                          nullptr, id);
       }
       case v1::StartSessionRequest::kLive: {
         LiveCameraSetup cam;

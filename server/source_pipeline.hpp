@@ -75,3 +75,42 @@ class SourcePipeline : public SessionPipeline {
 };
 
 }  // namespace locaid::server
+
+namespace locaid::server {
+
+// Builds its pipeline on the session thread at the first Step (slow inputs
+// such as rendering a synthetic drive do not block the RPC); controls given
+// before that are replayed onto it. A throwing factory fails the session.
+class DeferredPipeline : public SessionPipeline {
+ public:
+  using Factory = std::function<std::unique_ptr<SessionPipeline>()>;
+  DeferredPipeline(Factory factory, int64_t total_frames) : factory_(std::move(factory)), total_(total_frames) {}
+
+  StepResult Step() override {
+    if (!inner_) {
+      inner_ = factory_();
+      for (auto& op : pending_) op(*inner_);
+      pending_.clear();
+    }
+    return inner_->Step();
+  }
+  void Cancel() override {}
+  int64_t total_frames() const override { return total_; }
+  void StartOutageNow(double d) override { Do([d](SessionPipeline& p) { p.StartOutageNow(d); }); }
+  void StopOutage() override { Do([](SessionPipeline& p) { p.StopOutage(); }); }
+  void AddOutageWindow(double s, double d) override { Do([s, d](SessionPipeline& p) { p.AddOutageWindow(s, d); }); }
+  void SetScenario(const fusion::Scenario& sc) override { Do([sc](SessionPipeline& p) { p.SetScenario(sc); }); }
+  bool origin(double* a, double* b, double* c) const override { return inner_ && inner_->origin(a, b, c); }
+
+ private:
+  void Do(std::function<void(SessionPipeline&)> op) {
+    if (inner_) op(*inner_);
+    else pending_.push_back(std::move(op));
+  }
+  Factory factory_;
+  int64_t total_;
+  std::unique_ptr<SessionPipeline> inner_;
+  std::vector<std::function<void(SessionPipeline&)>> pending_;
+};
+
+}  // namespace locaid::server

@@ -76,7 +76,7 @@ def subscribe(args, pb2, pb2_grpc):
     writer = None
     if args.csv:
         out = open(args.csv, "w", newline="")
-        writer = csv.writer(out)
+        writer = csv.writer(out, lineterminator="\n")
         writer.writerow(CSV_COLUMNS)
         out.flush()
     n = 0
