@@ -70,7 +70,7 @@ class DefaultOdometry final : public StereoOdometry {
     std::vector<cv::Mat> left_pyr, right_pyr;
   };
 
-  void MakeKeyframe(const Images& im, std::vector<Feature> kept);
+  void MakeKeyframe(const Images& im, std::vector<Feature> kept, StageTimer* timer = nullptr);
   std::vector<cv::Point2f> DetectInBuckets(const cv::Mat& left,
                                            const std::vector<Feature>& kept) const;
   // Row search (SAD) for a first disparity, then KLT sub-pixel; -1 when none.
@@ -131,30 +131,37 @@ std::vector<float> DefaultOdometry::StereoDisparities(const Images& im,
   std::vector<cv::Point2f> right(uv.size());
   const int h = cfg_.stereo_search_half_patch;
   const int max_d = static_cast<int>(cfg_.max_disparity_px);
+  // New corners: SAD row search on pyramid level 1 (half resolution), with a
+  // uniqueness test; tracked ones: the predicted disparity.
+  const cv::Mat& left1 = im.left_pyr[2];    // level 1 (left pyramid holds derivatives)
+  const cv::Mat& right1 = im.right_pyr[1];  // level 1
+  std::vector<int> cost;
   for (size_t i = 0; i < uv.size(); ++i) {
+    right[i] = uv[i];
     if (predicted && (*predicted)[i] > 0) {
       right[i] = {uv[i].x - (*predicted)[i], uv[i].y};
       continue;
     }
-    // SAD search along the row of the rectified right image.
-    const int u = cvRound(uv[i].x), v = cvRound(uv[i].y);
-    right[i] = uv[i];
-    if (u - h < 0 || v - h < 0 || u + h >= im.left.cols || v + h >= im.left.rows) continue;
-    int best = std::numeric_limits<int>::max(), best_d = -1;
-    const int d_hi = std::min(max_d, u - h);
+    const int u = cvRound(uv[i].x * 0.5f), v = cvRound(uv[i].y * 0.5f);
+    if (u - h < 0 || v - h < 0 || u + h >= left1.cols || v + h >= left1.rows) continue;
+    const int d_hi = std::min(max_d / 2, u - h);
+    cost.assign(static_cast<size_t>(d_hi + 1), 0);
     for (int d = 0; d <= d_hi; ++d) {
       int sad = 0;
-      for (int dy = -h; dy <= h && sad < best; ++dy) {
-        const uchar* l = im.left.ptr<uchar>(v + dy) + (u - h);
-        const uchar* r = im.right.ptr<uchar>(v + dy) + (u - d - h);
+      for (int dy = -h; dy <= h; ++dy) {
+        const uchar* l = left1.ptr<uchar>(v + dy) + (u - h);
+        const uchar* r = right1.ptr<uchar>(v + dy) + (u - d - h);
         for (int dx = 0; dx <= 2 * h; ++dx) sad += std::abs(l[dx] - r[dx]);
       }
-      if (sad < best) {
-        best = sad;
-        best_d = d;
-      }
+      cost[static_cast<size_t>(d)] = sad;
     }
-    if (best_d >= 0) right[i] = {uv[i].x - static_cast<float>(best_d), uv[i].y};
+    const auto best_it = std::min_element(cost.begin(), cost.end());
+    const int best_d = static_cast<int>(best_it - cost.begin());
+    int second = std::numeric_limits<int>::max();
+    for (int d = 0; d <= d_hi; ++d)
+      if (std::abs(d - best_d) > 1) second = std::min(second, cost[static_cast<size_t>(d)]);
+    if (static_cast<double>(second) < cfg_.stereo_uniqueness * *best_it) continue;
+    right[i] = {uv[i].x - 2.0f * static_cast<float>(best_d), uv[i].y};
   }
   std::vector<uchar> status;
   std::vector<float> err;
@@ -172,7 +179,8 @@ std::vector<float> DefaultOdometry::StereoDisparities(const Images& im,
   return disparity;
 }
 
-void DefaultOdometry::MakeKeyframe(const Images& im, std::vector<Feature> kept) {
+void DefaultOdometry::MakeKeyframe(const Images& im, std::vector<Feature> kept,
+                                   StageTimer* timer) {
   // Bucketing with ageing: keep the oldest features of each cell.
   std::stable_sort(kept.begin(), kept.end(),
                    [](const Feature& a, const Feature& b) { return a.age > b.age; });
@@ -190,6 +198,7 @@ void DefaultOdometry::MakeKeyframe(const Images& im, std::vector<Feature> kept) 
     features.push_back(f);
   }
   const std::vector<cv::Point2f> added = DetectInBuckets(im.left, features);
+  if (timer) timer->Stop("detect");
   const std::vector<float> disparity = StereoDisparities(im, added, nullptr);
   for (size_t i = 0; i < added.size(); ++i) {
     if (disparity[i] <= 0) continue;
@@ -210,7 +219,7 @@ RelativeMotion DefaultOdometry::Fail(RelativeMotion out, const Images& im) {
   const int64_t t_ns = out.t_ns;
   out = NoMotion(t_ns, Status::kLost);
   out.timings = timings;
-  StageTimer timer(out.timings);
+  StageTimer timer(out.timings, cfg_.timing_clock);
   MakeKeyframe(im, {});
   velocity_ = Eigen::Isometry3d::Identity();
   velocity_dt_ns_ = 0;
@@ -223,7 +232,7 @@ RelativeMotion DefaultOdometry::Fail(RelativeMotion out, const Images& im) {
 RelativeMotion DefaultOdometry::Track(const StereoFrame& frame) {
   RelativeMotion out;
   out.t_ns = frame.t_ns;
-  StageTimer timer(out.timings);
+  StageTimer timer(out.timings, cfg_.timing_clock);
   if (!ImageProblem(frame.left, cam_, cfg_.min_image_stddev).empty() ||
       !ImageProblem(frame.right, cam_, cfg_.min_image_stddev).empty()) {
     // Missing or unusable: identity, keyframe kept so tracking resumes after it.
@@ -236,7 +245,7 @@ RelativeMotion DefaultOdometry::Track(const StereoFrame& frame) {
   im.right = ToGrey(frame.right);
   const cv::Size win(cfg_.klt_window_px, cfg_.klt_window_px);
   cv::buildOpticalFlowPyramid(im.left, im.left_pyr, win, cfg_.klt_levels);
-  cv::buildOpticalFlowPyramid(im.right, im.right_pyr, win, 1);
+  cv::buildOpticalFlowPyramid(im.right, im.right_pyr, win, 1, false);
   timer.Stop("pyramid");
 
   if (!has_ref_) {
@@ -391,7 +400,7 @@ RelativeMotion DefaultOdometry::Track(const StereoFrame& frame) {
   // 5. Keyframe: moved enough (or losing features) -> this frame becomes the reference.
   const bool few = kept.size() < ref_features_.size() / 2;
   if (median_flow > cfg_.keyframe_flow_px || few) {
-    MakeKeyframe(im, std::move(kept));
+    MakeKeyframe(im, std::move(kept), &timer);
   } else {
     T_ref_prev_ = T_ref_curr;
   }

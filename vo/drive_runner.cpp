@@ -30,7 +30,7 @@ DriveRun RunOnDataset(const kitti::StereoDataset& dataset, const DriveRunConfig&
                       const DriveProgress& progress) {
   DriveRun run;
   run.method = config.method;
-  const auto vo = MakeStereoOdometry(config.method, dataset.camera());
+  const auto vo = MakeStereoOdometry(config.method, dataset.camera(), config.clock);
   size_t n = dataset.size();
   if (config.max_frames > 0) n = std::min(n, config.max_frames);
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();

@@ -19,6 +19,7 @@ namespace locaid::vo {
 struct DriveRunConfig {
   std::string method = "default";
   size_t max_frames = 0;  // 0: all frames
+  TimingClock clock = TimingClock::kWall;  // of the per-stage timings
 };
 
 struct FrameResult {

@@ -23,20 +23,26 @@ cv::Mat ToGrey(const cv::Mat& image);
 // Identity motion with a large covariance and the given status.
 RelativeMotion NoMotion(int64_t t_ns, Status status);
 
+// Milliseconds on the given clock (arbitrary origin).
+double NowMs(TimingClock clock);
+
 class StageTimer {
  public:
-  explicit StageTimer(StageTimings& timings) : timings_(timings) { Restart(); }
-  void Restart() { start_ = std::chrono::steady_clock::now(); }
+  StageTimer(StageTimings& timings, TimingClock clock) : timings_(timings), clock_(clock) {
+    Restart();
+  }
+  void Restart() { start_ms_ = NowMs(clock_); }
   // Records the time since the last Stop/Restart under `name`.
   void Stop(const char* name) {
-    const auto now = std::chrono::steady_clock::now();
-    timings_.emplace_back(name, std::chrono::duration<double, std::milli>(now - start_).count());
-    start_ = now;
+    const double now = NowMs(clock_);
+    timings_.emplace_back(name, now - start_ms_);
+    start_ms_ = now;
   }
 
  private:
   StageTimings& timings_;
-  std::chrono::steady_clock::time_point start_;
+  TimingClock clock_;
+  double start_ms_ = 0;
 };
 
 double SumTimings(const StageTimings& timings);

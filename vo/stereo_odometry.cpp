@@ -5,7 +5,9 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include <chrono>
 #include <cmath>
+#include <ctime>
 #include <stdexcept>
 
 namespace locaid::vo {
@@ -61,6 +63,17 @@ RelativeMotion NoMotion(int64_t t_ns, Status status) {
   return m;
 }
 
+double NowMs(TimingClock clock) {
+  if (clock == TimingClock::kThreadCpu) {
+    timespec ts{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
+  }
+  return std::chrono::duration<double, std::milli>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
 double SumTimings(const StageTimings& timings) {
   double total = 0;
   for (const auto& [name, ms] : timings) total += ms;
@@ -68,9 +81,18 @@ double SumTimings(const StageTimings& timings) {
 }
 
 std::unique_ptr<StereoOdometry> MakeStereoOdometry(const std::string& method,
-                                                   const kitti::StereoCamera& camera) {
-  if (method == "default") return MakeDefaultOdometry(camera);
-  if (method == "thesis") return MakeThesisOdometry(camera);
+                                                   const kitti::StereoCamera& camera,
+                                                   TimingClock clock) {
+  if (method == "default") {
+    DefaultConfig config;
+    config.timing_clock = clock;
+    return MakeDefaultOdometry(camera, config);
+  }
+  if (method == "thesis") {
+    ThesisConfig config;
+    config.timing_clock = clock;
+    return MakeThesisOdometry(camera, config);
+  }
   throw std::invalid_argument("unknown VO method '" + method + "' (known: default, thesis)");
 }
 

@@ -50,6 +50,10 @@ class StereoOdometry {
   virtual void Reset() = 0;
 };
 
+// Clock of StageTimings: wall time (default) or the calling thread's CPU time
+// (stable when other processes share the cores; used by benchmarks).
+enum class TimingClock { kWall, kThreadCpu };
+
 // Configuration of the "default" method (KLT tracking against a keyframe,
 // stereo KLT depth, P3P RANSAC + Huber Gauss-Newton on both images).
 struct DefaultConfig {
@@ -59,12 +63,13 @@ struct DefaultConfig {
   int fast_threshold = 15;           // FAST intensity threshold (grey levels)
   int min_feature_distance_px = 8;  // no new corner this close to a tracked one
   // KLT.
-  int klt_window_px = 15;
+  int klt_window_px = 11;
   int klt_levels = 3;                // pyramid levels above the base (temporal)
   double stereo_max_dy_px = 1.0;     // rectified: |v_right - v_left| bound
   double min_disparity_px = 1.0;     // farther points are kept as mono observations
   double max_disparity_px = 200.0;
-  int stereo_search_half_patch = 3;  // SAD patch half size for the row search of new corners
+  int stereo_search_half_patch = 2;  // SAD patch half size (pyramid level 1) for new corners
+  double stereo_uniqueness = 1.1;    // second-best SAD must exceed best x this
   double max_forward_backward_px = 1.0;  // temporal KLT forward-backward check
   // Motion.
   int ransac_iterations = 100;
@@ -80,6 +85,7 @@ struct DefaultConfig {
   double keyframe_flow_px = 1.0;
   double standstill_flow_px = 0.25;
   double min_image_stddev = 3.0;     // below: black / saturated / flat image
+  TimingClock timing_clock = TimingClock::kWall;
 };
 
 // Configuration of the "thesis" baseline (reference/thesis-stereo-vo-kitti.md).
@@ -96,12 +102,14 @@ struct ThesisConfig {
   int min_inliers_ok = 40, min_inliers_degraded = 12;
   double standstill_flow_px = 0.3;   // guard (not in the thesis): no flow -> identity
   double min_image_stddev = 3.0;
+  TimingClock timing_clock = TimingClock::kWall;
 };
 
 // Methods: "default" (locaid's design) and "thesis" (baseline). Throws
 // std::invalid_argument for an unknown name.
 std::unique_ptr<StereoOdometry> MakeStereoOdometry(const std::string& method,
-                                                   const kitti::StereoCamera& camera);
+                                                   const kitti::StereoCamera& camera,
+                                                   TimingClock clock = TimingClock::kWall);
 std::unique_ptr<StereoOdometry> MakeDefaultOdometry(const kitti::StereoCamera& camera,
                                                     const DefaultConfig& config = {});
 std::unique_ptr<StereoOdometry> MakeThesisOdometry(const kitti::StereoCamera& camera,

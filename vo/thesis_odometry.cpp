@@ -71,7 +71,7 @@ std::vector<cv::KeyPoint> ThesisOdometry::DetectGrid(const cv::Mat& left) const 
 RelativeMotion ThesisOdometry::Track(const StereoFrame& frame) {
   RelativeMotion out;
   out.t_ns = frame.t_ns;
-  StageTimer timer(out.timings);
+  StageTimer timer(out.timings, cfg_.timing_clock);
   if (!ImageProblem(frame.left, cam_, cfg_.min_image_stddev).empty() ||
       !ImageProblem(frame.right, cam_, cfg_.min_image_stddev).empty()) {
     RelativeMotion lost = NoMotion(frame.t_ns, Status::kLost);
