@@ -101,9 +101,17 @@ fi
 
 # ------------------------------------------------------------ build ----
 if ((SKIP_BUILD == 0)); then
-  cache=()
-  [[ -d /var/cache/apt/archives ]] && cache=(-v /var/cache/apt/archives:/var/cache/apt/archives)
-  say "building $TAG (podman build --isolation chroot, base $BASE, host apt cache mounted)"
+  # Package cache for the build's apt runs: a private copy (hard links when
+  # possible) of the host's, so builds start warm but never take the host's
+  # apt lock or change its cache.
+  cache_dir="$STATE/apt-archives"
+  mkdir -p "$cache_dir/partial"
+  if compgen -G '/var/cache/apt/archives/*.deb' >/dev/null; then
+    cp -al -n /var/cache/apt/archives/*.deb "$cache_dir/" 2>/dev/null ||
+      cp -n /var/cache/apt/archives/*.deb "$cache_dir/"
+  fi
+  cache=(-v "$cache_dir:/var/cache/apt/archives")
+  say "building $TAG (podman build --isolation chroot, base $BASE, apt cache $cache_dir: $(ls "$cache_dir" | grep -c '\.deb$') packages)"
   t0=$(date +%s)
   podman build --isolation chroot --format docker "${NO_CACHE[@]}" "${cache[@]}" \
     --build-arg BASE_IMAGE="$BASE" --build-arg BUILD_JOBS="$(nproc)" \
