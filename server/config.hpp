@@ -36,6 +36,7 @@ struct ServerConfig {
   double keepalive_timeout_s = 10;
   double shutdown_grace_s = 1.5;           // open streams are cancelled after this
   std::string port_file;                   // write the bound port here once listening
+  bool log_shutdown = false;               // print shutdown timings (locaid-server sets it)
 };
 
 // Applies a YAML file (keys = field names above) onto `config`. Throws

@@ -80,6 +80,7 @@ int main(int argc, char** argv) {
     take("--port-file", &ServerConfig::port_file);
     (void)defaults;
     locaid::server::ValidateConfig(&config);
+    config.log_shutdown = true;
   } catch (const std::exception& e) {
     std::cerr << "locaid-server: config: " << e.what() << "\n";
     return 2;

@@ -9,6 +9,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 
@@ -788,12 +789,21 @@ LocalizationServer::~LocalizationServer() { Shutdown(); }
 
 void LocalizationServer::Shutdown() {
   std::call_once(shutdown_once_, [this] {
+    const auto t0 = std::chrono::steady_clock::now();
+    auto ms = [&t0] {
+      return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    };
     server_->GetHealthCheckService()->SetServingStatus(false);
     service_->BeginShutdown();
     const auto deadline = std::chrono::system_clock::now() +
                           std::chrono::milliseconds(static_cast<int64_t>(config_.shutdown_grace_s * 1000));
     server_->Shutdown(deadline);
+    const double grpc_ms = ms();
     service_->JoinSessions();
+    if (config_.log_shutdown) {
+      std::fprintf(stderr, "locaid-server: shutdown: rpcs done after %.0f ms, sessions joined after %.0f ms\n",
+                   grpc_ms, ms());
+    }
   });
 }
 

@@ -37,7 +37,9 @@ StepResult SourcePipeline::Step() {
 }
 
 void SourcePipeline::StartOutageNow(double duration_s) {
-  if (duration_s > 0) {
+  if (duration_s > 0 && !first_t_ns_) {
+    AddOutageWindow(0, duration_s);  // no frame yet: from the first frame on
+  } else if (duration_s > 0) {
     const auto d_ns = static_cast<int64_t>(std::llround(duration_s * 1e9));
     estimator_->ScheduleOutage(last_t_ns_, last_t_ns_ + d_ns);
   } else {
