@@ -71,7 +71,7 @@ class DefaultOdometry final : public StereoOdometry {
   };
 
   void MakeKeyframe(const Images& im, std::vector<Feature> kept, StageTimer* timer = nullptr);
-  std::vector<cv::Point2f> DetectInBuckets(const cv::Mat& left,
+  std::vector<cv::Point2f> DetectInBuckets(const cv::Mat& left, const cv::Mat* left_half,
                                            const std::vector<Feature>& kept) const;
   // Row search (SAD) for a first disparity, then KLT sub-pixel; -1 when none.
   std::vector<float> StereoDisparities(const Images& im, const std::vector<cv::Point2f>& uv,
@@ -91,6 +91,7 @@ class DefaultOdometry final : public StereoOdometry {
 };
 
 std::vector<cv::Point2f> DefaultOdometry::DetectInBuckets(const cv::Mat& left,
+                                                          const cv::Mat* left_half,
                                                           const std::vector<Feature>& kept) const {
   const float cell_w = static_cast<float>(cam_.width) / cfg_.grid_cols;
   const float cell_h = static_cast<float>(cam_.height) / cfg_.grid_rows;
@@ -106,7 +107,12 @@ std::vector<cv::Point2f> DefaultOdometry::DetectInBuckets(const cv::Mat& left,
     cv::circle(free_mask, f.uv, cfg_.min_feature_distance_px, cv::Scalar(0), -1);
   }
   std::vector<cv::KeyPoint> corners;
-  cv::FAST(left, corners, cfg_.fast_threshold, true);
+  if (cfg_.detect_half_resolution && left_half && !left_half->empty()) {
+    cv::FAST(*left_half, corners, cfg_.fast_threshold, true);
+    for (cv::KeyPoint& kp : corners) kp.pt *= 2.0f;
+  } else {
+    cv::FAST(left, corners, cfg_.fast_threshold, true);
+  }
   std::sort(corners.begin(), corners.end(),
             [](const cv::KeyPoint& a, const cv::KeyPoint& b) { return a.response > b.response; });
   const float margin = static_cast<float>(cfg_.klt_window_px);
@@ -166,7 +172,8 @@ std::vector<float> DefaultOdometry::StereoDisparities(const Images& im,
   std::vector<uchar> status;
   std::vector<float> err;
   const cv::Size win(cfg_.klt_window_px, cfg_.klt_window_px);
-  cv::calcOpticalFlowPyrLK(im.left_pyr, im.right_pyr, uv, right, status, err, win, 1,
+  cv::calcOpticalFlowPyrLK(im.left_pyr, im.right_pyr, uv, right, status, err, win,
+                           predicted ? cfg_.stereo_klt_levels_tracked : 1,
                            cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.01),
                            cv::OPTFLOW_USE_INITIAL_FLOW);
   for (size_t i = 0; i < uv.size(); ++i) {
@@ -197,7 +204,7 @@ void DefaultOdometry::MakeKeyframe(const Images& im, std::vector<Feature> kept,
     ++f.age;
     features.push_back(f);
   }
-  const std::vector<cv::Point2f> added = DetectInBuckets(im.left, features);
+  const std::vector<cv::Point2f> added = DetectInBuckets(im.left, &im.left_pyr[2], features);
   if (timer) timer->Stop("detect");
   const std::vector<float> disparity = StereoDisparities(im, added, nullptr);
   for (size_t i = 0; i < added.size(); ++i) {

@@ -61,11 +61,13 @@ struct DefaultConfig {
   int grid_cols = 16, grid_rows = 5;
   int max_features_per_cell = 6;     // tracked features kept per cell (oldest first)
   int fast_threshold = 15;           // FAST intensity threshold (grey levels)
+  bool detect_half_resolution = true;   // FAST on pyramid level 1 (4x fewer pixels)
   int min_feature_distance_px = 8;  // no new corner this close to a tracked one
   // KLT.
   int klt_window_px = 11;
   int klt_levels = 3;                // pyramid levels above the base (temporal)
   double stereo_max_dy_px = 1.0;     // rectified: |v_right - v_left| bound
+  int stereo_klt_levels_tracked = 0; // stereo KLT levels for tracked features (seeded)
   double min_disparity_px = 1.0;     // farther points are kept as mono observations
   double max_disparity_px = 200.0;
   int stereo_search_half_patch = 2;  // SAD patch half size (pyramid level 1) for new corners
