@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <limits>
 
 namespace locaid::fusion {
@@ -19,6 +21,7 @@ void Symmetrize(Eigen::MatrixXd& P) { P = 0.5 * (P + P.transpose()).eval(); }
 
 Ekf::Ekf(EkfConfig config) : config_(config) {
   gate_ = ChiSquareQuantile(config_.gps_gate_probability, 3);
+  vo_gate_ = ChiSquareQuantile(config_.vo_gate_probability, 6);
 }
 
 // ------------------------------------------------------------------ IMU
@@ -158,14 +161,20 @@ void Ekf::ProcessVo(const VoMeasurement& m, bool vo_ok) {
       f.T_start_body = T_start_body_;
       f.T_start_body.translation() = (1 - a) * T_prev.translation() + a * T_start_body_.translation();
     }
-    // Gravity direction in the start frame from the accelerometer.
-    if (!init_accel_.empty()) {
-      Vec3 mean = Vec3::Zero();
-      for (const auto& a : init_accel_) mean += a;
-      mean /= static_cast<double>(init_accel_.size());
-      init_gravity_start_ += T_start_body_.linear() * mean;
-      init_accel_.clear();
+    // Gravity direction in the start frame from the accelerometer, minus the
+    // car's own acceleration (centripetal w x v and dv/dt from the VO).
+    if (!init_accel_.empty() && vo_ok) {
+      Vec3 f_mean = Vec3::Zero();
+      for (const auto& a : init_accel_) f_mean += a;
+      f_mean /= static_cast<double>(init_accel_.size());
+      const Vec3 v_body = motion.translation() / dt;
+      const Vec3 w_body = LogSO3(motion.linear()) / dt;
+      const Vec3 a_body = w_body.cross(v_body) + (v_body - init_prev_v_body_) / dt;
+      if (init_have_prev_v_) init_gravity_start_ += T_start_body_.linear() * (f_mean - a_body);
+      init_prev_v_body_ = v_body;
+      init_have_prev_v_ = true;
     }
+    init_accel_.clear();
     t_ns_ = m.t_ns;
     TryInitialize(m.t_ns);
     return;
@@ -199,16 +208,21 @@ void Ekf::ProcessVo(const VoMeasurement& m, bool vo_ok) {
     const Mat6 S = H * P_ * H.transpose() + Rvo;
     const double nis = r.dot(S.ldlt().solve(r));
     last_vo_nis_ = nis;
-    if (std::isfinite(nis) && nis < ChiSquareQuantile(config_.vo_gate_probability, 6)) {
+    if (std::getenv("LOCAID_EKF_TRACE"))
+      std::fprintf(stderr, "vo r_t %.3f %.3f %.3f r_th %.4f %.4f %.4f sig_t %.3f %.3f %.3f sigS %.3f %.3f %.3f\n", r[0], r[1], r[2], r[3], r[4], r[5],
+                   std::sqrt(Rvo(0, 0)), std::sqrt(Rvo(1, 1)), std::sqrt(Rvo(2, 2)), std::sqrt(S(0, 0)), std::sqrt(S(1, 1)), std::sqrt(S(2, 2)));
+    const bool gate_ok = std::isfinite(nis) && nis < vo_gate_;
+    // A run of rejections means the prediction, not the VO, is off: accept.
+    if (gate_ok || (std::isfinite(nis) && ++vo_consecutive_rejections_ > 2)) {
+      if (gate_ok) vo_consecutive_rejections_ = 0;
       const Eigen::MatrixXd K = P_ * H.transpose() * S.inverse();
       const int n = static_cast<int>(P_.rows());
       const Eigen::MatrixXd IKH = Eigen::MatrixXd::Identity(n, n) - K * H;
       P_ = IKH * P_ * IKH.transpose() + K * Rvo * K.transpose();
       Symmetrize(P_);
       Correct(K * r);
-    } else {
-      ++vo_rejected_;
     }
+    if (!gate_ok) ++vo_rejected_;
   }
   Clone();
 }

@@ -36,15 +36,15 @@ struct EkfConfig {
   double max_imu_gap_s = 0.5;  // longer IMU gaps: propagate with extra noise
   // Initial uncertainty.
   double init_velocity_sigma_mps = 0.5;
-  double init_roll_pitch_sigma_rad = 0.02;
+  double init_roll_pitch_sigma_rad = 0.03;
   double init_accel_bias_sigma_mps2 = 0.1;
   double init_gyro_bias_sigma_radps = 0.002;
   int init_min_fixes = 3;
   double init_min_baseline_m = 15.0;
   // VO.
   double vo_cov_scale = 1.0;          // multiplies the VO covariance
-  double vo_min_sigma_t_m = 0.005;    // floors of the VO 1-sigma per axis
-  double vo_min_sigma_rot_rad = 0.0005;
+  double vo_min_sigma_t_m = 0.01;     // floors of the VO 1-sigma per axis and frame
+  double vo_min_sigma_rot_rad = 0.0003;
   double vo_gate_probability = 0.9999;  // IMU mode: VO updates beyond are skipped
   double no_imu_lost_sigma_mps = 1.0;   // no-IMU mode: extra velocity noise when VO is lost
   // GPS.
@@ -105,6 +105,10 @@ class Ekf {
   int64_t init_t_ns_ = 0;
   std::deque<Vec3> init_accel_;
   Vec3 init_gravity_start_ = Vec3::Zero();
+  Vec3 init_prev_v_body_ = Vec3::Zero();
+  bool init_have_prev_v_ = false;
+  double vo_gate_ = 0;
+  int vo_consecutive_rejections_ = 0;
   // Bookkeeping.
   double gate_ = 0;
   double last_nis_ = 0, last_vo_nis_ = 0;

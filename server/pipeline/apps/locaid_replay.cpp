@@ -15,6 +15,7 @@
 #include <GeographicLib/LocalCartesian.hpp>
 
 #include <chrono>
+#include <cstdlib>
 #include <condition_variable>
 #include <deque>
 #include <fstream>
@@ -175,6 +176,11 @@ int main(int argc, char** argv) {
       gps_enu.push_back(g);
       gps_rej.push_back(rej);
       results.push_back(std::move(r));
+      if (std::getenv("LOCAID_REPLAY_TRACE"))
+        std::cerr << "trace " << i << " vo_nis " << localizer.ekf().last_vo_nis() << " ba "
+                  << localizer.ekf().state().accel_bias_mps2.transpose() << " bg "
+                  << localizer.ekf().state().gyro_bias_radps.transpose() << " v "
+                  << localizer.ekf().state().v_enu_mps.transpose() << "\n";
       if (i % 50 == 0)
         std::cerr << "\rframe " << i << "/" << n_frames << " mode " << fusion::ToString(results.back().pose.mode)
                   << "      " << std::flush;
@@ -188,7 +194,8 @@ int main(int argc, char** argv) {
     // VO-only track: the raw VO chained in ENU from the ground-truth pose of frame 0.
     std::vector<Eigen::Isometry3d> vo_only;
     {
-      Eigen::Isometry3d T = gt_enu ? gt_at(dataset->time_ns(0)).value_or(Eigen::Isometry3d::Identity())
+      Eigen::Isometry3d T = gt_enu ? gt_at(std::max(dataset->time_ns(0), oxts.front().t_ns))
+                                         .value_or(Eigen::Isometry3d::Identity())
                                    : Eigen::Isometry3d::Identity();
       for (size_t k = 0; k < vo_motion.size(); ++k) {
         if (k > 0) T = T * vo_motion[k];
@@ -239,6 +246,7 @@ int main(int argc, char** argv) {
     j["frames_per_s"] = samples.size() / wall_s;
     j["vo_ms_mean"] = vo_ms_total / std::max<size_t>(1, samples.size());
     j["vo_lost_frames"] = lost_frames;
+    j["vo_rejected_by_gate"] = localizer.ekf().vo_rejected();
     j["gps_used"] = results.back().pose.gps_used;
     j["gps_rejected"] = results.back().pose.gps_rejected;
     j["outages"] = nlohmann::json::array();
