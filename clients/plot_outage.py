@@ -1,0 +1,104 @@
+#!/usr/bin/python3
+"""Plot a locaid-replay CSV (--out-csv): top view and error over time.
+
+Usage: /usr/bin/python3 clients/plot_outage.py RUN.csv [--out PREFIX]
+Writes PREFIX_track.png (ground truth, degraded GPS, VO-only and fused tracks,
+outage segments marked) and PREFIX_error.png (horizontal error with the
+3-sigma bound, outage windows shaded). Needs Debian's python3-matplotlib.
+"""
+import argparse
+import csv
+import math
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+
+def read(path):
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    if not rows:
+        sys.exit(f"{path}: no rows")
+    needed = {"t_s", "gt_e", "gt_n", "est_e", "est_n", "gps_e", "gps_n", "vo_e", "vo_n",
+              "sigma_e", "sigma_n", "err_h", "mode", "in_outage", "initialized"}
+    missing = needed - set(rows[0].keys())
+    if missing:
+        sys.exit(f"{path}: missing columns {sorted(missing)}")
+    return rows
+
+
+def windows(rows):
+    out, start = [], None
+    for r in rows:
+        t, o = float(r["t_s"]), r["in_outage"] == "1"
+        if o and start is None:
+            start = t
+        if not o and start is not None:
+            out.append((start, t))
+            start = None
+    if start is not None:
+        out.append((start, float(rows[-1]["t_s"])))
+    return out
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("csv")
+    ap.add_argument("--out", help="output prefix (default: CSV path without .csv)")
+    a = ap.parse_args()
+    rows = read(a.csv)
+    prefix = a.out or (a.csv[:-4] if a.csv.endswith(".csv") else a.csv)
+    f = lambda r, k: float(r[k])
+    init = [r for r in rows if r["initialized"] == "1"]
+    gps = [r for r in rows if r["gps_e"] != ""]
+
+    fig, ax = plt.subplots(figsize=(9, 8))
+    ax.plot([f(r, "gt_e") for r in rows], [f(r, "gt_n") for r in rows], "k-", lw=2, label="ground truth (OXTS)")
+    ax.plot([f(r, "gps_e") for r in gps], [f(r, "gps_n") for r in gps], ".", color="tab:orange", ms=3,
+            label="degraded GPS")
+    rej = [r for r in gps if r.get("gps_rejected") == "1"]
+    if rej:
+        ax.plot([f(r, "gps_e") for r in rej], [f(r, "gps_n") for r in rej], "x", color="red", ms=6,
+                label="GPS rejected by the gate")
+    ax.plot([f(r, "vo_e") for r in rows], [f(r, "vo_n") for r in rows], "-", color="tab:green", lw=1,
+            label="VO only")
+    ax.plot([f(r, "est_e") for r in init], [f(r, "est_n") for r in init], "-", color="tab:blue", lw=1.2,
+            label="fused")
+    first = True
+    for t0, t1 in windows(rows):
+        seg = [r for r in rows if t0 <= f(r, "t_s") <= t1]
+        ax.plot([f(r, "gt_e") for r in seg], [f(r, "gt_n") for r in seg], "-", color="magenta", lw=5, alpha=0.35,
+                label="GPS outage" if first else None)
+        first = False
+    ax.set_xlabel("east (m)")
+    ax.set_ylabel("north (m)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="best")
+    ax.set_title("Top view (ENU, origin at the first GPS fix)")
+    fig.tight_layout()
+    fig.savefig(prefix + "_track.png", dpi=110)
+
+    fig, ax = plt.subplots(figsize=(11, 4.5))
+    t = [f(r, "t_s") for r in init]
+    ax.plot(t, [f(r, "err_h") for r in init], "-", color="tab:blue", label="horizontal error")
+    ax.plot(t, [3 * math.hypot(f(r, "sigma_e"), f(r, "sigma_n")) for r in init], "--", color="tab:gray",
+            label="3 sigma (horizontal)")
+    for i, (t0, t1) in enumerate(windows(rows)):
+        ax.axvspan(t0, t1, color="magenta", alpha=0.15, label="GPS outage" if i == 0 else None)
+    ax.set_xlabel("time since the first frame (s)")
+    ax.set_ylabel("error (m)")
+    ax.set_yscale("symlog", linthresh=1.0)
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="upper left")
+    fig.tight_layout()
+    fig.savefig(prefix + "_error.png", dpi=110)
+    print(prefix + "_track.png")
+    print(prefix + "_error.png")
+
+
+if __name__ == "__main__":
+    main()
