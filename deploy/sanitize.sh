@@ -78,7 +78,10 @@ run_mode() {
   # Only executables built here registered their tests (gtest_discover_tests).
   echo "sanitize[$mode]: ctest"
   # shellcheck disable=SC2086
-  ctest --test-dir "$build" -j"$jobs" --output-on-failure --timeout 900 ${LOCAID_SANITIZE_CTEST_ARGS:-} || return 1
+  # Test programs (locaid-eval ...) that some tests spawn are not built here;
+  # those tests skip. *_NOT_BUILT are placeholders of unbuilt test executables.
+  ctest --test-dir "$build" -j"$jobs" --output-on-failure --timeout 900 -E '_NOT_BUILT$' \
+        ${LOCAID_SANITIZE_CTEST_ARGS:-} || return 1
 }
 
 status=0
