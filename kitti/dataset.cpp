@@ -20,6 +20,12 @@ std::unique_ptr<StereoDataset> OpenDataset(const fs::path& path, const RawDriveO
               "parent folder) nor an odometry sequence (calib.txt and times.txt)");
 }
 
+fs::path NormalizeDir(const fs::path& path) {
+  fs::path dir = fs::absolute(path).lexically_normal();
+  if (!dir.has_filename() && dir.has_parent_path() && dir != dir.root_path()) dir = dir.parent_path();
+  return dir;
+}
+
 std::unique_ptr<StereoDataset> OpenDataset(const fs::path& path) {
   return OpenDataset(path, RawDriveOptions{});
 }

@@ -57,6 +57,10 @@ class StereoDataset {
 // folder) and opens it. Throws kitti::Error with the offending file.
 std::unique_ptr<StereoDataset> OpenDataset(const std::filesystem::path& path);
 
+// `path` made absolute and lexically normal, without a trailing separator, so
+// that parent_path() is the parent folder ("drive/" and "drive" both work).
+std::filesystem::path NormalizeDir(const std::filesystem::path& path);
+
 // Same, with options for raw drives (kitti/raw_drive.hpp; ignored for odometry).
 struct RawDriveOptions;
 std::unique_ptr<StereoDataset> OpenDataset(const std::filesystem::path& path,

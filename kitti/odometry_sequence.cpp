@@ -1,3 +1,4 @@
+#include "kitti/dataset.hpp"
 #include "kitti/odometry_sequence.hpp"
 
 #include "kitti/image_io.hpp"
@@ -26,7 +27,7 @@ bool IsFile(const fs::path& p) {
 
 }  // namespace
 
-OdometrySequence::OdometrySequence(const fs::path& sequence_dir) : dir_(sequence_dir) {
+OdometrySequence::OdometrySequence(const fs::path& sequence_dir) : dir_(NormalizeDir(sequence_dir)) {
   calib_ = ReadOdometryCalib(dir_ / "calib.txt");
   times_s_ = ReadOdometryTimes(dir_ / "times.txt");
   if (times_s_.empty()) throw Error((dir_ / "times.txt").string() + ": no frames");

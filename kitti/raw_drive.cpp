@@ -1,3 +1,4 @@
+#include "kitti/dataset.hpp"
 #include "kitti/raw_drive.hpp"
 
 #include "kitti/image_io.hpp"
@@ -52,7 +53,7 @@ bool EndsWith(const std::string& s, const std::string& suffix) {
 
 }  // namespace
 
-RawDrive::RawDrive(const fs::path& drive_dir, const RawDriveOptions& options) : dir_(drive_dir) {
+RawDrive::RawDrive(const fs::path& drive_dir, const RawDriveOptions& options) : dir_(NormalizeDir(drive_dir)) {
   if (!fs::is_directory(dir_ / "image_00")) {
     throw Error(dir_.string() + ": not a KITTI raw drive (no image_00/ folder)");
   }

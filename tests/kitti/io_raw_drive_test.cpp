@@ -285,3 +285,15 @@ TEST(IoRawDrive, OpenDatasetRejectsUnknownFolders) {
 
 }  // namespace
 }  // namespace locaid::kitti
+
+TEST(IoRawDrive, TrailingSlashAndRelativePathsOpenTheSameDrive) {
+  const char* root = LOCAID_SHARED_DATA;
+  const std::filesystem::path drive = std::filesystem::path(root) / "raw/2011_09_26/2011_09_26_drive_unknown_extract";
+  if (!std::filesystem::exists(drive)) GTEST_SKIP() << "shared KITTI excerpt not found at " << drive;
+  const auto plain = locaid::kitti::OpenDataset(drive);
+  const auto slash = locaid::kitti::OpenDataset(drive.string() + "/");
+  const auto dotted = locaid::kitti::OpenDataset(drive / "." / "image_00" / "..");
+  EXPECT_EQ(slash->size(), plain->size());
+  EXPECT_EQ(dotted->size(), plain->size());
+  EXPECT_EQ(slash->time_ns(5), plain->time_ns(5));
+}

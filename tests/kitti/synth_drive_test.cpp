@@ -18,6 +18,7 @@
 #include <sstream>
 #include <string>
 #include <vector>
+#include <unistd.h>
 
 namespace fs = std::filesystem;
 namespace synth = locaid::kitti::synth;
@@ -80,7 +81,7 @@ constexpr int kWidth = 621, kHeight = 188;  // half KITTI size keeps the suite f
 class SynthDriveTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = new fs::path(fs::path(::testing::TempDir()) / "locaid_synth_drive_test");
+    dir_ = new fs::path(fs::path(::testing::TempDir()) / ("locaid_synth_drive_test_" + std::to_string(::getpid())));
     fs::remove_all(*dir_);
     synth::SynthConfig cfg;
     cfg.seed = 7;
@@ -305,7 +306,7 @@ TEST(SynthMotionTest, SpeedStaysBetween5And20AndBrakingPitchesFrontDown) {
 }
 
 TEST(SynthDeterminismTest, SameSeedSameBytesOtherSeedDifferent) {
-  const fs::path base = fs::path(::testing::TempDir()) / "locaid_synth_determinism";
+  const fs::path base = fs::path(::testing::TempDir()) / ("locaid_synth_determinism_" + std::to_string(::getpid()));
   fs::remove_all(base);
   auto run = [&](const std::string& name, uint64_t seed) {
     synth::SynthConfig cfg;
