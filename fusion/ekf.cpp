@@ -2,8 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <limits>
 
 namespace locaid::fusion {
@@ -208,9 +206,6 @@ void Ekf::ProcessVo(const VoMeasurement& m, bool vo_ok) {
     const Mat6 S = H * P_ * H.transpose() + Rvo;
     const double nis = r.dot(S.ldlt().solve(r));
     last_vo_nis_ = nis;
-    if (std::getenv("LOCAID_EKF_TRACE"))
-      std::fprintf(stderr, "vo r_t %.3f %.3f %.3f r_th %.4f %.4f %.4f sig_t %.3f %.3f %.3f sigS %.3f %.3f %.3f\n", r[0], r[1], r[2], r[3], r[4], r[5],
-                   std::sqrt(Rvo(0, 0)), std::sqrt(Rvo(1, 1)), std::sqrt(Rvo(2, 2)), std::sqrt(S(0, 0)), std::sqrt(S(1, 1)), std::sqrt(S(2, 2)));
     const bool gate_ok = std::isfinite(nis) && nis < vo_gate_;
     // A run of rejections means the prediction, not the VO, is off: accept.
     if (gate_ok || (std::isfinite(nis) && ++vo_consecutive_rejections_ > 2)) {

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "fusion/ekf_models.hpp"
+
 namespace locaid::pipeline {
 
 ReplayMetrics ComputeReplayMetrics(const std::vector<ReplaySample>& s, double sigma_h) {
@@ -48,6 +50,35 @@ ReplayMetrics ComputeReplayMetrics(const std::vector<ReplaySample>& s, double si
     m.outages.push_back(o);
   }
   return m;
+}
+
+VoErrorStats ComputeVoErrorStats(const std::vector<VoErrorPair>& pairs) {
+  VoErrorStats st;
+  std::vector<double> nees;
+  Eigen::Matrix<double, 6, 1> e2 = Eigen::Matrix<double, 6, 1>::Zero(), s2 = e2;
+  for (const auto& p : pairs) {
+    const Eigen::Isometry3d E = p.T_prev_curr_gt.inverse() * p.T_prev_curr_vo;
+    Eigen::Matrix<double, 6, 1> d;
+    d.head<3>() = E.translation();
+    d.tail<3>() = fusion::LogSO3(E.linear());
+    if (!d.allFinite() || !p.covariance.allFinite()) continue;
+    e2 += d.cwiseProduct(d);
+    s2 += p.covariance.diagonal();
+    const double q = d.dot(p.covariance.ldlt().solve(d));
+    if (std::isfinite(q)) nees.push_back(q);
+    ++st.frames;
+  }
+  if (st.frames == 0) return st;
+  st.rms_error = (e2 / st.frames).cwiseSqrt();
+  st.rms_sigma = (s2 / st.frames).cwiseSqrt();
+  if (!nees.empty()) {
+    double sum = 0;
+    for (double q : nees) sum += q;
+    st.nees_mean = sum / static_cast<double>(nees.size());
+    std::nth_element(nees.begin(), nees.begin() + static_cast<long>(nees.size() / 2), nees.end());
+    st.nees_median = nees[nees.size() / 2];
+  }
+  return st;
 }
 
 }  // namespace locaid::pipeline

@@ -4,6 +4,7 @@
 #include "fusion/types.hpp"
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <vector>
 
@@ -36,6 +37,26 @@ struct ReplayMetrics {
   int nees_frames = 0;
   std::vector<OutageStats> outages;
 };
+
+// VO relative-motion error against ground truth, used to calibrate the filter's
+// VO noise model (EkfConfig::vo_cov_scale / vo_min_sigma_*). Error of a frame:
+// E = T_gt^-1 * T_vo (right perturbation in body axes of the current frame),
+// d = [E.translation(), Log(E.rotation())].
+struct VoErrorPair {
+  Eigen::Isometry3d T_prev_curr_vo = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_prev_curr_gt = Eigen::Isometry3d::Identity();
+  Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Identity();  // as reported
+};
+
+struct VoErrorStats {
+  int frames = 0;
+  Eigen::Matrix<double, 6, 1> rms_error = Eigen::Matrix<double, 6, 1>::Zero();   // per axis (m, rad)
+  Eigen::Matrix<double, 6, 1> rms_sigma = Eigen::Matrix<double, 6, 1>::Zero();   // reported, per axis
+  double nees_mean = 0;         // mean d^T C^-1 d with the reported C (6 dof: 6 if consistent)
+  double nees_median = 0;
+};
+
+VoErrorStats ComputeVoErrorStats(const std::vector<VoErrorPair>& pairs);
 
 // gps_sigma_h_m: the scenario's horizontal noise (reconvergence threshold 2 sigma).
 ReplayMetrics ComputeReplayMetrics(const std::vector<ReplaySample>& samples, double gps_sigma_h_m);

@@ -138,6 +138,7 @@ int main(int argc, char** argv) {
     };
     int lost_frames = 0;
     double vo_ms_total = 0;
+    std::vector<pipeline::VoErrorPair> vo_pairs;  // VO vs ground truth (noise calibration)
     while (auto lf = queue.Pop()) {
       const size_t i = lf->index;
       if (!lf->error.empty()) std::cerr << "warning: " << lf->error << "\n";
@@ -154,6 +155,10 @@ int main(int argc, char** argv) {
         const auto& e = localizer.ekf().enu();
         gt_enu.emplace(e.origin_lat_deg(), e.origin_lon_deg(), e.origin_alt_m());
         for (const auto& s : oxts) gt_poses.push_back({s.t_ns, kitti::OxtsToEnuPose(s.record, *gt_enu)});
+      }
+      if (r.vo.status != vo::Status::kLost && gt_enu && i > 0) {
+        const auto g0 = gt_at(r.vo_body.t_prev_ns), g1 = gt_at(r.vo_body.t_ns);
+        if (g0 && g1) vo_pairs.push_back({r.vo_body.T_prev_curr, g0->inverse() * *g1, r.vo_body.covariance});
       }
       vo_motion.push_back(r.vo.status == vo::Status::kLost ? Eigen::Isometry3d::Identity()
                                                            : r.vo_body.T_prev_curr);
@@ -176,11 +181,6 @@ int main(int argc, char** argv) {
       gps_enu.push_back(g);
       gps_rej.push_back(rej);
       results.push_back(std::move(r));
-      if (std::getenv("LOCAID_REPLAY_TRACE"))
-        std::cerr << "trace " << i << " vo_nis " << localizer.ekf().last_vo_nis() << " ba "
-                  << localizer.ekf().state().accel_bias_mps2.transpose() << " bg "
-                  << localizer.ekf().state().gyro_bias_radps.transpose() << " v "
-                  << localizer.ekf().state().v_enu_mps.transpose() << "\n";
       if (i % 50 == 0)
         std::cerr << "\rframe " << i << "/" << n_frames << " mode " << fusion::ToString(results.back().pose.mode)
                   << "      " << std::flush;
@@ -249,6 +249,13 @@ int main(int argc, char** argv) {
     j["vo_rejected_by_gate"] = localizer.ekf().vo_rejected();
     j["gps_used"] = results.back().pose.gps_used;
     j["gps_rejected"] = results.back().pose.gps_rejected;
+    const auto vo_err = pipeline::ComputeVoErrorStats(vo_pairs);
+    auto vec6 = [](const Eigen::Matrix<double, 6, 1>& v) { return std::vector<double>(v.data(), v.data() + 6); };
+    j["vo_error"] = {{"frames", vo_err.frames},
+                     {"rms_error_t_m_r_rad", vec6(vo_err.rms_error)},
+                     {"rms_reported_sigma", vec6(vo_err.rms_sigma)},
+                     {"nees6_mean_reported_cov", vo_err.nees_mean},
+                     {"nees6_median_reported_cov", vo_err.nees_median}};
     j["outages"] = nlohmann::json::array();
     for (const auto& o : metrics.outages) {
       j["outages"].push_back({{"start_s", o.start_s}, {"duration_s", o.duration_s},
