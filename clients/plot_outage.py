@@ -63,8 +63,10 @@ def main():
     if rej:
         ax.plot([f(r, "gps_e") for r in rej], [f(r, "gps_n") for r in rej], "x", color="red", ms=6,
                 label="GPS rejected by the gate")
-    ax.plot([f(r, "vo_e") for r in rows], [f(r, "vo_n") for r in rows], "-", color="tab:green", lw=1,
-            label="VO only")
+    vo = [r for r in rows if r["vo_e"] != ""]  # empty in recordings scored by locaid-score
+    if vo:
+        ax.plot([f(r, "vo_e") for r in vo], [f(r, "vo_n") for r in vo], "-", color="tab:green", lw=1,
+                label="VO only")
     ax.plot([f(r, "est_e") for r in init], [f(r, "est_n") for r in init], "-", color="tab:blue", lw=1.2,
             label="fused")
     first = True

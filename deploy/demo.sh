@@ -39,12 +39,12 @@ step "3/7 start a session on the drive, scenario tunnel-30s, ${rate}x real time"
 session=$("${cli[@]}" session start --kitti "$drive" --scenario tunnel-30s --rate "$rate")
 echo "session: $session"
 
-step "4/7 subscribe and record (CSV + GeoJSON), inject a live outage at 12 s for 8 s"
+step "4/7 subscribe and record (CSV + GeoJSON), inject a live outage at 70 s for 8 s (the tunnel is at 30-60 s)"
 "${cli[@]}" subscribe "$session" --from-start --format csv --out "$out/poses.csv" --progress &
 sub_pid=$!
 "${cli[@]}" subscribe "$session" --from-start --format geojson --out "$out/poses.geojson" &
 geo_pid=$!
-"${cli[@]}" outage window "$session" --start 12 --duration 8
+"${cli[@]}" outage window "$session" --start 70 --duration 8
 wait "$sub_pid" "$geo_pid"
 
 step "5/7 session stats"
@@ -54,7 +54,7 @@ step "6/7 score the recording against the drive's OXTS ground truth"
 "$bin/locaid-score" --drive "$drive" --poses "$out/poses.csv" --scenario tunnel-30s \
   --out-csv "$out/plot.csv" --json >"$out/metrics.json"
 "$bin/locaid-score" --drive "$drive" --poses "$out/poses.csv" --scenario tunnel-30s
-/usr/bin/python3 clients/plot_outage.py "$out/plot.csv" --out-dir "$out"
+/usr/bin/python3 clients/plot_outage.py "$out/plot.csv" --out "$out/report"
 
 step "7/7 stop the server with SIGTERM"
 kill -TERM "$server_pid"
