@@ -339,6 +339,13 @@ RelativeMotion DefaultOdometry::Track(const StereoFrame& frame) {
     obs[j].uv_left = {tracked[j].x, tracked[j].y};
     obs[j].has_right = disparity[j] > 0;
     obs[j].u_right = tracked[j].x - disparity[j];
+    if (cfg_.symmetric_residuals && obs[j].has_right) {
+      // Reverse term: the current stereo point seen in the keyframe's images.
+      obs[j].has_reverse = true;
+      obs[j].p_curr = TriangulateStereo(cam_, tracked[j].x, tracked[j].y, obs[j].u_right);
+      obs[j].uv_ref_left = {f.uv.x, f.uv.y};
+      obs[j].u_ref_right = f.uv.x - cam_.fx * cam_.baseline_m / f.p_ref.z();
+    }
     object.emplace_back(static_cast<float>(f.p_ref.x()), static_cast<float>(f.p_ref.y()),
                         static_cast<float>(f.p_ref.z()));
     image.push_back(tracked[j]);

@@ -49,30 +49,61 @@ struct Linearization {
   int inliers = 0;
 };
 
-// Residual rows (predicted - measured) of one observation at T_curr_ref and their
-// Jacobians w.r.t. delta (T_ref_curr * Exp(delta)). Returns the row count (0: behind).
-int Residuals(const StereoObservation& ob, const kitti::StereoCamera& cam,
-              const Eigen::Isometry3d& T_curr_ref, double min_depth_m, Eigen::Vector3d& r,
-              Eigen::Matrix<double, 3, 6>& J) {
-  const Eigen::Vector3d q = T_curr_ref * ob.p_ref;
+// Residuals (predicted - measured) of a point q (camera frame) observed at
+// uv_left and, when has_right, at u_right; dproj = d residual / d q. Returns the
+// row count (0: behind the camera).
+int ProjectRows(const kitti::StereoCamera& cam, const Eigen::Vector3d& q,
+                const Eigen::Vector2d& uv_left, double u_right, bool has_right,
+                double min_depth_m, Eigen::Ref<Eigen::Vector3d> r, Eigen::Matrix3d& dproj) {
   if (!(q.z() > min_depth_m)) return 0;
   const double iz = 1.0 / q.z();
+  dproj << cam.fx * iz, 0, -cam.fx * q.x() * iz * iz,  //
+      0, cam.fy * iz, -cam.fy * q.y() * iz * iz,       //
+      cam.fx * iz, 0, -cam.fx * (q.x() - cam.baseline_m) * iz * iz;
+  r(0) = cam.fx * q.x() * iz + cam.cx - uv_left.x();
+  r(1) = cam.fy * q.y() * iz + cam.cy - uv_left.y();
+  r(2) = cam.fx * (q.x() - cam.baseline_m) * iz + cam.cx - u_right;
+  return has_right ? 3 : 2;
+}
+
+using Rows = Eigen::Matrix<double, 6, 1>;
+using RowsJ = Eigen::Matrix<double, 6, 6>;
+
+// Residual rows of one observation at T_ref_curr and their Jacobians w.r.t.
+// delta (T_ref_curr * Exp(delta)): the forward rows (p_ref in the current
+// images) first, then, when reverse and ob.has_reverse, the rows of p_curr in
+// the reference images. Returns the row count (0: forward point behind).
+int Residuals(const StereoObservation& ob, const kitti::StereoCamera& cam,
+              const Eigen::Isometry3d& T_ref_curr, const Eigen::Isometry3d& T_curr_ref,
+              double min_depth_m, bool reverse, Rows& r, RowsJ& J) {
+  Eigen::Matrix3d dproj;
+  const Eigen::Vector3d q = T_curr_ref * ob.p_ref;
+  int rows = ProjectRows(cam, q, ob.uv_left, ob.u_right, ob.has_right, min_depth_m,
+                         r.segment<3>(0), dproj);
+  if (rows == 0) return 0;
   // d q / d delta = [-I, [q]x].
   Eigen::Matrix<double, 3, 6> dq;
   dq.leftCols<3>() = -Eigen::Matrix3d::Identity();
   dq.rightCols<3>() << 0, -q.z(), q.y(), q.z(), 0, -q.x(), -q.y(), q.x(), 0;
-  Eigen::Matrix<double, 3, 3> dproj;
-  dproj << cam.fx * iz, 0, -cam.fx * q.x() * iz * iz,  //
-      0, cam.fy * iz, -cam.fy * q.y() * iz * iz,       //
-      cam.fx * iz, 0, -cam.fx * (q.x() - cam.baseline_m) * iz * iz;
-  r(0) = cam.fx * q.x() * iz + cam.cx - ob.uv_left.x();
-  r(1) = cam.fy * q.y() * iz + cam.cy - ob.uv_left.y();
-  r(2) = cam.fx * (q.x() - cam.baseline_m) * iz + cam.cx - ob.u_right;
-  J = dproj * dq;
-  return ob.has_right ? 3 : 2;
+  J.topRows<3>() = dproj * dq;
+  if (!(reverse && ob.has_reverse)) return rows;
+  // Reverse: s = T_ref_curr * p_curr; d s / d delta = R [I, -[p_curr]x].
+  const Eigen::Vector3d s = T_ref_curr * ob.p_curr;
+  Eigen::Vector3d rr;
+  const int rev = ProjectRows(cam, s, ob.uv_ref_left, ob.u_ref_right, true, min_depth_m, rr, dproj);
+  if (rev == 0) return rows;
+  const Eigen::Vector3d& p = ob.p_curr;
+  Eigen::Matrix<double, 3, 6> ds;
+  ds.leftCols<3>() = Eigen::Matrix3d::Identity();
+  ds.rightCols<3>() << 0, p.z(), -p.y(), -p.z(), 0, p.x(), p.y(), -p.x(), 0;
+  ds = T_ref_curr.linear() * ds;
+  // Forward rows are compacted to `rows`; reverse rows follow.
+  r.segment<3>(rows) = rr;
+  J.middleRows<3>(rows) = dproj * ds;
+  return rows + 3;
 }
 
-double MaxAbs(const Eigen::Vector3d& r, int rows) {
+double MaxAbs(const Rows& r, int rows) {
   double m = 0;
   for (int k = 0; k < rows; ++k) m = std::max(m, std::abs(r(k)));
   return m;
@@ -80,14 +111,14 @@ double MaxAbs(const Eigen::Vector3d& r, int rows) {
 
 Linearization Linearize(const std::vector<StereoObservation>& obs, const std::vector<char>& use,
                         const kitti::StereoCamera& cam, const Eigen::Isometry3d& T_ref_curr,
-                        const RefineOptions& opt) {
+                        const RefineOptions& opt, bool reverse) {
   Linearization lin;
   const Eigen::Isometry3d T_curr_ref = T_ref_curr.inverse();
-  Eigen::Vector3d r;
-  Eigen::Matrix<double, 3, 6> J;
+  Rows r;
+  RowsJ J;
   for (size_t i = 0; i < obs.size(); ++i) {
     if (!use[i]) continue;
-    const int rows = Residuals(obs[i], cam, T_curr_ref, opt.min_depth_m, r, J);
+    const int rows = Residuals(obs[i], cam, T_ref_curr, T_curr_ref, opt.min_depth_m, reverse, r, J);
     if (rows == 0) continue;
     ++lin.inliers;
     for (int k = 0; k < rows; ++k) {
@@ -128,14 +159,14 @@ PoseRefinement RefineStereoPose(const std::vector<StereoObservation>& obs,
   for (int round = 0; round < opt.rounds; ++round) {
     // Inlier selection at the current estimate.
     const Eigen::Isometry3d T_curr_ref = T.inverse();
-    Eigen::Vector3d r;
-    Eigen::Matrix<double, 3, 6> J;
+    Rows r;
+    RowsJ J;
     for (size_t i = 0; i < obs.size(); ++i) {
-      const int rows = Residuals(obs[i], cam, T_curr_ref, opt.min_depth_m, r, J);
+      const int rows = Residuals(obs[i], cam, T, T_curr_ref, opt.min_depth_m, opt.reverse, r, J);
       use[i] = rows > 0 && MaxAbs(r, rows) <= opt.outlier_px * (round == 0 ? 2.0 : 1.0);
     }
     for (int it = 0; it < opt.iterations; ++it) {
-      lin = Linearize(obs, use, cam, T, opt);
+      lin = Linearize(obs, use, cam, T, opt, opt.reverse);
       if (lin.inliers < 3) return out;
       const Vector6d delta = lin.H.ldlt().solve(lin.b);
       if (!delta.allFinite()) return out;
@@ -146,14 +177,16 @@ PoseRefinement RefineStereoPose(const std::vector<StereoObservation>& obs,
   // Final inlier set and linearisation at the solution.
   {
     const Eigen::Isometry3d T_curr_ref = T.inverse();
-    Eigen::Vector3d r;
-    Eigen::Matrix<double, 3, 6> J;
+    Rows r;
+    RowsJ J;
     for (size_t i = 0; i < obs.size(); ++i) {
-      const int rows = Residuals(obs[i], cam, T_curr_ref, opt.min_depth_m, r, J);
+      const int rows = Residuals(obs[i], cam, T, T_curr_ref, opt.min_depth_m, opt.reverse, r, J);
       use[i] = rows > 0 && MaxAbs(r, rows) <= opt.outlier_px;
     }
   }
-  lin = Linearize(obs, use, cam, T, opt);
+  // Covariance from the forward rows only: the reverse rows reuse the same
+  // pixels, so counting them would halve the variance without new information.
+  lin = Linearize(obs, use, cam, T, opt, false);
   if (!IsFinite(T) || lin.inliers < 3) return out;
   out.T_ref_curr = T;
   out.inlier = use;
@@ -166,7 +199,7 @@ PoseRefinement RefineStereoPose(const std::vector<StereoObservation>& obs,
 Matrix6d PoseCovariance(const std::vector<StereoObservation>& obs, const kitti::StereoCamera& cam,
                         const Eigen::Isometry3d& T_ref_curr, const RefineOptions& opt) {
   const std::vector<char> use(obs.size(), 1);
-  const Linearization lin = Linearize(obs, use, cam, T_ref_curr, opt);
+  const Linearization lin = Linearize(obs, use, cam, T_ref_curr, opt, false);
   return CovarianceFrom(lin, opt, nullptr);
 }
 

@@ -41,6 +41,13 @@ struct StereoObservation {
   Eigen::Vector2d uv_left = Eigen::Vector2d::Zero();
   double u_right = 0;
   bool has_right = false;
+  // Optional reverse (symmetric) term: the point triangulated by stereo in the
+  // current frame (p_curr, cam0 curr) observed in the reference left image at
+  // uv_ref_left and right image at u_ref_right.
+  bool has_reverse = false;
+  Eigen::Vector3d p_curr = Eigen::Vector3d::Zero();
+  Eigen::Vector2d uv_ref_left = Eigen::Vector2d::Zero();
+  double u_ref_right = 0;
 };
 
 struct RefineOptions {
@@ -50,6 +57,7 @@ struct RefineOptions {
   double outlier_px = 3.0;     // |residual| (max over the point's rows) beyond this: outlier
   double min_sigma_px = 0.1;   // floor of the residual standard deviation in the covariance
   double min_depth_m = 0.1;    // points closer than this in curr are dropped
+  bool reverse = true;         // use the reverse rows of observations that have them
 };
 
 struct PoseRefinement {

@@ -78,6 +78,9 @@ struct DefaultConfig {
   double ransac_threshold_px = 2.0;
   double huber_px = 1.0;             // Huber threshold of the Gauss-Newton refinement
   double outlier_px = 3.0;           // residual beyond which a point is dropped
+  // Gauss-Newton also reprojects the current frame's stereo points into the
+  // keyframe's two images (errors of both triangulations enter symmetrically).
+  bool symmetric_residuals = true;
   int min_inliers_ok = 40;           // fewer -> DEGRADED
   int min_inliers_degraded = 12;     // fewer -> LOST (re-initialise)
   // Keyframes / standstill: a new keyframe is taken when the median feature

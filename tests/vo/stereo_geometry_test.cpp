@@ -65,6 +65,52 @@ TEST(StereoGeometry, RefineRecoversPoseWithNoiseAndOutliers) {
   EXPECT_LT(e.dot(r.covariance.ldlt().solve(e)), 30.0);
 }
 
+// Forward rows (p_ref in the current images) agree with pose A, reverse rows
+// (p_curr in the reference images) with pose B = A rotated by a small yaw: the
+// symmetric solution lies between them; without reverse rows it is A.
+TEST(StereoGeometry, ReverseRowsPullTowardsTheirPose) {
+  const kitti::StereoCamera cam = testing::SyntheticCamera();
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> ux(-8, 8), uy(-2, 1.5), uz(4, 40);
+  Vector6d a;
+  a << 0.05, -0.01, 0.9, 0.001, 0.004, -0.002;
+  constexpr double kGapRad = 0.004;
+  Vector6d gap = Vector6d::Zero();
+  gap(4) = kGapRad;
+  const Eigen::Isometry3d T_a = ExpSE3(a), T_b = ExpSE3(a) * ExpSE3(gap);
+  const auto project = [&](const Eigen::Vector3d& q, Eigen::Vector2d& uv, double& ur) {
+    uv = {cam.fx * q.x() / q.z() + cam.cx, cam.fy * q.y() / q.z() + cam.cy};
+    ur = cam.fx * (q.x() - cam.baseline_m) / q.z() + cam.cx;
+  };
+  std::vector<StereoObservation> obs;
+  while (obs.size() < 200) {
+    StereoObservation ob;
+    ob.p_ref = {ux(rng), uy(rng), uz(rng)};
+    const Eigen::Vector3d q = T_a.inverse() * ob.p_ref;
+    if (q.z() < 1) continue;
+    project(q, ob.uv_left, ob.u_right);
+    ob.has_right = true;
+    ob.has_reverse = true;
+    ob.p_curr = T_b.inverse() * ob.p_ref;  // seen from B's current frame ...
+    project(ob.p_ref, ob.uv_ref_left, ob.u_ref_right);  // ... at the reference pixels
+    obs.push_back(ob);
+  }
+  RefineOptions opt;
+  opt.huber_px = 100;  // quadratic: the two halves must balance, not be down-weighted
+  opt.outlier_px = 100;
+  const PoseRefinement sym = RefineStereoPose(obs, cam, Eigen::Isometry3d::Identity(), opt);
+  ASSERT_TRUE(sym.ok);
+  const double yaw_sym = LogSE3(T_a.inverse() * sym.T_ref_curr)(4);
+  EXPECT_GT(yaw_sym, 0.25 * kGapRad);
+  EXPECT_LT(yaw_sym, 0.75 * kGapRad);
+  opt.reverse = false;
+  const PoseRefinement fwd = RefineStereoPose(obs, cam, Eigen::Isometry3d::Identity(), opt);
+  ASSERT_TRUE(fwd.ok);
+  const Eigen::Isometry3d err = T_a.inverse() * fwd.T_ref_curr;
+  EXPECT_LT(err.translation().norm(), 1e-6);
+  EXPECT_LT(Eigen::AngleAxisd(err.rotation()).angle(), 1e-8);
+}
+
 TEST(StereoGeometry, RefineFailsCleanlyWithoutObservations) {
   const PoseRefinement r = RefineStereoPose({}, testing::SyntheticCamera(), Eigen::Isometry3d::Identity());
   EXPECT_FALSE(r.ok);
