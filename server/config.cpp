@@ -2,8 +2,11 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <charconv>
+#include <cmath>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <map>
 #include <sstream>
 
@@ -27,6 +30,61 @@ void CheckReadable(const std::string& path, const std::string& field) {
 
 }  // namespace
 
+namespace {
+std::string Prefix(const std::string& field) { return field.empty() ? std::string() : field + ": "; }
+}  // namespace
+
+size_t ParseSizeField(const std::string& field_in, const std::string& text) {
+  const std::string field = Prefix(field_in);
+  const std::string quoted = "'" + text + "'";
+  if (text.empty()) throw ConfigError(field + "value " + quoted + " is empty, expected a non-negative integer");
+  if (text[0] == '-') throw ConfigError(field + "value " + quoted + " is negative, expected an integer >= 0");
+  unsigned long long x = 0;
+  const char* end = text.data() + text.size();
+  const auto [ptr, ec] = std::from_chars(text.data() + (text[0] == '+' ? 1 : 0), end, x);
+  if (ec == std::errc::result_out_of_range || (ec == std::errc() && x > std::numeric_limits<size_t>::max())) {
+    throw ConfigError(field + "value " + quoted + " is out of range, expected an integer in [0, " +
+                      std::to_string(std::numeric_limits<size_t>::max()) + "]");
+  }
+  if (ec != std::errc() || ptr != end) {
+    throw ConfigError(field + "value " + quoted + " is not a non-negative integer");
+  }
+  return static_cast<size_t>(x);
+}
+
+double ParseRealField(const std::string& field_in, const std::string& text) {
+  const std::string field = Prefix(field_in);
+  const std::string quoted = "'" + text + "'";
+  if (text.empty()) throw ConfigError(field + "value " + quoted + " is empty, expected a number");
+  double x = 0;
+  const char* end = text.data() + text.size();
+  const auto [ptr, ec] = std::from_chars(text.data() + (text[0] == '+' ? 1 : 0), end, x);
+  if (ec == std::errc::result_out_of_range) {
+    throw ConfigError(field + "value " + quoted + " is out of the range of a double");
+  }
+  if (ec != std::errc() || ptr != end) throw ConfigError(field + "value " + quoted + " is not a number");
+  if (!std::isfinite(x)) throw ConfigError(field + "value " + quoted + " is not finite");
+  return x;
+}
+
+int ParseListenPort(const std::string& listen) {
+  const auto colon = listen.rfind(':');
+  if (colon == std::string::npos || colon == 0 || colon + 1 == listen.size()) {
+    throw ConfigError("listen: expected host:port, got '" + listen + "'");
+  }
+  const std::string port = listen.substr(colon + 1);
+  unsigned long x = 0;
+  const char* end = port.data() + port.size();
+  const auto [ptr, ec] = std::from_chars(port.data(), end, x);
+  if (ec == std::errc::result_out_of_range || (ec == std::errc() && ptr == end && x > 65535)) {
+    throw ConfigError("listen: port '" + port + "' in '" + listen + "' is out of range, expected [0, 65535]");
+  }
+  if (ec != std::errc() || ptr != end) {
+    throw ConfigError("listen: port '" + port + "' in '" + listen + "' is not a number in [0, 65535]");
+  }
+  return static_cast<int>(x);
+}
+
 void ApplyYamlConfig(const std::filesystem::path& file, ServerConfig* c) {
   YAML::Node root;
   try {
@@ -38,14 +96,22 @@ void ApplyYamlConfig(const std::filesystem::path& file, ServerConfig* c) {
   if (!root.IsMap()) throw ConfigError(file.string() + ": expected a map of settings");
   using Setter = std::function<void(const YAML::Node&)>;
   auto str = [](std::string* v) -> Setter { return [v](const YAML::Node& n) { *v = n.as<std::string>(); }; };
-  auto size = [](size_t* v) -> Setter {
-    return [v](const YAML::Node& n) {
-      const long long x = n.as<long long>();
-      if (x < 0) throw ConfigError("must be >= 0, got " + std::to_string(x));
-      *v = static_cast<size_t>(x);
-    };
+  // Numbers are parsed from the scalar text so that overflow, sign and junk
+  // get a message naming the value and the reason (yaml-cpp only says
+  // "bad conversion"). The caller prefixes file, line and key.
+  auto scalar = [](const YAML::Node& n) -> std::string {
+    if (!n.IsScalar()) {
+      throw ConfigError("expected a number, got a " +
+                        std::string(n.IsMap() ? "map" : n.IsSequence() ? "sequence" : "null value"));
+    }
+    return n.Scalar();
   };
-  auto real = [](double* v) -> Setter { return [v](const YAML::Node& n) { *v = n.as<double>(); }; };
+  auto size = [scalar](size_t* v) -> Setter {
+    return [v, scalar](const YAML::Node& n) { *v = ParseSizeField("", scalar(n)); };
+  };
+  auto real = [scalar](double* v) -> Setter {
+    return [v, scalar](const YAML::Node& n) { *v = ParseRealField("", scalar(n)); };
+  };
   const std::map<std::string, Setter> setters = {
       {"listen", str(&c->listen)},
       {"tls_cert_file", str(&c->tls_cert_file)},
@@ -88,14 +154,7 @@ void ApplyYamlConfig(const std::filesystem::path& file, ServerConfig* c) {
 }
 
 void ValidateConfig(ServerConfig* c) {
-  const auto colon = c->listen.rfind(':');
-  if (colon == std::string::npos || colon == 0 || colon + 1 == c->listen.size()) {
-    throw ConfigError("listen: expected host:port, got '" + c->listen + "'");
-  }
-  const std::string port = c->listen.substr(colon + 1);
-  if (port.find_first_not_of("0123456789") != std::string::npos || std::stol(port) > 65535) {
-    throw ConfigError("listen: port '" + port + "' is not a number in [0, 65535]");
-  }
+  ParseListenPort(c->listen);
   if (c->tls_cert_file.empty() != c->tls_key_file.empty()) {
     throw ConfigError("tls_cert_file and tls_key_file must be given together");
   }

@@ -46,4 +46,12 @@ void ApplyYamlConfig(const std::filesystem::path& file, ServerConfig* config);
 // is unreadable; reads token_file into token.
 void ValidateConfig(ServerConfig* config);
 
+// Number parsing with precise errors "FIELD: value 'TEXT' is REASON" (FIELD
+// and its ": " are left out when empty). Exposed for tests.
+size_t ParseSizeField(const std::string& field, const std::string& text);
+double ParseRealField(const std::string& field, const std::string& text);
+// Port of a "host:port" listen address; ConfigError naming `listen`, the
+// port text and the reason (not a number, out of [0, 65535]).
+int ParseListenPort(const std::string& listen);
+
 }  // namespace locaid::server

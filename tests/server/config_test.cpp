@@ -5,6 +5,8 @@
 
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <vector>
 
 namespace locaid::server {
 namespace {
@@ -60,6 +62,77 @@ TEST(ServerConfig, WrongTypeAndRangeAreReported) {
   q.queue_size = 0;
   e = ErrorOf([&] { ValidateConfig(&q); });
   EXPECT_NE(e.find("queue_size"), std::string::npos) << e;
+}
+
+TEST(ServerConfig, ListenPortOverflowIsAConfigErrorNamingListen) {
+  ServerConfig c;
+  c.listen = "127.0.0.1:99999999999999999999";
+  std::string e;
+  try {
+    ValidateConfig(&c);
+  } catch (const ConfigError& err) {
+    e = err.what();
+  }  // any other exception type (std::out_of_range) fails the test by escaping
+  EXPECT_NE(e.find("listen"), std::string::npos) << e;
+  EXPECT_NE(e.find("99999999999999999999"), std::string::npos) << e;
+  EXPECT_NE(e.find("out of range"), std::string::npos) << e;
+  c.listen = "127.0.0.1:65536";
+  e = ErrorOf([&] { ValidateConfig(&c); });
+  EXPECT_NE(e.find("'65536'"), std::string::npos) << e;
+  c.listen = "127.0.0.1:80x";
+  e = ErrorOf([&] { ValidateConfig(&c); });
+  EXPECT_NE(e.find("not a number"), std::string::npos) << e;
+  c.listen = "127.0.0.1:65535";
+  EXPECT_EQ(ParseListenPort(c.listen), 65535);
+}
+
+TEST(ServerConfig, EveryNumericYamlFieldReportsFieldValueAndReason) {
+  struct Case {
+    std::string yaml, value, reason;
+  };
+  const std::vector<Case> size_cases = {
+      {"99999999999999999999999", "99999999999999999999999", "out of range"},
+      {"-3", "-3", "negative"},
+      {"12abc", "12abc", "not a non-negative integer"},
+      {"1.5", "1.5", "not a non-negative integer"},
+  };
+  const std::vector<std::string> size_fields = {"max_receive_mb", "history_size", "max_history_size",
+                                                "queue_size",     "max_queue_size", "max_sessions",
+                                                "max_subscribers_per_session", "synthetic_default_frames"};
+  int n = 0;
+  for (const auto& field : size_fields) {
+    for (const auto& k : size_cases) {
+      ServerConfig c;
+      const auto path = WriteTemp("num" + std::to_string(n++) + ".yaml", "listen: 127.0.0.1:0\n" + field + ": " + k.yaml + "\n");
+      const std::string e = ErrorOf([&] { ApplyYamlConfig(path, &c); });
+      EXPECT_NE(e.find(":2: key '" + field + "'"), std::string::npos) << e;
+      EXPECT_NE(e.find("'" + k.value + "'"), std::string::npos) << e;
+      EXPECT_NE(e.find(k.reason), std::string::npos) << e;
+    }
+  }
+  const std::vector<Case> real_cases = {
+      {"1e999", "1e999", "out of the range"},
+      {"fast", "fast", "not a number"},
+      {".nan", ".nan", "not a number"},
+  };
+  for (const std::string field : {"keepalive_time_s", "keepalive_timeout_s", "shutdown_grace_s"}) {
+    for (const auto& k : real_cases) {
+      ServerConfig c;
+      const auto path = WriteTemp("real" + std::to_string(n++) + ".yaml", field + ": " + k.yaml + "\n");
+      const std::string e = ErrorOf([&] { ApplyYamlConfig(path, &c); });
+      EXPECT_NE(e.find(":1: key '" + field + "'"), std::string::npos) << e;
+      EXPECT_NE(e.find("'" + k.value + "'"), std::string::npos) << e;
+      EXPECT_NE(e.find(k.reason), std::string::npos) << e;
+    }
+  }
+  ServerConfig ok;
+  ApplyYamlConfig(WriteTemp("num_ok.yaml", "max_sessions: 3\nkeepalive_time_s: 2.5e1\nqueue_size: +7\n"), &ok);
+  EXPECT_EQ(ok.max_sessions, 3u);
+  EXPECT_DOUBLE_EQ(ok.keepalive_time_s, 25.0);
+  EXPECT_EQ(ok.queue_size, 7u);
+  EXPECT_EQ(ParseSizeField("queue_size", "18446744073709551615"), static_cast<size_t>(18446744073709551615ull));
+  const std::string e = ErrorOf([] { ParseSizeField("queue_size", "18446744073709551616"); });
+  EXPECT_EQ(e.rfind("queue_size: value '18446744073709551616' is out of range", 0), 0u) << e;
 }
 
 TEST(ServerConfig, TokenFileIsRead) {
