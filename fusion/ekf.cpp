@@ -144,7 +144,12 @@ void Ekf::ProcessVo(const VoMeasurement& m, bool vo_ok) {
     last_vo_velocity_body_mps_ = motion.translation() / dt;
   }
   Mat6 Rvo = m.covariance * config_.vo_cov_scale;
+  // Relative term only where VO is a measurement checked against the IMU; in
+  // no-IMU mode it would only inflate the propagation noise (sim: worse GPS smoothing).
+  const double sigma_rel =
+      config_.use_imu ? config_.vo_sigma_t_per_m * motion.translation().norm() : 0.0;
   for (int i = 0; i < 3; ++i) {
+    Rvo(i, i) += sigma_rel * sigma_rel;
     Rvo(i, i) = std::max(Rvo(i, i), std::pow(config_.vo_min_sigma_t_m, 2));
     Rvo(i + 3, i + 3) = std::max(Rvo(i + 3, i + 3), std::pow(config_.vo_min_sigma_rot_rad, 2));
   }
@@ -256,7 +261,8 @@ void Ekf::TryInitialize(int64_t t_ns) {
     if (!std::isnan(f.T_start_body.matrix()(0, 0))) fixes.push_back(&f);
   if (static_cast<int>(fixes.size()) < std::max(2, config_.init_min_fixes)) return;
   const double sigma_h = fixes.back()->sigma_h;
-  const double min_baseline = std::max(config_.init_min_baseline_m, 5.0 * sigma_h);
+  const double min_baseline =
+      std::max(config_.init_min_baseline_m, config_.init_min_baseline_sigmas * sigma_h);
   double gps_span = 0, vo_span = 0;
   for (const auto* f : fixes) {
     gps_span = std::max(gps_span, (f->p_enu.head<2>() - fixes.front()->p_enu.head<2>()).norm());
@@ -320,8 +326,9 @@ void Ekf::TryInitialize(int64_t t_ns) {
   x_.v_enu_mps = x_.R_enu_body * last_vo_velocity_body_mps_;
 
   // Covariance: centroid noise + yaw lever arm.
-  const double var_c = sigma_h * sigma_h / used;
-  const double sigma_psi = sigma_h / std::sqrt(spread2);
+  const double k = std::max(1.0, config_.init_cov_inflation);
+  const double var_c = k * sigma_h * sigma_h / used;
+  const double sigma_psi = std::sqrt(k) * sigma_h / std::sqrt(spread2);
   const Vec3 lever(p_now_xy.x() - p_mean.x(), p_now_xy.y() - p_mean.y(), 0);
   const Vec3 J_psi = Vec3::UnitZ().cross(lever);
   const int n = config_.use_imu ? kImuStates + kCloneStates : kPoseStates;
