@@ -210,7 +210,9 @@ TEST(EkfModes, LostWhenVoFailsWithoutGps) {
       const bool vo_ok = !(e.in_outage && e.truth.t_ns > 30'000'000'000LL);
       ekf.ProcessVo(e.vo, vo_ok);
       last = ekf.Output(e.vo.t_ns, vo_ok).mode;
-      if (e.in_outage && e.truth.t_ns > 25'000'000'000LL && vo_ok) EXPECT_EQ(last, Mode::kVoOnly);
+      if (e.in_outage && e.truth.t_ns > 25'000'000'000LL && vo_ok) {
+        EXPECT_EQ(last, Mode::kVoOnly);
+      }
     }
   }
   EXPECT_EQ(last, Mode::kLost);
