@@ -5,7 +5,9 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
 #include <chrono>
+#include <cstdint>
 #include <stdexcept>
 
 namespace locaid::server {
@@ -61,12 +63,41 @@ SourceItem DatasetFrameSource::Next() {
   return item;
 }
 
+std::optional<PngSize> ReadPngSize(const std::string& bytes) {
+  static constexpr unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  if (bytes.size() < 24) return std::nullopt;
+  const auto* b = reinterpret_cast<const unsigned char*>(bytes.data());
+  if (!std::equal(kSignature, kSignature + 8, b)) return std::nullopt;
+  auto be32 = [b](size_t at) {
+    return (uint32_t{b[at]} << 24) | (uint32_t{b[at + 1]} << 16) | (uint32_t{b[at + 2]} << 8) | uint32_t{b[at + 3]};
+  };
+  if (be32(8) != 13 || bytes.compare(12, 4, "IHDR") != 0) return std::nullopt;
+  return PngSize{be32(16), be32(20)};
+}
+
+std::string PngSizeMismatch(const std::string& bytes, const kitti::StereoCamera& camera, const char* which) {
+  const auto size = ReadPngSize(bytes);
+  if (!size) return "";
+  if (size->width == static_cast<uint32_t>(camera.width) && size->height == static_cast<uint32_t>(camera.height)) {
+    return "";
+  }
+  return std::string(which) + " image: PNG declares " + std::to_string(size->width) + "x" +
+         std::to_string(size->height) + " px, session camera is " + std::to_string(camera.width) + "x" +
+         std::to_string(camera.height) + " px";
+}
+
 cv::Mat DecodeLiveImage(const std::string& bytes, bool png, const kitti::StereoCamera& camera,
                         const char* which) {
   const std::string prefix = std::string(which) + " image: ";
   if (bytes.empty()) throw std::invalid_argument(prefix + "empty");
   cv::Mat image;
   if (png) {
+    if (!ReadPngSize(bytes)) {
+      throw std::invalid_argument(prefix + "not a PNG (no signature + IHDR header in the first 24 of " +
+                                  std::to_string(bytes.size()) + " bytes)");
+    }
+    const std::string mismatch = PngSizeMismatch(bytes, camera, which);
+    if (!mismatch.empty()) throw std::invalid_argument(mismatch);
     const cv::Mat raw(1, static_cast<int>(bytes.size()), CV_8UC1,
                       const_cast<char*>(bytes.data()));
     image = cv::imdecode(raw, cv::IMREAD_GRAYSCALE);

@@ -111,8 +111,22 @@ class LiveFrameSource : public FrameSource {
   int64_t last_frame_ns_ = INT64_MIN;
 };
 
+// Width and height a PNG declares in its IHDR chunk (bytes 16..23, big
+// endian), read without decoding; nullopt when `bytes` has no PNG signature
+// followed by a 13-byte IHDR chunk.
+struct PngSize {
+  uint32_t width = 0, height = 0;
+};
+std::optional<PngSize> ReadPngSize(const std::string& bytes);
+// "" when the PNG header declares the camera size (or is not a PNG header:
+// decoding reports that), else "left image: PNG declares WxH px, session
+// camera is WxH px".
+std::string PngSizeMismatch(const std::string& bytes, const kitti::StereoCamera& camera, const char* which);
+
 // Decodes one pushed image into CV_8UC1 of the camera size; throws
-// std::invalid_argument "left image: ..." on failure.
+// std::invalid_argument "left image: ..." on failure. A PNG's declared size
+// is checked before decoding, so a small file declaring a huge image is
+// never decoded.
 cv::Mat DecodeLiveImage(const std::string& bytes, bool png, const kitti::StereoCamera& camera,
                         const char* which);
 

@@ -164,6 +164,18 @@ class PushReactor final : public grpc::ServerBidiReactor<v1::PushRequest, v1::Pu
         item.kind = LiveItem::Kind::kFrame;
         item.t_ns = f.t_ns();
         item.png = f.encoding() == v1::IMAGE_ENCODING_PNG;
+        if (item.png) {
+          // A PNG declaring another size than the session camera is never
+          // decoded (a small file can declare 30000x30000 px): the stream
+          // ends with INVALID_ARGUMENT naming both sizes.
+          std::string mismatch = PngSizeMismatch(f.left(), live_->camera(), "left");
+          if (mismatch.empty()) mismatch = PngSizeMismatch(f.right(), live_->camera(), "right");
+          if (!mismatch.empty()) {
+            std::lock_guard lock(mu_);
+            FinishLocked(Invalid("frame " + std::to_string(index) + ": " + mismatch));
+            return;
+          }
+        }
         item.left = std::move(*req_.mutable_frame()->mutable_left());
         item.right = std::move(*req_.mutable_frame()->mutable_right());
         PushToSession(std::move(item));

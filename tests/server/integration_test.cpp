@@ -6,6 +6,7 @@
 #include "kitti/dataset.hpp"
 
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include <cmath>
 #include <csignal>
@@ -404,6 +405,30 @@ TEST_F(ServerTest, BadRequestsGetPreciseStatusesAndTheServerKeepsServing) {
   // Still serving.
   r = RunCli(port_, {"health"});
   EXPECT_EQ(r.out, "SERVING\n");
+}
+
+TEST_F(ServerTest, PngDeclaringAnotherSizeEndsThePushWithInvalidArgument) {
+  Pusher push(stub_.get(), "");
+  ASSERT_TRUE(push.ok());
+  // A real 32x24 PNG whose IHDR is rewritten to declare 30000x30000 px.
+  cv::Mat img(24, 32, CV_8UC1, cv::Scalar(9));
+  std::vector<uint8_t> buf;
+  ASSERT_TRUE(cv::imencode(".png", img, buf));
+  std::string png(buf.begin(), buf.end());
+  for (int i = 0; i < 4; ++i) {
+    png[static_cast<size_t>(16 + i)] = static_cast<char>((30000u >> (24 - 8 * i)) & 0xff);
+    png[static_cast<size_t>(20 + i)] = static_cast<char>((30000u >> (24 - 8 * i)) & 0xff);
+  }
+  v1::PushRequest frame = Gray8Frame(kFramePeriodNs);
+  frame.mutable_frame()->set_encoding(v1::IMAGE_ENCODING_PNG);
+  frame.mutable_frame()->set_left(png);
+  frame.mutable_frame()->set_right(std::string(buf.begin(), buf.end()));
+  push.Write(frame);
+  const grpc::Status s = push.Close();
+  EXPECT_EQ(s.error_code(), grpc::INVALID_ARGUMENT) << s.error_message();
+  EXPECT_NE(s.error_message().find("30000x30000"), std::string::npos) << s.error_message();
+  EXPECT_NE(s.error_message().find("32x24"), std::string::npos) << s.error_message();
+  EXPECT_EQ(RunCli(port_, {"health"}).out, "SERVING\n");
 }
 
 TEST_F(ServerTest, OversizeMessageIsRejectedAndTheStreamEnds) {
