@@ -11,15 +11,24 @@
 // Close(); the callback must be cheap and must not call back into the hub
 // while holding locks the hub could wait on (it is called with no hub lock
 // held). Thread-safe: one producer thread, any number of consumer threads.
+//
+// With StartFanoutThread() the wakes are not called by Publish()/Close() but
+// by one fan-out thread owned by the hub (joined by StopFanoutThread() or
+// the destructor): the producer then does O(1) work per subscriber under the
+// subscriber's short lock (push one shared pointer), and the wake callbacks
+// (which start gRPC writes) run off the producer thread. Wakes are coalesced:
+// a subscriber woken once after several publishes pulls all queued items.
 #pragma once
 
 #include <algorithm>
+#include <condition_variable>
 #include <cstdint>
 #include <deque>
 #include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -103,6 +112,28 @@ class PoseHub {
   using SubscriberPtr = std::shared_ptr<Subscriber>;
 
   explicit PoseHub(size_t history_capacity) : history_capacity_(history_capacity) {}
+  PoseHub(const PoseHub&) = delete;
+  PoseHub& operator=(const PoseHub&) = delete;
+  ~PoseHub() { StopFanoutThread(); }
+
+  // Starts the fan-out thread (see the file comment). Call once, before the
+  // first Publish().
+  void StartFanoutThread() {
+    std::lock_guard lock(fan_mu_);
+    if (fan_thread_.joinable()) return;
+    fan_stop_ = false;
+    fan_thread_ = std::thread([this] { FanoutLoop(); });
+  }
+  // Runs a last wake round for what is pending and joins the thread.
+  void StopFanoutThread() {
+    {
+      std::lock_guard lock(fan_mu_);
+      if (!fan_thread_.joinable()) return;
+      fan_stop_ = true;
+    }
+    fan_cv_.notify_one();
+    fan_thread_.join();
+  }
 
   // Registers a subscriber with a queue of `queue_capacity` (>= 1) items.
   // from_start: the queue is first filled with the history (its capacity
@@ -149,7 +180,7 @@ class PoseHub {
       targets = subscribers_;
     }
     for (const SubscriberPtr& sub : targets) sub->Push(item);
-    for (const SubscriberPtr& sub : targets) sub->Wake();
+    WakeAll(targets);
   }
 
   // No more items: subscribers drain their queues, then Pop() returns kEnd.
@@ -162,7 +193,7 @@ class PoseHub {
       targets = subscribers_;
     }
     for (const SubscriberPtr& sub : targets) sub->MarkClosed();
-    for (const SubscriberPtr& sub : targets) sub->Wake();
+    WakeAll(targets);
   }
 
   bool closed() const {
@@ -189,6 +220,37 @@ class PoseHub {
   }
 
  private:
+  void WakeAll(const std::vector<SubscriberPtr>& targets) {
+    {
+      std::lock_guard lock(fan_mu_);
+      if (fan_thread_.joinable() && !fan_stop_) {
+        fan_pending_ = true;
+        fan_cv_.notify_one();
+        return;
+      }
+    }
+    for (const SubscriberPtr& sub : targets) sub->Wake();
+  }
+
+  void FanoutLoop() {
+    for (;;) {
+      bool stop = false;
+      {
+        std::unique_lock lock(fan_mu_);
+        fan_cv_.wait(lock, [&] { return fan_pending_ || fan_stop_; });
+        fan_pending_ = false;
+        stop = fan_stop_;
+      }
+      std::vector<SubscriberPtr> targets;
+      {
+        std::lock_guard lock(mu_);
+        targets = subscribers_;
+      }
+      for (const SubscriberPtr& sub : targets) sub->Wake();
+      if (stop) return;
+    }
+  }
+
   const size_t history_capacity_;
   mutable std::mutex mu_;
   std::deque<Item> history_;
@@ -197,6 +259,11 @@ class PoseHub {
   uint64_t published_ = 0;
   uint64_t dropped_departed_ = 0;
   bool closed_ = false;
+  // Fan-out thread state (fan_mu_ is never held while calling a wake).
+  std::mutex fan_mu_;
+  std::condition_variable fan_cv_;
+  std::thread fan_thread_;
+  bool fan_pending_ = false, fan_stop_ = false;
 };
 
 }  // namespace locaid::server

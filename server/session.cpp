@@ -88,6 +88,9 @@ Session::~Session() {
 
 void Session::Start() {
   state_ = locaid::v1::SESSION_STATE_RUNNING;
+  // Subscriber wakes (which start gRPC writes) run on the hub's fan-out
+  // thread, so 1000 subscribers do not slow the pipeline; joined in Join().
+  hub_.StartFanoutThread();
   thread_ = std::thread([this] { Run(); });
 }
 
@@ -103,6 +106,7 @@ void Session::Stop() {
 void Session::Join() {
   if (thread_.joinable()) thread_.join();
   hub_.Close();
+  hub_.StopFanoutThread();  // after a last wake round (streams see kEnd)
 }
 
 void Session::Post(Command command) {

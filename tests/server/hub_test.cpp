@@ -157,3 +157,67 @@ TEST(PoseHub, ConcurrentConsumersLoseNothingWhileStalledOneStaysBounded) {
 
 }  // namespace
 }  // namespace locaid::server
+
+namespace locaid::server {
+namespace {
+
+// With the fan-out thread, wakes run on another thread than the producer, a
+// wake that blocks does not block Publish(), and a consumer that drains on
+// every wake still gets every item in order once the hub is closed.
+TEST(PoseHub, FanoutThreadWakesOffTheProducerAndLosesNothing) {
+  IntHub hub(0);
+  hub.StartFanoutThread();
+  const auto producer = std::this_thread::get_id();
+  std::mutex mu;
+  std::condition_variable cv;
+  bool release = false, blocked_seen = false;
+  std::atomic<bool> woken_on_producer{false};
+  // Subscriber A: its wake blocks until released (a stuck writer).
+  auto stuck = hub.Subscribe(2, false, [&] {
+    if (std::this_thread::get_id() == producer) woken_on_producer = true;
+    std::unique_lock lock(mu);
+    blocked_seen = true;
+    cv.notify_all();
+    cv.wait(lock, [&] { return release; });
+  });
+  // Subscriber B: drains on every wake.
+  std::vector<int> got;
+  bool ended = false;
+  IntHub::SubscriberPtr fast;
+  fast = hub.Subscribe(1000, false, [&] {
+    if (std::this_thread::get_id() == producer) woken_on_producer = true;
+    IntHub::Item item;
+    uint64_t dropped = 0;
+    for (;;) {
+      const auto r = fast->Pop(&item, &dropped);
+      if (r == IntHub::Subscriber::PopResult::kItem) got.push_back(*item);
+      if (r == IntHub::Subscriber::PopResult::kEnd) ended = true;
+      if (r != IntHub::Subscriber::PopResult::kItem) break;
+    }
+  });
+  hub.Publish(std::make_shared<const int>(0));
+  {
+    std::unique_lock lock(mu);
+    ASSERT_TRUE(cv.wait_for(lock, std::chrono::seconds(30), [&] { return blocked_seen; }));
+  }
+  // The fan-out thread is now stuck in A's wake; publishing must not block.
+  constexpr int kItems = 500;
+  for (int i = 1; i < kItems; ++i) hub.Publish(std::make_shared<const int>(i));
+  hub.Close();
+  EXPECT_EQ(stuck->info().queued, 2u);  // bounded: the newest two
+  EXPECT_EQ(stuck->info().dropped, static_cast<uint64_t>(kItems - 2));
+  {
+    std::lock_guard lock(mu);
+    release = true;
+  }
+  cv.notify_all();
+  hub.StopFanoutThread();  // last wake round after Close
+  EXPECT_FALSE(woken_on_producer.load());
+  ASSERT_TRUE(ended);
+  ASSERT_EQ(got.size(), static_cast<size_t>(kItems));
+  for (int i = 0; i < kItems; ++i) EXPECT_EQ(got[static_cast<size_t>(i)], i);
+  EXPECT_EQ(fast->info().dropped, 0u);
+}
+
+}  // namespace
+}  // namespace locaid::server
