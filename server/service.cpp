@@ -744,11 +744,13 @@ void LocalizationService::BeginShutdown() {
     for (const auto& [id, e] : sessions_) sessions.push_back(e.session);
     streams.assign(streams_.begin(), streams_.end());
   }
-  for (const auto& s : sessions) s->Stop();
+  // Streams first: a stopped session closes its hub, and a stream that saw
+  // the end before its Abort would finish with OK instead of UNAVAILABLE.
   for (const auto& w : streams) {
     std::lock_guard lock(w->mu);
     if (w->target) w->target->Abort(Status(StatusCode::UNAVAILABLE, "server shutting down"));
   }
+  for (const auto& s : sessions) s->Stop();
 }
 
 void LocalizationService::JoinSessions() {
