@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <iomanip>
+#include <stdexcept>
 
 #include "fusion/ekf_models.hpp"
 
@@ -79,6 +82,38 @@ VoErrorStats ComputeVoErrorStats(const std::vector<VoErrorPair>& pairs) {
     st.nees_median = nees[nees.size() / 2];
   }
   return st;
+}
+
+void WritePlotCsv(const std::string& path, const std::vector<ReplaySample>& samples,
+                  const std::vector<PlotExtras>& extras) {
+  if (!extras.empty() && extras.size() != samples.size()) {
+    throw std::invalid_argument("WritePlotCsv: " + std::to_string(extras.size()) + " extras for " +
+                                std::to_string(samples.size()) + " samples");
+  }
+  std::ofstream csv(path);
+  if (!csv) throw std::runtime_error(path + ": cannot write");
+  csv << "t_s,gt_e,gt_n,gt_u,est_e,est_n,est_u,gps_e,gps_n,gps_u,gps_rejected,vo_e,vo_n,vo_u,"
+         "sigma_e,sigma_n,sigma_u,err_h,mode,in_outage,initialized\n";
+  csv << std::fixed << std::setprecision(4);
+  auto xyz = [&csv](const std::optional<Eigen::Vector3d>& p) {
+    if (p) csv << p->x() << ',' << p->y() << ',' << p->z() << ',';
+    else csv << ",,,";
+  };
+  for (size_t k = 0; k < samples.size(); ++k) {
+    const auto& s = samples[k];
+    const PlotExtras none;
+    const PlotExtras& x = extras.empty() ? none : extras[k];
+    csv << s.t_s << ',';
+    xyz(s.p_enu_gt_m);
+    xyz(s.p_enu_est_m);
+    xyz(x.p_enu_gps_m);
+    csv << int(x.gps_rejected) << ',';
+    xyz(x.p_enu_vo_m);
+    csv << std::sqrt(s.P_pos_m2(0, 0)) << ',' << std::sqrt(s.P_pos_m2(1, 1)) << ','
+        << std::sqrt(s.P_pos_m2(2, 2)) << ',' << (s.p_enu_est_m - s.p_enu_gt_m).head<2>().norm() << ','
+        << fusion::ToString(s.mode) << ',' << int(s.in_outage) << ',' << int(s.initialized) << '\n';
+  }
+  if (!csv) throw std::runtime_error(path + ": write failed");
 }
 
 }  // namespace locaid::pipeline

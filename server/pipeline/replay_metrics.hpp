@@ -6,6 +6,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <optional>
+#include <string>
 #include <vector>
 
 namespace locaid::pipeline {
@@ -60,5 +62,19 @@ VoErrorStats ComputeVoErrorStats(const std::vector<VoErrorPair>& pairs);
 
 // gps_sigma_h_m: the scenario's horizontal noise (reconvergence threshold 2 sigma).
 ReplayMetrics ComputeReplayMetrics(const std::vector<ReplaySample>& samples, double gps_sigma_h_m);
+
+// Per-frame columns that locaid-replay knows and a recorded pose stream does
+// not (they stay empty in the CSV when absent).
+struct PlotExtras {
+  std::optional<Eigen::Vector3d> p_enu_gps_m;  // degraded fix fed this frame
+  bool gps_rejected = false;
+  std::optional<Eigen::Vector3d> p_enu_vo_m;   // raw VO chained in ENU
+};
+
+// Writes the per-frame CSV that clients/plot_outage.py reads. `extras` is
+// either empty or one entry per sample. Throws std::runtime_error when the
+// file cannot be written.
+void WritePlotCsv(const std::string& path, const std::vector<ReplaySample>& samples,
+                  const std::vector<PlotExtras>& extras = {});
 
 }  // namespace locaid::pipeline

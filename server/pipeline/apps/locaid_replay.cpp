@@ -204,23 +204,11 @@ int main(int argc, char** argv) {
     }
 
     if (!out_csv.empty()) {
-      std::ofstream csv(out_csv);
-      if (!csv) throw std::runtime_error(out_csv + ": cannot write");
-      csv << "t_s,gt_e,gt_n,gt_u,est_e,est_n,est_u,gps_e,gps_n,gps_u,gps_rejected,vo_e,vo_n,vo_u,"
-             "sigma_e,sigma_n,sigma_u,err_h,mode,in_outage,initialized\n";
-      csv << std::fixed << std::setprecision(4);
+      std::vector<pipeline::PlotExtras> extras(samples.size());
       for (size_t k = 0; k < samples.size(); ++k) {
-        const auto& s = samples[k];
-        const auto& v = vo_only[k].translation();
-        csv << s.t_s << ',' << s.p_enu_gt_m.x() << ',' << s.p_enu_gt_m.y() << ',' << s.p_enu_gt_m.z() << ','
-            << s.p_enu_est_m.x() << ',' << s.p_enu_est_m.y() << ',' << s.p_enu_est_m.z() << ',';
-        if (gps_enu[k]) csv << gps_enu[k]->x() << ',' << gps_enu[k]->y() << ',' << gps_enu[k]->z() << ',';
-        else csv << ",,,";
-        csv << gps_rej[k] << ',' << v.x() << ',' << v.y() << ',' << v.z() << ','
-            << std::sqrt(s.P_pos_m2(0, 0)) << ',' << std::sqrt(s.P_pos_m2(1, 1)) << ','
-            << std::sqrt(s.P_pos_m2(2, 2)) << ',' << (s.p_enu_est_m - s.p_enu_gt_m).head<2>().norm() << ','
-            << fusion::ToString(s.mode) << ',' << int(s.in_outage) << ',' << int(s.initialized) << '\n';
+        extras[k] = {gps_enu[k], gps_rej[k] != 0, vo_only[k].translation()};
       }
+      pipeline::WritePlotCsv(out_csv, samples, extras);
     }
     if (!out_tum.empty()) {
       std::ofstream tum(out_tum);

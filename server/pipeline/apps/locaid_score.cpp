@@ -166,22 +166,8 @@ int main(int argc, char** argv) {
     if (samples.empty()) throw std::runtime_error(poses_path + ": no recorded pose matches a frame with ground truth");
     const auto metrics = locaid::pipeline::ComputeReplayMetrics(samples, scenario.gps_sigma_h_m);
 
-    if (!out_csv.empty()) {
-      std::ofstream csv(out_csv);
-      if (!csv) throw std::runtime_error(out_csv + ": cannot write");
-      // Same columns as locaid-replay --out-csv; GPS and VO-only tracks are not
-      // part of a recorded stream and stay empty.
-      csv << "t_s,gt_e,gt_n,gt_u,est_e,est_n,est_u,gps_e,gps_n,gps_u,gps_rejected,vo_e,vo_n,vo_u,"
-             "sigma_e,sigma_n,sigma_u,err_h,mode,in_outage,initialized\n";
-      csv << std::fixed << std::setprecision(4);
-      for (const auto& s : samples) {
-        csv << s.t_s << ',' << s.p_enu_gt_m.x() << ',' << s.p_enu_gt_m.y() << ',' << s.p_enu_gt_m.z() << ','
-            << s.p_enu_est_m.x() << ',' << s.p_enu_est_m.y() << ',' << s.p_enu_est_m.z() << ",,,,0,,,,"
-            << std::sqrt(s.P_pos_m2(0, 0)) << ',' << std::sqrt(s.P_pos_m2(1, 1)) << ','
-            << std::sqrt(s.P_pos_m2(2, 2)) << ',' << (s.p_enu_est_m - s.p_enu_gt_m).head<2>().norm() << ','
-            << locaid::fusion::ToString(s.mode) << ',' << int(s.in_outage) << ',' << int(s.initialized) << '\n';
-      }
-    }
+    // GPS and VO-only tracks are not part of a recorded stream: left empty.
+    if (!out_csv.empty()) locaid::pipeline::WritePlotCsv(out_csv, samples);
 
     nlohmann::ordered_json j;
     j["drive"] = drive_dir;
