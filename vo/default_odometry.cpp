@@ -237,16 +237,11 @@ RelativeMotion DefaultOdometry::Fail(RelativeMotion out, const Images& im) {
 }
 
 RelativeMotion DefaultOdometry::Track(const StereoFrame& frame) {
+  // Missing or unusable: identity, keyframe kept so tracking resumes after it.
+  if (!FrameUsable(frame, cam_, cfg_.min_image_stddev)) return NoMotion(frame.t_ns, Status::kLost);
   RelativeMotion out;
   out.t_ns = frame.t_ns;
   StageTimer timer(out.timings, cfg_.timing_clock);
-  if (!ImageProblem(frame.left, cam_, cfg_.min_image_stddev).empty() ||
-      !ImageProblem(frame.right, cam_, cfg_.min_image_stddev).empty()) {
-    // Missing or unusable: identity, keyframe kept so tracking resumes after it.
-    RelativeMotion lost = NoMotion(frame.t_ns, Status::kLost);
-    lost.timings = out.timings;
-    return lost;
-  }
   Images im;
   im.left = ToGrey(frame.left);
   im.right = ToGrey(frame.right);

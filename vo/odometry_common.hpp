@@ -23,6 +23,10 @@ cv::Mat ToGrey(const cv::Mat& image);
 // Identity motion with a large covariance and the given status.
 RelativeMotion NoMotion(int64_t t_ns, Status status);
 
+// Both images present, of the camera's size and not blank/saturated
+// (ImageProblem empty for left and right).
+bool FrameUsable(const StereoFrame& frame, const kitti::StereoCamera& camera, double min_stddev);
+
 // Milliseconds on the given clock (arbitrary origin).
 double NowMs(TimingClock clock);
 

@@ -55,6 +55,11 @@ cv::Mat ToGrey(const cv::Mat& image) {
   return grey;
 }
 
+bool FrameUsable(const StereoFrame& frame, const kitti::StereoCamera& camera, double min_stddev) {
+  return ImageProblem(frame.left, camera, min_stddev).empty() &&
+         ImageProblem(frame.right, camera, min_stddev).empty();
+}
+
 RelativeMotion NoMotion(int64_t t_ns, Status status) {
   RelativeMotion m;
   m.t_ns = t_ns;

@@ -69,15 +69,10 @@ std::vector<cv::KeyPoint> ThesisOdometry::DetectGrid(const cv::Mat& left) const 
 }
 
 RelativeMotion ThesisOdometry::Track(const StereoFrame& frame) {
+  if (!FrameUsable(frame, cam_, cfg_.min_image_stddev)) return NoMotion(frame.t_ns, Status::kLost);
   RelativeMotion out;
   out.t_ns = frame.t_ns;
   StageTimer timer(out.timings, cfg_.timing_clock);
-  if (!ImageProblem(frame.left, cam_, cfg_.min_image_stddev).empty() ||
-      !ImageProblem(frame.right, cam_, cfg_.min_image_stddev).empty()) {
-    RelativeMotion lost = NoMotion(frame.t_ns, Status::kLost);
-    lost.timings = out.timings;
-    return lost;
-  }
   const cv::Mat left = ToGrey(frame.left), right = ToGrey(frame.right);
 
   std::vector<cv::KeyPoint> kps = DetectGrid(left);
