@@ -273,6 +273,8 @@ TEST_P(EkfNumericalHealth, CovarianceStaysSymmetricPositiveDefiniteAndOutputsFin
     HealthMonitor health(std::string(use_imu ? "imu/" : "no-imu/") + c.name);
     const RunResult r = Drive(ekf, events, c.torture, health, c.sim.seed);
     health.Report();
+    std::printf("[health] %-34s fixes fed %d (jumped %d): used %d, rejected %d; frames %d (VO lost %d)\n", c.name,
+                r.gps_fed, r.jump_fixes, ekf.gps_used(), ekf.gps_rejected(), r.frames, r.vo_lost_frames);
     ASSERT_TRUE(r.initialized);
     EXPECT_TRUE(health.ok()) << health.first_failure();
     EXPECT_GT(health.checks(), r.frames);
