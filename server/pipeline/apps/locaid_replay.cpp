@@ -18,7 +18,11 @@
 #include <cstdlib>
 #include <condition_variable>
 #include <deque>
+#include <filesystem>
 #include <fstream>
+#include <map>
+#include <sstream>
+#include <cmath>
 #include <iomanip>
 #include <iostream>
 #include <mutex>
@@ -66,6 +70,109 @@ class FrameQueue {
   bool done_ = false, stop_ = false;
 };
 
+// VO results of a whole drive, so filter experiments can rerun without VO.
+// Text, one frame per line: index t_ns status inliers, T_prev_curr (3x4 row
+// major), covariance (6x6 upper triangle, row major). The header names the
+// drive, method and frame count; a cache that does not match is an error.
+struct VoCache {
+  std::string header;
+  std::vector<vo::RelativeMotion> motions;
+};
+
+std::string VoCacheHeader(const std::string& drive, const std::string& method, size_t frames) {
+  return "locaid-vo-cache v1 method=" + method + " frames=" + std::to_string(frames) + " drive=" + drive;
+}
+
+std::optional<VoCache> ReadVoCache(const std::string& path, const std::string& expected_header) {
+  std::ifstream in(path);
+  if (!in) return std::nullopt;
+  VoCache cache;
+  std::getline(in, cache.header);
+  if (cache.header != expected_header)
+    throw std::runtime_error(path + ": VO cache written for another run (\"" + cache.header +
+                             "\", expected \"" + expected_header + "\"); delete it or pick another file");
+  std::string line;
+  size_t line_no = 1;
+  while (std::getline(in, line)) {
+    ++line_no;
+    std::istringstream ls(line);
+    size_t index = 0;
+    int status = 0;
+    vo::RelativeMotion m;
+    ls >> index >> m.t_ns >> status >> m.inliers;
+    Eigen::Matrix<double, 3, 4> T;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 4; ++c) ls >> T(r, c);
+    for (int r = 0; r < 6; ++r)
+      for (int c = r; c < 6; ++c) {
+        ls >> m.covariance(r, c);
+        m.covariance(c, r) = m.covariance(r, c);
+      }
+    if (!ls || index != cache.motions.size() || status < 0 || status > 2)
+      throw std::runtime_error(path + ":" + std::to_string(line_no) + ": malformed VO cache line");
+    m.status = static_cast<vo::Status>(status);
+    m.T_prev_curr.matrix().topRows<3>() = T;
+    cache.motions.push_back(m);
+  }
+  return cache;
+}
+
+void WriteVoCache(const std::string& path, const std::string& header, const std::vector<vo::RelativeMotion>& motions) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp);
+    if (!out) throw std::runtime_error(tmp + ": cannot write");
+    out << header << '\n' << std::setprecision(17);
+    for (size_t i = 0; i < motions.size(); ++i) {
+      const auto& m = motions[i];
+      out << i << ' ' << m.t_ns << ' ' << static_cast<int>(m.status) << ' ' << m.inliers;
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 4; ++c) out << ' ' << m.T_prev_curr.matrix()(r, c);
+      for (int r = 0; r < 6; ++r)
+        for (int c = r; c < 6; ++c) out << ' ' << m.covariance(r, c);
+      out << '\n';
+    }
+    if (!out.flush()) throw std::runtime_error(tmp + ": write failed");
+  }
+  std::filesystem::rename(tmp, path);
+}
+
+// "--ekf name=value": the numeric EkfConfig fields a filter experiment tunes.
+void ApplyEkfSetting(fusion::EkfConfig& c, const std::string& setting) {
+  const std::map<std::string, double*> fields = {
+      {"accel_noise_mps2_sqrt_hz", &c.accel_noise_mps2_sqrt_hz},
+      {"gyro_noise_radps_sqrt_hz", &c.gyro_noise_radps_sqrt_hz},
+      {"accel_bias_walk_mps3_sqrt_hz", &c.accel_bias_walk_mps3_sqrt_hz},
+      {"gyro_bias_walk_radps2_sqrt_hz", &c.gyro_bias_walk_radps2_sqrt_hz},
+      {"vo_cov_scale", &c.vo_cov_scale},
+      {"vo_sigma_t_per_m", &c.vo_sigma_t_per_m},
+      {"vo_min_sigma_t_m", &c.vo_min_sigma_t_m},
+      {"vo_min_sigma_rot_rad", &c.vo_min_sigma_rot_rad},
+      {"vo_gate_probability", &c.vo_gate_probability},
+      {"gps_gate_probability", &c.gps_gate_probability},
+      {"init_cov_inflation", &c.init_cov_inflation},
+      {"no_imu_lost_sigma_mps", &c.no_imu_lost_sigma_mps},
+  };
+  const auto eq = setting.find('=');
+  const std::string name = setting.substr(0, eq);
+  const auto it = fields.find(name);
+  if (eq == std::string::npos || it == fields.end()) {
+    std::string known;
+    for (const auto& [k, v] : fields) known += (known.empty() ? "" : ", ") + k;
+    throw std::runtime_error("--ekf " + setting + ": expected NAME=VALUE with NAME one of " + known);
+  }
+  size_t used = 0;
+  double value = 0;
+  try {
+    value = std::stod(setting.substr(eq + 1), &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != setting.size() - eq - 1 || !std::isfinite(value) || value < 0)
+    throw std::runtime_error("--ekf " + setting + ": value must be a finite number >= 0");
+  *it->second = value;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -74,6 +181,8 @@ int main(int argc, char** argv) {
   bool json = false, no_imu = false;
   int max_frames = 0;
   int64_t seed = -1;
+  std::string vo_cache_path;
+  std::vector<std::string> ekf_settings;
   app.add_option("--drive", drive_dir, "drive folder (raw sync/extract, or synthetic)")->required();
   app.add_option("--scenario", scenario_arg, "built-in scenario name or YAML file");
   app.add_option("--out-tum", out_tum, "fused poses T_enu_body as TUM");
@@ -83,6 +192,9 @@ int main(int argc, char** argv) {
   app.add_option("--vo-method", vo_method, "VO method (default, thesis)");
   app.add_option("--max-frames", max_frames, "stop after N frames (0: all)");
   app.add_option("--seed", seed, "override the scenario seed");
+  app.add_option("--vo-cache", vo_cache_path,
+                 "reuse the VO results in FILE (same drive, method and frame count) or write them there");
+  app.add_option("--ekf", ekf_settings, "filter setting NAME=VALUE (repeatable), e.g. vo_sigma_t_per_m=0.01");
   CLI11_PARSE(app, argc, argv);
 
   try {
@@ -101,6 +213,15 @@ int main(int argc, char** argv) {
     pipeline::LocalizerOptions options;
     options.vo_method = vo_method;
     options.use_imu = !no_imu;
+    for (const auto& setting : ekf_settings) ApplyEkfSetting(options.ekf, setting);
+    const std::string cache_header =
+        VoCacheHeader(std::filesystem::weakly_canonical(drive_dir).string(), vo_method, n_frames);
+    std::optional<VoCache> vo_cache;
+    if (!vo_cache_path.empty()) vo_cache = ReadVoCache(vo_cache_path, cache_header);
+    if (vo_cache && vo_cache->motions.size() != n_frames)
+      throw std::runtime_error(vo_cache_path + ": VO cache has " + std::to_string(vo_cache->motions.size()) +
+                               " frames, expected " + std::to_string(n_frames));
+    std::vector<vo::RelativeMotion> vo_computed;
     pipeline::Localizer localizer(dataset->camera(), dataset->T_cam0_imu(), scenario, options);
 
     // Loader thread.
@@ -110,7 +231,7 @@ int main(int argc, char** argv) {
         LoadedFrame f;
         f.index = i;
         f.frame.t_ns = dataset->time_ns(i);
-        if (dataset->has_stereo(i)) {
+        if (dataset->has_stereo(i) && !vo_cache) {
           try {
             auto images = dataset->Load(i);
             f.frame.left = std::move(images.left);
@@ -146,7 +267,9 @@ int main(int argc, char** argv) {
       const int64_t t_ns = dataset->time_ns(i);
       size_t end = next_oxts;
       while (end < oxts.size() && oxts[end].t_ns <= t_ns) ++end;
-      auto r = localizer.Process(lf->frame, std::span(oxts.data() + next_oxts, end - next_oxts));
+      const std::span<const kitti::OxtsSample> new_oxts(oxts.data() + next_oxts, end - next_oxts);
+      auto r = vo_cache ? localizer.Fuse(vo_cache->motions[i], new_oxts) : localizer.Process(lf->frame, new_oxts);
+      if (!vo_cache) vo_computed.push_back(r.vo);
       next_oxts = end;
       vo_ms_total += r.vo_ms;
       if (r.vo.status == vo::Status::kLost) ++lost_frames;
@@ -190,6 +313,7 @@ int main(int argc, char** argv) {
     const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
     std::cerr << "\rframes " << samples.size() << " in " << wall_s << " s\n";
 
+    if (!vo_cache_path.empty() && !vo_cache) WriteVoCache(vo_cache_path, cache_header, vo_computed);
     const auto metrics = pipeline::ComputeReplayMetrics(samples, scenario.gps_sigma_h_m);
     // VO-only track: the raw VO chained in ENU from the ground-truth pose of frame 0.
     std::vector<Eigen::Isometry3d> vo_only;
