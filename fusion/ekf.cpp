@@ -26,6 +26,11 @@ Ekf::Ekf(EkfConfig config) : config_(config) {
 
 void Ekf::PropagateImu(const ImuSample& sample) {
   if (!config_.use_imu) return;
+  // A non-finite sample would poison the state: refuse and count it.
+  if (!sample.accel_mps2.allFinite() || !sample.gyro_radps.allFinite()) {
+    ++imu_rejected_;
+    return;
+  }
   if (!initialized_) {
     init_accel_.push_back(sample.accel_mps2);
     last_imu_ = sample;
@@ -76,6 +81,15 @@ Vec3 Ekf::GpsEnu(const GpsFix& fix) {
 }
 
 bool Ekf::UpdateGps(const GpsFix& fix) {
+  // Non-finite fixes or sigmas are refused before they can set the ENU origin
+  // or reach the covariance.
+  if (!std::isfinite(fix.lat_deg) || !std::isfinite(fix.lon_deg) || !std::isfinite(fix.alt_m) ||
+      !std::isfinite(fix.sigma_h_m) || !std::isfinite(fix.sigma_v_m) || fix.sigma_h_m <= 0 ||
+      fix.sigma_v_m <= 0) {
+    ++gps_rejected_;
+    last_gps_rejected_ns_ = fix.t_ns;
+    return false;
+  }
   const Vec3 z = GpsEnu(fix);
   if (last_gps_received_ns_) {
     const double interval = Seconds(fix.t_ns, *last_gps_received_ns_);
@@ -133,7 +147,15 @@ bool Ekf::UpdateGps(const GpsFix& fix) {
 
 // ------------------------------------------------------------------ VO
 
-void Ekf::ProcessVo(const VoMeasurement& m, bool vo_ok) {
+void Ekf::ProcessVo(const VoMeasurement& m_in, bool vo_ok) {
+  VoMeasurement m = m_in;
+  // A non-finite motion or covariance is treated as VO lost (and counted).
+  if (!m.T_prev_curr.matrix().allFinite() || !m.covariance.allFinite()) {
+    if (vo_ok) ++vo_rejected_;
+    vo_ok = false;
+    m.T_prev_curr = Eigen::Isometry3d::Identity();
+    m.covariance = Mat6::Identity();
+  }
   const double dt = std::max(1e-3, Seconds(m.t_ns, m.t_prev_ns));
   Eigen::Isometry3d motion = m.T_prev_curr;
   if (!vo_ok) {

@@ -97,7 +97,8 @@ class Ekf {
   const Eigen::MatrixXd& covariance() const { return P_; }
   double last_gps_nis() const { return last_nis_; }
   double last_vo_nis() const { return last_vo_nis_; }
-  int vo_rejected() const { return vo_rejected_; }
+  int vo_rejected() const { return vo_rejected_; }    // gated out, or non-finite
+  int imu_rejected() const { return imu_rejected_; }  // non-finite samples refused
   double gps_period_s() const { return gps_period_s_; }
   double gps_gate() const { return gate_; }
   int gps_used() const { return gps_used_; }
@@ -137,6 +138,7 @@ class Ekf {
   double gate_ = 0;
   double last_nis_ = 0, last_vo_nis_ = 0;
   int vo_rejected_ = 0;
+  int imu_rejected_ = 0;
   int gps_used_ = 0, gps_rejected_ = 0, consecutive_rejections_ = 0;
   std::optional<int64_t> last_gps_accepted_ns_, last_gps_rejected_ns_, last_gps_received_ns_;
   double gps_period_s_ = 1.0;

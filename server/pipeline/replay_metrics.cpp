@@ -93,7 +93,7 @@ void WritePlotCsv(const std::string& path, const std::vector<ReplaySample>& samp
   std::ofstream csv(path);
   if (!csv) throw std::runtime_error(path + ": cannot write");
   csv << "t_s,gt_e,gt_n,gt_u,est_e,est_n,est_u,gps_e,gps_n,gps_u,gps_rejected,vo_e,vo_n,vo_u,"
-         "sigma_e,sigma_n,sigma_u,err_h,mode,in_outage,initialized\n";
+         "sigma_e,sigma_n,sigma_u,err_h,mode,in_outage,initialized,gps_gt_e,gps_gt_n,gps_gt_u\n";
   csv << std::fixed << std::setprecision(4);
   auto xyz = [&csv](const std::optional<Eigen::Vector3d>& p) {
     if (p) csv << p->x() << ',' << p->y() << ',' << p->z() << ',';
@@ -111,7 +111,10 @@ void WritePlotCsv(const std::string& path, const std::vector<ReplaySample>& samp
     xyz(x.p_enu_vo_m);
     csv << std::sqrt(s.P_pos_m2(0, 0)) << ',' << std::sqrt(s.P_pos_m2(1, 1)) << ','
         << std::sqrt(s.P_pos_m2(2, 2)) << ',' << (s.p_enu_est_m - s.p_enu_gt_m).head<2>().norm() << ','
-        << fusion::ToString(s.mode) << ',' << int(s.in_outage) << ',' << int(s.initialized) << '\n';
+        << fusion::ToString(s.mode) << ',' << int(s.in_outage) << ',' << int(s.initialized) << ',';
+    if (x.p_enu_gt_at_gps_m) csv << x.p_enu_gt_at_gps_m->x() << ',' << x.p_enu_gt_at_gps_m->y() << ',' << x.p_enu_gt_at_gps_m->z();
+    else csv << ",,";
+    csv << '\n';
   }
   if (!csv) throw std::runtime_error(path + ": write failed");
 }

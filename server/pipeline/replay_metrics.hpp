@@ -69,6 +69,7 @@ struct PlotExtras {
   std::optional<Eigen::Vector3d> p_enu_gps_m;  // degraded fix fed this frame
   bool gps_rejected = false;
   std::optional<Eigen::Vector3d> p_enu_vo_m;   // raw VO chained in ENU
+  std::optional<Eigen::Vector3d> p_enu_gt_at_gps_m;  // ground truth at the fix's own time
 };
 
 // Writes the per-frame CSV that clients/plot_outage.py reads. `extras` is

@@ -57,7 +57,7 @@ TEST(ReplayMetrics, PlotCsvLeavesUnknownTracksEmptyAndFillsKnownOnes) {
   EXPECT_NE(lines[3].find(",GPS_FUSED,0,1"), std::string::npos) << lines[3];
 
   std::vector<PlotExtras> extras(3);
-  extras[1] = {Eigen::Vector3d(5, 6, 7), true, Eigen::Vector3d(8, 9, 10)};
+  extras[1] = {Eigen::Vector3d(5, 6, 7), true, Eigen::Vector3d(8, 9, 10), Eigen::Vector3d(5.5, 6.5, 7)};
   const std::string full = (dir / "plot_full.csv").string();
   locaid::pipeline::WritePlotCsv(full, samples, extras);
   const auto full_lines = Lines(full);

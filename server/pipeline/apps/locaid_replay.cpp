@@ -248,7 +248,7 @@ int main(int argc, char** argv) {
     std::vector<pipeline::ReplaySample> samples;
     std::vector<pipeline::FrameResult> results;
     std::vector<Eigen::Isometry3d> vo_motion;  // raw VO (body axes) per frame
-    std::vector<std::optional<Eigen::Vector3d>> gps_enu;
+    std::vector<std::optional<Eigen::Vector3d>> gps_enu, gps_gt;
     std::vector<int> gps_rej;
     size_t next_oxts = 0;
     const auto wall0 = std::chrono::steady_clock::now();
@@ -298,10 +298,17 @@ int main(int argc, char** argv) {
         else s.initialized = false;  // no ground truth here: leave out of the metrics
       }
       samples.push_back(s);
-      std::optional<Eigen::Vector3d> g;
+      std::optional<Eigen::Vector3d> g, g_gt;
       int rej = 0;
-      for (const auto& f : r.gps_feeds) { g = f.p_enu_m; rej = rej || f.rejected; }
+      for (const auto& f : r.gps_feeds) {
+        g = f.p_enu_m;
+        rej = rej || f.rejected;
+        g_gt.reset();
+        if (gt_enu)
+          if (auto gt = gt_at(f.fix.t_ns)) g_gt = gt->translation();
+      }
       gps_enu.push_back(g);
+      gps_gt.push_back(g_gt);
       gps_rej.push_back(rej);
       results.push_back(std::move(r));
       if (i % 50 == 0)
@@ -330,7 +337,7 @@ int main(int argc, char** argv) {
     if (!out_csv.empty()) {
       std::vector<pipeline::PlotExtras> extras(samples.size());
       for (size_t k = 0; k < samples.size(); ++k) {
-        extras[k] = {gps_enu[k], gps_rej[k] != 0, vo_only[k].translation()};
+        extras[k] = {gps_enu[k], gps_rej[k] != 0, vo_only[k].translation(), gps_gt[k]};
       }
       pipeline::WritePlotCsv(out_csv, samples, extras);
     }
