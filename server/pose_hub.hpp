@@ -116,23 +116,39 @@ class PoseHub {
   PoseHub& operator=(const PoseHub&) = delete;
   ~PoseHub() { StopFanoutThread(); }
 
-  // Starts the fan-out thread (see the file comment). Call once, before the
-  // first Publish().
-  void StartFanoutThread() {
+  // Starts the fan-out threads (see the file comment): `threads` workers
+  // (0 = DefaultFanoutThreads()), subscriber id % threads picks the worker
+  // that wakes it. Call once, before the first Publish().
+  void StartFanoutThread(size_t threads = 0) {
     std::lock_guard lock(fan_mu_);
-    if (fan_thread_.joinable()) return;
+    if (!fan_threads_.empty()) return;
+    if (threads == 0) threads = DefaultFanoutThreads();
     fan_stop_ = false;
-    fan_thread_ = std::thread([this] { FanoutLoop(); });
+    fan_pending_.assign(threads, false);
+    for (size_t w = 0; w < threads; ++w) fan_threads_.emplace_back([this, w, threads] { FanoutLoop(w, threads); });
   }
-  // Runs a last wake round for what is pending and joins the thread.
+  // Runs a last wake round for what is pending and joins the threads.
   void StopFanoutThread() {
+    std::vector<std::thread> threads;
     {
       std::lock_guard lock(fan_mu_);
-      if (!fan_thread_.joinable()) return;
+      if (fan_threads_.empty()) return;
       fan_stop_ = true;
+      threads.swap(fan_threads_);
     }
-    fan_cv_.notify_one();
-    fan_thread_.join();
+    fan_cv_.notify_all();
+    for (std::thread& t : threads) t.join();
+    std::lock_guard lock(fan_mu_);
+    fan_pending_.clear();
+  }
+  // One worker per core, at most 4: a wake starts a gRPC write (a syscall
+  // per subscriber), so a round over N subscribers is split across cores.
+  static size_t DefaultFanoutThreads() {
+    return std::clamp<size_t>(std::thread::hardware_concurrency(), 1, 4);
+  }
+  size_t fanout_threads() const {
+    std::lock_guard lock(fan_mu_);
+    return fan_threads_.size();
   }
 
   // Registers a subscriber with a queue of `queue_capacity` (>= 1) items.
@@ -223,28 +239,33 @@ class PoseHub {
   void WakeAll(const std::vector<SubscriberPtr>& targets) {
     {
       std::lock_guard lock(fan_mu_);
-      if (fan_thread_.joinable() && !fan_stop_) {
-        fan_pending_ = true;
-        fan_cv_.notify_one();
+      if (!fan_threads_.empty() && !fan_stop_) {
+        std::fill(fan_pending_.begin(), fan_pending_.end(), true);
+        fan_cv_.notify_all();
         return;
       }
     }
     for (const SubscriberPtr& sub : targets) sub->Wake();
   }
 
-  void FanoutLoop() {
+  // Worker `w` of `n`: wakes the subscribers whose id % n == w (ids are
+  // stable, so a subscriber leaving never makes another one miss a round).
+  void FanoutLoop(size_t w, size_t n) {
+    std::vector<SubscriberPtr> targets;
     for (;;) {
       bool stop = false;
       {
         std::unique_lock lock(fan_mu_);
-        fan_cv_.wait(lock, [&] { return fan_pending_ || fan_stop_; });
-        fan_pending_ = false;
+        fan_cv_.wait(lock, [&] { return fan_pending_[w] || fan_stop_; });
+        fan_pending_[w] = false;
         stop = fan_stop_;
       }
-      std::vector<SubscriberPtr> targets;
+      targets.clear();
       {
         std::lock_guard lock(mu_);
-        targets = subscribers_;
+        for (const SubscriberPtr& sub : subscribers_) {
+          if (sub->id_ % n == w) targets.push_back(sub);
+        }
       }
       for (const SubscriberPtr& sub : targets) sub->Wake();
       if (stop) return;
@@ -260,10 +281,11 @@ class PoseHub {
   uint64_t dropped_departed_ = 0;
   bool closed_ = false;
   // Fan-out thread state (fan_mu_ is never held while calling a wake).
-  std::mutex fan_mu_;
+  mutable std::mutex fan_mu_;
   std::condition_variable fan_cv_;
-  std::thread fan_thread_;
-  bool fan_pending_ = false, fan_stop_ = false;
+  std::vector<std::thread> fan_threads_;
+  std::vector<bool> fan_pending_;  // one flag per worker
+  bool fan_stop_ = false;
 };
 
 }  // namespace locaid::server

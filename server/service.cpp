@@ -4,8 +4,10 @@
 #include "server/frame_source.hpp"
 #include "server/synthetic_drive.hpp"
 
+#include <google/protobuf/io/coded_stream.h>
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/health_check_service_interface.h>
+#include <grpcpp/support/proto_buffer_reader.h>
 
 #include <chrono>
 #include <cmath>
@@ -28,25 +30,17 @@ grpc::ServerUnaryReactor* Reply(grpc::CallbackServerContext* ctx, const Status& 
 
 Status Invalid(const std::string& msg) { return {StatusCode::INVALID_ARGUMENT, msg}; }
 
-// ------------------------------------------------------------ StreamPoses --
+// ------------------------------------------------------- shared stream ---
 
-class PoseWriter final : public grpc::ServerWriteReactor<v1::PoseUpdate>, public StreamTarget {
+// A server stream that writes hub items (and, for PushSensorData, control
+// messages): one write in flight at a time, woken by the hub (through a Waker
+// registered with the service, so shutdown can abort it), finished exactly
+// once (after the write in flight, if any). Derived classes say what to write
+// next in NextLocked(); everything else (wake, abort, write completion,
+// cancel, unsubscribe, delete) is here, shared by PoseWriter and PushReactor.
+template <typename Reactor, typename Msg>
+class HubStream : public Reactor, public StreamTarget {
  public:
-  PoseWriter(LocalizationService* service, std::shared_ptr<Session> session, const v1::StreamPosesRequest& req,
-             std::string peer, size_t queue_size)
-      : service_(service), session_(std::move(session)), waker_(std::make_shared<Waker>()) {
-    waker_->target = this;
-    service_->Register(waker_);
-    std::weak_ptr<Waker> weak = waker_;
-    sub_ = session_->hub().Subscribe(
-        queue_size, req.from_start(),
-        [weak] {
-          if (auto w = weak.lock()) w->Wake();
-        },
-        std::move(peer));
-    Wake();
-  }
-
   void Wake() override {
     std::lock_guard lock(mu_);
     WriteNextLocked();
@@ -77,30 +71,59 @@ class PoseWriter final : public grpc::ServerWriteReactor<v1::PoseUpdate>, public
       std::lock_guard lock(waker_->mu);
       waker_->target = nullptr;
     }
-    session_->hub().Unsubscribe(sub_);
+    if (session_) session_->hub().Unsubscribe(sub_);
+    OnStreamEnded();
     service_->Unregister(waker_);
     delete this;
   }
 
- private:
+ protected:
+  enum class Next { kWrite, kIdle, kEnd };
+
+  explicit HubStream(LocalizationService* service) : service_(service), waker_(std::make_shared<Waker>()) {
+    waker_->target = this;
+    service_->Register(waker_);
+  }
+
+  // With mu_ held: fills *out and returns kWrite, or sets *end and returns
+  // kEnd, or returns kIdle (nothing to write until the next wake).
+  virtual Next NextLocked(Msg* out, Status* end) = 0;
+  // Called once from OnDone() after the hub subscription is dropped.
+  virtual void OnStreamEnded() {}
+
+  // Subscribes this stream to `session`'s hub (the wake goes through the
+  // Waker so it never reaches a deleted reactor).
+  void Subscribe(std::shared_ptr<Session> session, size_t queue_size, bool from_start, std::string peer) {
+    session_ = std::move(session);
+    std::weak_ptr<Waker> weak = waker_;
+    sub_ = session_->hub().Subscribe(
+        queue_size, from_start,
+        [weak] {
+          if (auto w = weak.lock()) w->Wake();
+        },
+        std::move(peer));
+  }
+
+  // The hub status at the end of the stream: OK, or ABORTED when the
+  // session failed.
+  Status EndStatus() const {
+    return session_->state() == v1::SESSION_STATE_FAILED
+               ? Status(StatusCode::ABORTED, "session " + session_->id() + " failed: " + session_->ToProto().error())
+               : Status::OK;
+  }
+
   void WriteNextLocked() {
-    if (writing_ || finished_ || finish_) return;
-    Hub::Item item;
-    uint64_t dropped = 0;
-    switch (sub_->Pop(&item, &dropped)) {
-      case Hub::Subscriber::PopResult::kItem:
-        msg_ = *item;
-        msg_.set_dropped_for_subscriber(dropped);
+    if (!open_locked() || writing_) return;
+    Status end;
+    switch (NextLocked(&out_, &end)) {
+      case Next::kWrite:
         writing_ = true;
-        StartWrite(&msg_);
+        this->StartWrite(&out_);
         return;
-      case Hub::Subscriber::PopResult::kEnd:
-        FinishLocked(session_->state() == v1::SESSION_STATE_FAILED
-                         ? Status(StatusCode::ABORTED, "session " + session_->id() + " failed: " +
-                                                           session_->ToProto().error())
-                         : Status::OK);
+      case Next::kEnd:
+        FinishLocked(end);
         return;
-      case Hub::Subscriber::PopResult::kEmpty:
+      case Next::kIdle:
         return;
     }
   }
@@ -112,28 +135,63 @@ class PoseWriter final : public grpc::ServerWriteReactor<v1::PoseUpdate>, public
       return;
     }
     finished_ = true;
-    Finish(status);
+    this->Finish(status);
   }
+  bool open_locked() const { return !finished_ && !finish_; }
 
-  LocalizationService* service_;
-  std::shared_ptr<Session> session_;
-  std::shared_ptr<Waker> waker_;
+  LocalizationService* const service_;
+  const std::shared_ptr<Waker> waker_;
+  std::shared_ptr<Session> session_;  // set by Subscribe()
   Hub::SubscriberPtr sub_;
   std::mutex mu_;
-  v1::PoseUpdate msg_;
+
+ private:
+  Msg out_;  // the message being written (alive until OnWriteDone)
   bool writing_ = false, finished_ = false;
   std::optional<Status> finish_;
 };
 
+// ------------------------------------------------------------ StreamPoses --
+
+// Raw (ByteBuffer) writer: every pose is serialized once per session
+// (PoseEncodings) and each subscriber's message is that shared slice plus,
+// when it has lost items, a few bytes for dropped_for_subscriber. The bytes
+// on the wire are an ordinary PoseUpdate.
+class PoseWriter final : public HubStream<grpc::ServerWriteReactor<grpc::ByteBuffer>, grpc::ByteBuffer> {
+ public:
+  PoseWriter(LocalizationService* service, std::shared_ptr<Session> session,
+             std::shared_ptr<PoseEncodings> encodings, bool from_start, std::string peer, size_t queue_size)
+      : HubStream(service), encodings_(std::move(encodings)) {
+    Subscribe(std::move(session), queue_size, from_start, std::move(peer));
+    Wake();
+  }
+
+ private:
+  Next NextLocked(grpc::ByteBuffer* out, Status* end) override {
+    Hub::Item item;
+    uint64_t dropped = 0;
+    switch (sub_->Pop(&item, &dropped)) {
+      case Hub::Subscriber::PopResult::kItem:
+        *out = EncodePoseForSubscriber(encodings_->Get(item), dropped);
+        return Next::kWrite;
+      case Hub::Subscriber::PopResult::kEnd:
+        *end = EndStatus();
+        return Next::kEnd;
+      case Hub::Subscriber::PopResult::kEmpty:
+        break;
+    }
+    return Next::kIdle;
+  }
+
+  const std::shared_ptr<PoseEncodings> encodings_;
+};
+
 // --------------------------------------------------------- PushSensorData --
 
-class PushReactor final : public grpc::ServerBidiReactor<v1::PushRequest, v1::PushResponse>,
-                          public StreamTarget {
+class PushReactor final : public HubStream<grpc::ServerBidiReactor<v1::PushRequest, v1::PushResponse>,
+                                           v1::PushResponse> {
  public:
-  PushReactor(LocalizationService* service, std::string peer)
-      : service_(service), peer_(std::move(peer)), waker_(std::make_shared<Waker>()) {
-    waker_->target = this;
-    service_->Register(waker_);
+  PushReactor(LocalizationService* service, std::string peer) : HubStream(service), peer_(std::move(peer)) {
     StartRead(&req_);
   }
 
@@ -200,46 +258,13 @@ class PushReactor final : public grpc::ServerBidiReactor<v1::PushRequest, v1::Pu
     StartReadIfOpen();
   }
 
-  void Wake() override {
-    std::lock_guard lock(mu_);
-    WriteNextLocked();
-  }
   void Resume() override { StartReadIfOpen(); }
-  void Abort(const Status& status) override {
-    std::lock_guard lock(mu_);
-    FinishLocked(status);
-  }
-  void OnWriteDone(bool ok) override {
-    std::lock_guard lock(mu_);
-    writing_ = false;
-    if (!ok) {
-      FinishLocked(Status(StatusCode::UNAVAILABLE, "write failed (client gone)"));
-      return;
-    }
-    if (finish_) {
-      FinishLocked(*finish_);
-      return;
-    }
-    WriteNextLocked();
-  }
-  void OnCancel() override {
-    std::lock_guard lock(mu_);
-    FinishLocked(Status::CANCELLED);
-  }
-  void OnDone() override {
-    {
-      std::lock_guard lock(waker_->mu);
-      waker_->target = nullptr;
-    }
-    if (session_) {
-      session_->hub().Unsubscribe(sub_);
-      if (live_ && !reads_done_) live_->CloseInput();
-    }
-    service_->Unregister(waker_);
-    delete this;
-  }
 
  private:
+  void OnStreamEnded() override {
+    if (live_ && !reads_done_) live_->CloseInput();
+  }
+
   void OnStart() {
     if (req_.item_case() != v1::PushRequest::kStart) {
       std::lock_guard lock(mu_);
@@ -255,20 +280,13 @@ class PushReactor final : public grpc::ServerBidiReactor<v1::PushRequest, v1::Pu
       FinishLocked(status);
       return;
     }
-    session_ = std::move(session);
     live_ = live;
-    std::weak_ptr<Waker> weak = waker_;
-    sub_ = session_->hub().Subscribe(
-        service_->config().queue_size, false,
-        [weak] {
-          if (auto w = weak.lock()) w->Wake();
-        },
-        peer_);
+    Subscribe(std::move(session), service_->config().queue_size, false, peer_);
     v1::PushResponse first;
     *first.mutable_session() = session_->ToProto();
     control_.push_back(std::move(first));
     WriteNextLocked();
-    if (!finished_ && !finish_) StartRead(&req_);
+    if (open_locked()) StartRead(&req_);
   }
 
   void PushToSession(LiveItem item) {
@@ -281,7 +299,7 @@ class PushReactor final : public grpc::ServerBidiReactor<v1::PushRequest, v1::Pu
 
   void StartReadIfOpen() {
     std::lock_guard lock(mu_);
-    if (!finished_ && !finish_ && !reads_done_) StartRead(&req_);
+    if (open_locked() && !reads_done_) StartRead(&req_);
   }
 
   void Reject(const std::string& kind, int64_t index, const std::string& reason) {
@@ -294,56 +312,36 @@ class PushReactor final : public grpc::ServerBidiReactor<v1::PushRequest, v1::Pu
     WriteNextLocked();
   }
 
-  void WriteNextLocked() {
-    if (writing_ || finished_ || finish_) return;
+  // Control messages (session, rejections) first, then poses.
+  Next NextLocked(v1::PushResponse* out, Status* end) override {
     if (!control_.empty()) {
-      out_ = std::move(control_.front());
+      *out = std::move(control_.front());
       control_.pop_front();
-      writing_ = true;
-      StartWrite(&out_);
-      return;
+      return Next::kWrite;
     }
-    if (!sub_) return;
+    if (!sub_) return Next::kIdle;
     Hub::Item item;
     uint64_t dropped = 0;
     switch (sub_->Pop(&item, &dropped)) {
       case Hub::Subscriber::PopResult::kItem:
-        out_.Clear();
-        *out_.mutable_pose() = *item;
-        out_.mutable_pose()->set_dropped_for_subscriber(dropped);
-        writing_ = true;
-        StartWrite(&out_);
-        return;
+        out->Clear();
+        *out->mutable_pose() = *item;
+        out->mutable_pose()->set_dropped_for_subscriber(dropped);
+        return Next::kWrite;
       case Hub::Subscriber::PopResult::kEnd:
-        FinishLocked(Status::OK);
-        return;
+        *end = Status::OK;
+        return Next::kEnd;
       case Hub::Subscriber::PopResult::kEmpty:
-        return;
+        break;
     }
+    return Next::kIdle;
   }
 
-  void FinishLocked(const Status& status) {
-    if (finished_) return;
-    if (writing_) {
-      if (!finish_) finish_ = status;
-      return;
-    }
-    finished_ = true;
-    Finish(status);
-  }
-
-  LocalizationService* service_;
-  std::string peer_;
-  std::shared_ptr<Waker> waker_;
+  const std::string peer_;
   v1::PushRequest req_;
-  std::shared_ptr<Session> session_;
   LiveFrameSource* live_ = nullptr;
-  Hub::SubscriberPtr sub_;
-  std::mutex mu_;
   std::deque<v1::PushResponse> control_;
-  v1::PushResponse out_;
-  bool writing_ = false, finished_ = false, reads_done_ = false;
-  std::optional<Status> finish_;
+  bool reads_done_ = false;
   int64_t frames_ = 0, oxts_ = 0;
 };
 
@@ -384,6 +382,37 @@ Status ParseLiveSource(const v1::LiveSource& l, LiveCameraSetup* out) {
 
 }  // namespace
 
+// ------------------------------------------------------- pose encodings --
+
+grpc::Slice PoseEncodings::Get(const Hub::Item& item) {
+  const uint64_t seq = item->sequence();
+  const size_t slot = static_cast<size_t>(seq % kSlots);
+  {
+    std::lock_guard lock(mu_);
+    if (items_[slot] == item) return slices_[slot];
+  }
+  const std::string bytes = item->SerializeAsString();
+  grpc::Slice slice(bytes);
+  std::lock_guard lock(mu_);
+  if (seq + kSlots > newest_) {  // recent: cache it (a replay of old history does not evict live items)
+    newest_ = std::max(newest_, seq);
+    items_[slot] = item;
+    slices_[slot] = slice;
+  }
+  return slice;
+}
+
+grpc::ByteBuffer EncodePoseForSubscriber(const grpc::Slice& encoded, uint64_t dropped) {
+  if (dropped == 0) return grpc::ByteBuffer(&encoded, 1);
+  using google::protobuf::io::CodedOutputStream;
+  uint8_t tail[16];
+  uint8_t* end = CodedOutputStream::WriteTagToArray(
+      static_cast<uint32_t>(v1::PoseUpdate::kDroppedForSubscriberFieldNumber) << 3, tail);  // varint wire type
+  end = CodedOutputStream::WriteVarint64ToArray(dropped, end);
+  const grpc::Slice slices[2] = {encoded, grpc::Slice(tail, static_cast<size_t>(end - tail))};
+  return grpc::ByteBuffer(slices, 2);
+}
+
 // -------------------------------------------------------------- service --
 
 LocalizationService::LocalizationService(ServerConfig config, EstimatorFactory estimator_factory)
@@ -404,12 +433,14 @@ Status LocalizationService::Authorize(const grpc::CallbackServerContext* ctx) co
   return Status::OK;
 }
 
-Status LocalizationService::FindSession(const std::string& id, std::shared_ptr<Session>* out) const {
+Status LocalizationService::FindSession(const std::string& id, std::shared_ptr<Session>* out,
+                                        std::shared_ptr<PoseEncodings>* encodings) const {
   if (id.empty()) return Invalid("session_id: required");
   std::lock_guard lock(mu_);
   auto it = sessions_.find(id);
   if (it == sessions_.end()) return {StatusCode::NOT_FOUND, "session '" + id + "' not found"};
   *out = it->second.session;
+  if (encodings) *encodings = it->second.encodings;
   return Status::OK;
 }
 
@@ -461,7 +492,7 @@ Status LocalizationService::AddSession(SessionOptions options, std::unique_ptr<S
   options.id = "s" + std::to_string(next_id_++);
   *id = options.id;
   auto session = std::make_shared<Session>(std::move(options), std::move(pipeline));
-  sessions_[*id] = Entry{session, live, false};
+  sessions_[*id] = Entry{session, live, false, std::make_shared<PoseEncodings>()};
   session->Start();
   return Status::OK;
 }
@@ -651,10 +682,10 @@ grpc::ServerUnaryReactor* LocalizationService::GetStats(grpc::CallbackServerCont
   return Reply(ctx, s);
 }
 
-grpc::ServerWriteReactor<v1::PoseUpdate>* LocalizationService::StreamPoses(grpc::CallbackServerContext* ctx,
-                                                                           const v1::StreamPosesRequest* req) {
+grpc::ServerWriteReactor<grpc::ByteBuffer>* LocalizationService::StreamPoses(grpc::CallbackServerContext* ctx,
+                                                                            const grpc::ByteBuffer* request) {
   auto fail = [](const Status& s) {
-    class Failed : public grpc::ServerWriteReactor<v1::PoseUpdate> {
+    class Failed : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
      public:
       explicit Failed(const Status& s) { Finish(s); }
       void OnDone() override { delete this; }
@@ -663,19 +694,28 @@ grpc::ServerWriteReactor<v1::PoseUpdate>* LocalizationService::StreamPoses(grpc:
   };
   if (Status s = Authorize(ctx); !s.ok()) return fail(s);
   if (shutting_down_) return fail(Status(StatusCode::UNAVAILABLE, "server is shutting down"));
+  v1::StreamPosesRequest req;
+  {
+    grpc::ByteBuffer copy(*request);  // the reader consumes the buffer
+    grpc::ProtoBufferReader reader(&copy);
+    if (!req.ParseFromZeroCopyStream(&reader)) {
+      return fail(Invalid("StreamPosesRequest: cannot parse the request message"));
+    }
+  }
   std::shared_ptr<Session> session;
-  if (Status s = FindSession(req->session_id(), &session); !s.ok()) return fail(s);
-  if (req->queue_size() > config_.max_queue_size) {
-    return fail(Invalid("queue_size: " + std::to_string(req->queue_size()) + " exceeds the server's max_queue_size " +
+  std::shared_ptr<PoseEncodings> encodings;
+  if (Status s = FindSession(req.session_id(), &session, &encodings); !s.ok()) return fail(s);
+  if (req.queue_size() > config_.max_queue_size) {
+    return fail(Invalid("queue_size: " + std::to_string(req.queue_size()) + " exceeds the server's max_queue_size " +
                         std::to_string(config_.max_queue_size)));
   }
   if (session->hub().subscriber_count() >= config_.max_subscribers_per_session) {
-    return fail(Status(StatusCode::RESOURCE_EXHAUSTED, "session '" + req->session_id() + "' has " +
+    return fail(Status(StatusCode::RESOURCE_EXHAUSTED, "session '" + req.session_id() + "' has " +
                                                            std::to_string(config_.max_subscribers_per_session) +
                                                            " subscribers (max_subscribers_per_session)"));
   }
-  const size_t queue = req->queue_size() == 0 ? config_.queue_size : req->queue_size();
-  return new PoseWriter(this, std::move(session), *req, ctx->peer(), queue);
+  const size_t queue = req.queue_size() == 0 ? config_.queue_size : req.queue_size();
+  return new PoseWriter(this, std::move(session), std::move(encodings), req.from_start(), ctx->peer(), queue);
 }
 
 grpc::ServerUnaryReactor* LocalizationService::InjectOutage(grpc::CallbackServerContext* ctx,

@@ -8,7 +8,9 @@
 
 #include <grpcpp/grpcpp.h>
 
+#include <array>
 #include <atomic>
+#include <cstdint>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -43,7 +45,36 @@ struct Waker {
   }
 };
 
-class LocalizationService final : public locaid::v1::Localization::CallbackService {
+// The poses of one session serialized once and shared by all its pose
+// streams (a grpc::Slice is reference counted, so N subscribers cost one
+// serialization and N reference increments instead of N proto copies and N
+// serializations). Thread-safe.
+class PoseEncodings {
+ public:
+  // The serialized bytes of `item` (dropped_for_subscriber unset). The last
+  // kSlots sequence numbers are cached; older items (a from-start replay)
+  // are serialized on each call and not cached.
+  grpc::Slice Get(const Hub::Item& item);
+
+  static constexpr size_t kSlots = 64;
+
+ private:
+  std::mutex mu_;
+  uint64_t newest_ = 0;
+  std::array<Hub::Item, kSlots> items_;
+  std::array<grpc::Slice, kSlots> slices_;
+};
+
+// The wire bytes of one subscriber's PoseUpdate: `encoded` (a serialized
+// PoseUpdate without dropped_for_subscriber) shared as is, followed, when
+// `dropped` > 0, by the few bytes of field dropped_for_subscriber.
+grpc::ByteBuffer EncodePoseForSubscriber(const grpc::Slice& encoded, uint64_t dropped);
+
+// StreamPoses is served through the raw (ByteBuffer) callback method so one
+// serialization per pose serves every subscriber; its request and response
+// bytes are the proto messages of localization.proto (the API is unchanged).
+class LocalizationService final
+    : public locaid::v1::Localization::WithRawCallbackMethod_StreamPoses<locaid::v1::Localization::CallbackService> {
  public:
   LocalizationService(ServerConfig config, EstimatorFactory estimator_factory);
   ~LocalizationService() override;
@@ -63,8 +94,10 @@ class LocalizationService final : public locaid::v1::Localization::CallbackServi
   grpc::ServerUnaryReactor* GetStats(grpc::CallbackServerContext* ctx,
                                      const locaid::v1::GetStatsRequest* req,
                                      locaid::v1::SessionStats* resp) override;
-  grpc::ServerWriteReactor<locaid::v1::PoseUpdate>* StreamPoses(
-      grpc::CallbackServerContext* ctx, const locaid::v1::StreamPosesRequest* req) override;
+  // Raw StreamPoses: request bytes = StreamPosesRequest, written messages =
+  // PoseUpdate bytes.
+  grpc::ServerWriteReactor<grpc::ByteBuffer>* StreamPoses(grpc::CallbackServerContext* ctx,
+                                                          const grpc::ByteBuffer* request) override;
   grpc::ServerUnaryReactor* InjectOutage(grpc::CallbackServerContext* ctx,
                                          const locaid::v1::InjectOutageRequest* req,
                                          locaid::v1::Session* resp) override;
@@ -81,7 +114,8 @@ class LocalizationService final : public locaid::v1::Localization::CallbackServi
 
   // Internal, used by the reactors.
   grpc::Status Authorize(const grpc::CallbackServerContext* ctx) const;
-  grpc::Status FindSession(const std::string& id, std::shared_ptr<Session>* out) const;
+  grpc::Status FindSession(const std::string& id, std::shared_ptr<Session>* out,
+                           std::shared_ptr<PoseEncodings>* encodings = nullptr) const;
   grpc::Status StartLive(const locaid::v1::PushStart& start, std::shared_ptr<Session>* session,
                          LiveFrameSource** live);
   void Register(const std::shared_ptr<Waker>& waker);
@@ -94,6 +128,7 @@ class LocalizationService final : public locaid::v1::Localization::CallbackServi
     std::shared_ptr<Session> session;
     LiveFrameSource* live = nullptr;  // owned by the session's pipeline
     bool live_attached = false;
+    std::shared_ptr<PoseEncodings> encodings = std::make_shared<PoseEncodings>();
   };
   grpc::Status DoStart(const locaid::v1::StartSessionRequest& req, std::string* id);
   grpc::Status ResolveScenario(const locaid::v1::Scenario& s, fusion::Scenario* out, std::string* name) const;

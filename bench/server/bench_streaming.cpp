@@ -1,19 +1,36 @@
-// Streaming benchmark: one live session on an in-process server (127.0.0.1),
-// frames pushed at --rate-hz through PushSensorData, a constant-cost estimator
-// (so only the service is measured), N subscribers as callback clients over
-// --channels connections, optionally one stalled subscriber that never reads.
-// Prints per-run: delay from hub publish (after the EKF output) to client
-// receipt (p50/p99/max), loss, session frame rate and process RSS.
+// Streaming benchmark: one live session on a server in this process
+// (127.0.0.1), frames pushed at --rate-hz through PushSensorData, a
+// constant-cost estimator (so only the service is measured), N subscribers as
+// callback clients over --channels connections, optionally one stalled
+// subscriber that never reads.
+//
+// By default the subscribers run in a CHILD process (this program re-executed
+// with --client-of), so server and clients have separate gRPC stacks and
+// threads as in production (the machine's cores are still shared); with
+// --in-process they run in the server's process.
+//
+// Prints per-run: delay from hub publish (published_unix_ns, stamped after the
+// EKF output) to client receipt wall time (p50/p99/max), loss, session frame
+// rate, server RSS and the CPU time of the server and of the client process
+// per published pose.
 #include "server/service.hpp"
 
 #include <CLI/CLI.hpp>
+
+#include <spawn.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <sstream>
 #include <thread>
+
+extern char** environ;
 
 namespace v1 = locaid::v1;
 using namespace locaid::server;
@@ -101,35 +118,144 @@ double Percentile(std::vector<float> v, double q) {
   return v[std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size())))];
 }
 
-}  // namespace
+double CpuSeconds() {
+  rusage ru{};
+  getrusage(RUSAGE_SELF, &ru);
+  return static_cast<double>(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
+         static_cast<double>(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec) * 1e-6;
+}
 
-int main(int argc, char** argv) {
-  int subscribers = 100, frames = 600, channels = 4;
-  double rate_hz = 100;
-  bool stalled = false;
-  CLI::App app{"locaid streaming benchmark"};
-  app.add_option("--subscribers", subscribers)->capture_default_str();
-  app.add_option("--frames", frames)->capture_default_str();
-  app.add_option("--rate-hz", rate_hz, "push rate (0 = as fast as possible)")->capture_default_str();
-  app.add_option("--channels", channels, "client connections shared by the subscribers")->capture_default_str();
-  app.add_flag("--stalled", stalled, "add one subscriber that never reads");
-  CLI11_PARSE(app, argc, argv);
-
-  ServerConfig config;
-  config.listen = "127.0.0.1:0";
-  config.max_subscribers_per_session = 100000;
-  LocalizationServer server(config, [](const EstimatorSetup&) { return std::make_unique<ConstantEstimator>(); });
-  const std::string target = "127.0.0.1:" + std::to_string(server.port());
+std::vector<std::unique_ptr<v1::Localization::Stub>> MakeStubs(const std::string& target, int channels) {
   std::vector<std::unique_ptr<v1::Localization::Stub>> stubs;
   for (int c = 0; c < channels; ++c) {
     grpc::ChannelArguments args;
     args.SetInt("locaid.channel", c);  // distinct connections
     stubs.push_back(v1::Localization::NewStub(grpc::CreateCustomChannel(target, grpc::InsecureChannelCredentials(), args)));
   }
+  return stubs;
+}
+
+std::unique_ptr<v1::Localization::Stub> MakeStallStub(const std::string& target) {
   grpc::ChannelArguments stall_args;
   stall_args.SetInt(GRPC_ARG_HTTP2_STREAM_LOOKAHEAD_BYTES, 1024);
   stall_args.SetInt(GRPC_ARG_HTTP2_BDP_PROBE, 0);
-  auto stall_stub = v1::Localization::NewStub(grpc::CreateCustomChannel(target, grpc::InsecureChannelCredentials(), stall_args));
+  return v1::Localization::NewStub(grpc::CreateCustomChannel(target, grpc::InsecureChannelCredentials(), stall_args));
+}
+
+// Result line of the subscribers (printed by the child, parsed by the parent).
+struct ClientResult {
+  double p50_us = 0, p99_us = 0, max_us = 0, cpu_s = 0;
+  uint64_t received = 0, lost = 0;
+};
+
+ClientResult Summarize(const std::vector<std::unique_ptr<Subscriber>>& subs, int frames, double cpu_s) {
+  std::vector<float> all;
+  ClientResult r;
+  for (const auto& s : subs) {
+    all.insert(all.end(), s->delays_us_.begin(), s->delays_us_.end());
+    r.received += s->received_;
+    r.lost += static_cast<uint64_t>(frames) - s->received_;
+  }
+  r.p50_us = Percentile(all, 0.5);
+  r.p99_us = Percentile(all, 0.99);
+  r.max_us = Percentile(all, 1.0);
+  r.cpu_s = cpu_s;
+  return r;
+}
+
+// Child mode: N subscribers (and the stalled one) on the server at `target`;
+// the stalled one is cancelled when stdin reaches EOF (the parent is done
+// pushing); prints one "result" line after every stream has ended.
+int RunClients(const std::string& target, const std::string& session_id, int subscribers, int frames, int channels,
+               bool stalled) {
+  auto stubs = MakeStubs(target, channels);
+  auto stall_stub = MakeStallStub(target);
+  const double cpu0 = CpuSeconds();
+  std::vector<std::unique_ptr<Subscriber>> subs;
+  for (int i = 0; i < subscribers; ++i) {
+    subs.push_back(std::make_unique<Subscriber>(stubs[static_cast<size_t>(i % channels)].get(), session_id,
+                                                static_cast<uint32_t>(frames), false));
+  }
+  std::unique_ptr<Subscriber> stall;
+  if (stalled) stall = std::make_unique<Subscriber>(stall_stub.get(), session_id, 64, true);
+  if (stall) {
+    std::string line;
+    while (std::getline(std::cin, line)) {}
+    stall->Cancel();
+  }
+  for (auto& s : subs) s->Wait();
+  if (stall) stall->Wait();
+  const ClientResult r = Summarize(subs, frames, CpuSeconds() - cpu0);
+  std::printf("result %.0f %.0f %.0f %llu %llu %.3f\n", r.p50_us, r.p99_us, r.max_us,
+              static_cast<unsigned long long>(r.received), static_cast<unsigned long long>(r.lost), r.cpu_s);
+  std::fflush(stdout);
+  return 0;
+}
+
+// The child process: this program with --client-of; its stdin/stdout are
+// pipes (stdin closed by the parent when the push is done).
+struct Child {
+  pid_t pid = -1;
+  int to_child = -1, from_child = -1;
+};
+
+Child SpawnClients(const std::vector<std::string>& args) {
+  int in_pipe[2], out_pipe[2];
+  if (pipe(in_pipe) != 0 || pipe(out_pipe) != 0) throw std::runtime_error("pipe failed");
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_adddup2(&fa, in_pipe[0], 0);
+  posix_spawn_file_actions_adddup2(&fa, out_pipe[1], 1);
+  posix_spawn_file_actions_addclose(&fa, in_pipe[1]);
+  posix_spawn_file_actions_addclose(&fa, out_pipe[0]);
+  std::vector<char*> argv;
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  Child c;
+  if (posix_spawn(&c.pid, "/proc/self/exe", &fa, nullptr, argv.data(), environ) != 0) {
+    throw std::runtime_error("posix_spawn /proc/self/exe failed");
+  }
+  posix_spawn_file_actions_destroy(&fa);
+  close(in_pipe[0]);
+  close(out_pipe[1]);
+  c.to_child = in_pipe[1];
+  c.from_child = out_pipe[0];
+  return c;
+}
+
+std::string ReadAll(int fd) {
+  std::string out;
+  char buf[4096];
+  for (ssize_t n; (n = read(fd, buf, sizeof buf)) > 0;) out.append(buf, static_cast<size_t>(n));
+  return out;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int subscribers = 100, frames = 600, channels = 4;
+  double rate_hz = 100;
+  bool stalled = false, in_process = false;
+  std::string client_of, client_session;
+  CLI::App app{"locaid streaming benchmark"};
+  app.add_option("--subscribers", subscribers)->capture_default_str();
+  app.add_option("--frames", frames)->capture_default_str();
+  app.add_option("--rate-hz", rate_hz, "push rate (0 = as fast as possible)")->capture_default_str();
+  app.add_option("--channels", channels, "client connections shared by the subscribers")->capture_default_str();
+  app.add_flag("--stalled", stalled, "add one subscriber that never reads");
+  app.add_flag("--in-process", in_process, "run the subscribers in the server's process (default: a child process)");
+  app.add_option("--client-of", client_of, "internal: run only the subscribers against this server address");
+  app.add_option("--client-session", client_session, "internal: session id for --client-of");
+  CLI11_PARSE(app, argc, argv);
+  channels = std::max(channels, 1);
+  if (!client_of.empty()) return RunClients(client_of, client_session, subscribers, frames, channels, stalled);
+
+  ServerConfig config;
+  config.listen = "127.0.0.1:0";
+  config.max_subscribers_per_session = 100000;
+  LocalizationServer server(config, [](const EstimatorSetup&) { return std::make_unique<ConstantEstimator>(); });
+  const std::string target = "127.0.0.1:" + std::to_string(server.port());
+  auto stubs = MakeStubs(target, in_process ? channels : 1);
 
   // Session.
   v1::StartSessionRequest start;
@@ -144,20 +270,33 @@ int main(int argc, char** argv) {
   }
   const long rss_start = RssKb();
   std::vector<std::unique_ptr<Subscriber>> subs;
-  for (int i = 0; i < subscribers; ++i) {
-    subs.push_back(std::make_unique<Subscriber>(stubs[static_cast<size_t>(i % channels)].get(), session.id(),
-                                                static_cast<uint32_t>(frames), false));
-  }
+  std::unique_ptr<v1::Localization::Stub> stall_stub;
   std::unique_ptr<Subscriber> stall;
-  if (stalled) stall = std::make_unique<Subscriber>(stall_stub.get(), session.id(), 64, true);
-  for (int i = 0; i < 1000; ++i) {  // wait until all are attached
+  Child child;
+  if (in_process) {
+    for (int i = 0; i < subscribers; ++i) {
+      subs.push_back(std::make_unique<Subscriber>(stubs[static_cast<size_t>(i % channels)].get(), session.id(),
+                                                  static_cast<uint32_t>(frames), false));
+    }
+    stall_stub = MakeStallStub(target);
+    if (stalled) stall = std::make_unique<Subscriber>(stall_stub.get(), session.id(), 64, true);
+  } else {
+    std::vector<std::string> args = {"locaid-bench-streaming", "--client-of", target, "--client-session", session.id(),
+                                     "--subscribers", std::to_string(subscribers), "--frames", std::to_string(frames),
+                                     "--channels", std::to_string(channels)};
+    if (stalled) args.push_back("--stalled");
+    child = SpawnClients(args);
+  }
+  bool attached = false;
+  for (int i = 0; i < 3000 && !attached; ++i) {  // wait until all are attached
     grpc::ClientContext ctx;
     v1::GetStatsRequest req; req.set_session_id(session.id());
     v1::SessionStats st;
     stubs[0]->GetStats(&ctx, req, &st);
-    if (st.subscribers() >= static_cast<uint32_t>(subscribers + (stalled ? 1 : 0))) break;
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    attached = st.subscribers() >= static_cast<uint32_t>(subscribers + (stalled ? 1 : 0));
+    if (!attached) std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
+  if (!attached) { std::cerr << "subscribers did not attach within 30 s\n"; return 1; }
 
   // Push.
   grpc::ClientContext push_ctx;
@@ -169,6 +308,7 @@ int main(int argc, char** argv) {
   push->Read(&resp);
   std::thread drain([&] { v1::PushResponse r; while (push->Read(&r)) {} });
   const std::string img(32 * 24, '\x40');
+  const double cpu0 = CpuSeconds();
   const auto t0 = std::chrono::steady_clock::now();
   for (int i = 0; i < frames; ++i) {
     v1::PushRequest f;
@@ -183,6 +323,7 @@ int main(int argc, char** argv) {
   drain.join();
   push->Finish();
   const double push_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double server_cpu_s = CpuSeconds() - cpu0;  // includes the pushing client (one stream)
   v1::SessionStats st;
   {
     grpc::ClientContext ctx;
@@ -190,28 +331,46 @@ int main(int argc, char** argv) {
     stubs[0]->GetStats(&ctx, req, &st);
   }
   const long rss_peak = RssKb();
-  if (stall) stall->Cancel();
-  for (auto& s : subs) s->Wait();
-  if (stall) stall->Wait();
 
-  std::vector<float> all;
-  uint64_t lost = 0, received = 0;
-  for (auto& s : subs) {
-    all.insert(all.end(), s->delays_us_.begin(), s->delays_us_.end());
-    received += s->received_;
-    lost += static_cast<uint64_t>(frames) - s->received_;
+  ClientResult r;
+  if (in_process) {
+    if (stall) stall->Cancel();
+    for (auto& s : subs) s->Wait();
+    if (stall) stall->Wait();
+    r = Summarize(subs, frames, 0);
+  } else {
+    close(child.to_child);  // the child cancels its stalled subscriber
+    const std::string out = ReadAll(child.from_child);
+    close(child.from_child);
+    int status = 0;
+    waitpid(child.pid, &status, 0);
+    std::istringstream in(out.substr(std::min(out.size(), out.find("result"))));
+    std::string tag;
+    unsigned long long received = 0, lost = 0;
+    if (!(in >> tag >> r.p50_us >> r.p99_us >> r.max_us >> received >> lost >> r.cpu_s) || tag != "result") {
+      std::cerr << "client process failed (status " << status << "): " << out << "\n";
+      return 1;
+    }
+    r.received = received;
+    r.lost = lost;
   }
   uint64_t stalled_dropped = 0;
   for (const auto& sub : st.subscriber()) stalled_dropped = std::max<uint64_t>(stalled_dropped, sub.dropped());
-  std::printf("subscribers=%d stalled=%d frames=%d rate_hz=%.0f channels=%d\n", subscribers, stalled ? 1 : 0, frames,
-              rate_hz, channels);
-  std::printf("delay_us p50=%.0f p99=%.0f max=%.0f  received=%llu lost=%llu  stalled_dropped=%llu\n",
-              Percentile(all, 0.5), Percentile(all, 0.99), Percentile(all, 1.0),
-              static_cast<unsigned long long>(received), static_cast<unsigned long long>(lost),
-              static_cast<unsigned long long>(stalled_dropped));
+  const double published = std::max<double>(1, static_cast<double>(st.frames_processed()));
+  std::printf("subscribers=%d stalled=%d frames=%d rate_hz=%.0f channels=%d clients=%s\n", subscribers,
+              stalled ? 1 : 0, frames, rate_hz, channels, in_process ? "in-process" : "child-process");
+  std::printf("delay_us p50=%.0f p99=%.0f max=%.0f  received=%llu lost=%llu  stalled_dropped=%llu\n", r.p50_us,
+              r.p99_us, r.max_us, static_cast<unsigned long long>(r.received),
+              static_cast<unsigned long long>(r.lost), static_cast<unsigned long long>(stalled_dropped));
   std::printf("session_fps=%.1f (frames %llu in %.2f s push)  rss_kb start=%ld end=%ld\n",
               static_cast<double>(st.frames_processed()) / push_s,
               static_cast<unsigned long long>(st.frames_processed()), push_s, rss_start, rss_peak);
+  if (in_process) {
+    std::printf("cpu_us_per_pose process=%.0f (server + clients)\n", server_cpu_s * 1e6 / published);
+  } else {
+    std::printf("cpu_us_per_pose server=%.0f clients=%.0f\n", server_cpu_s * 1e6 / published,
+                r.cpu_s * 1e6 / published);
+  }
   server.Shutdown();
-  return lost == 0 ? 0 : 1;
+  return r.lost == 0 ? 0 : 1;
 }

@@ -1,6 +1,7 @@
 // PoseHub alone: ordering, no loss for subscribers that keep up, newest-kept
 // drops for slow ones, bounded memory, history, close, concurrent use.
 #include "server/pose_hub.hpp"
+#include "server/service.hpp"
 
 #include <gtest/gtest.h>
 
@@ -217,6 +218,109 @@ TEST(PoseHub, FanoutThreadWakesOffTheProducerAndLosesNothing) {
   ASSERT_EQ(got.size(), static_cast<size_t>(kItems));
   for (int i = 0; i < kItems; ++i) EXPECT_EQ(got[static_cast<size_t>(i)], i);
   EXPECT_EQ(fast->info().dropped, 0u);
+}
+
+
+// Several fan-out workers: every subscriber is woken by exactly one worker
+// (id % workers), so subscribers leaving mid-stream never make another one
+// miss its wakes; every remaining subscriber gets every item in order.
+TEST(PoseHub, FanoutWorkersLoseNoWakeWhenSubscribersLeave) {
+  constexpr size_t kWorkers = 3;
+  constexpr int kSubscribers = 10, kItems = 300;
+  IntHub hub(0);
+  hub.StartFanoutThread(kWorkers);
+  EXPECT_EQ(hub.fanout_threads(), kWorkers);
+  struct Consumer {
+    IntHub::SubscriberPtr sub;
+    std::mutex mu;
+    std::vector<int> got;
+    bool ended = false;
+  };
+  std::vector<std::unique_ptr<Consumer>> consumers;
+  for (int i = 0; i < kSubscribers; ++i) consumers.push_back(std::make_unique<Consumer>());
+  for (auto& c : consumers) {
+    Consumer* cp = c.get();
+    c->sub = hub.Subscribe(kItems, false, [cp] {
+      std::lock_guard lock(cp->mu);
+      IntHub::Item item;
+      uint64_t dropped = 0;
+      for (;;) {
+        const auto r = cp->sub->Pop(&item, &dropped);
+        if (r == IntHub::Subscriber::PopResult::kItem) cp->got.push_back(*item);
+        if (r == IntHub::Subscriber::PopResult::kEnd) cp->ended = true;
+        if (r != IntHub::Subscriber::PopResult::kItem) break;
+      }
+    });
+  }
+  for (int i = 0; i < kItems; ++i) {
+    if (i == kItems / 3) hub.Unsubscribe(consumers[1]->sub);  // ids shift in the subscriber list
+    if (i == kItems / 2) hub.Unsubscribe(consumers[4]->sub);
+    hub.Publish(std::make_shared<const int>(i));
+  }
+  hub.Close();
+  hub.StopFanoutThread();  // last round: every remaining subscriber sees the end
+  for (int k = 0; k < kSubscribers; ++k) {
+    if (k == 1 || k == 4) continue;
+    Consumer& c = *consumers[static_cast<size_t>(k)];
+    std::lock_guard lock(c.mu);
+    EXPECT_TRUE(c.ended) << "subscriber " << k;
+    ASSERT_EQ(c.got.size(), static_cast<size_t>(kItems)) << "subscriber " << k;
+    for (int i = 0; i < kItems; ++i) EXPECT_EQ(c.got[static_cast<size_t>(i)], i) << "subscriber " << k;
+  }
+}
+
+std::string Bytes(const grpc::ByteBuffer& buffer) {
+  std::vector<grpc::Slice> slices;
+  EXPECT_TRUE(buffer.Dump(&slices).ok());
+  std::string out;
+  for (const grpc::Slice& s : slices) out.append(reinterpret_cast<const char*>(s.begin()), s.size());
+  return out;
+}
+
+locaid::v1::PoseUpdate SamplePose(uint64_t sequence) {
+  locaid::v1::PoseUpdate p;
+  p.set_session_id("s7");
+  p.set_sequence(sequence);
+  p.set_frame_index(static_cast<int64_t>(sequence) + 3);
+  p.mutable_position_enu_m()->set_x(1.5);
+  p.mutable_position_enu_m()->set_z(-2.25);
+  for (int i = 0; i < 36; ++i) p.add_covariance(0.01 * i);
+  p.set_published_unix_ns(1'700'000'000'123'456'789LL);
+  return p;
+}
+
+// One serialization per pose serves every subscriber: the bytes parse back to
+// the same PoseUpdate, with dropped_for_subscriber set per subscriber.
+TEST(PoseEncodings, SharedBytesParseBackWithThePerSubscriberDropCount) {
+  PoseEncodings encodings;
+  auto item = std::make_shared<const locaid::v1::PoseUpdate>(SamplePose(5));
+  const grpc::Slice a = encodings.Get(item);
+  const grpc::Slice b = encodings.Get(item);
+  EXPECT_EQ(a.begin(), b.begin()) << "second subscriber must reuse the cached serialization";
+  for (uint64_t dropped : {uint64_t{0}, uint64_t{1}, uint64_t{300}, uint64_t{1} << 40}) {
+    locaid::v1::PoseUpdate parsed;
+    ASSERT_TRUE(parsed.ParseFromString(Bytes(EncodePoseForSubscriber(a, dropped)))) << dropped;
+    locaid::v1::PoseUpdate expected = *item;
+    expected.set_dropped_for_subscriber(dropped);
+    EXPECT_EQ(parsed.SerializeAsString(), expected.SerializeAsString()) << "dropped " << dropped;
+    EXPECT_EQ(parsed.dropped_for_subscriber(), dropped);
+  }
+}
+
+// A from-start replay of old history is serialized per call and does not
+// evict the live poses from the cache.
+TEST(PoseEncodings, OldHistoryDoesNotEvictLivePoses) {
+  PoseEncodings encodings;
+  const uint64_t live_seq = 10 * PoseEncodings::kSlots;
+  auto live = std::make_shared<const locaid::v1::PoseUpdate>(SamplePose(live_seq));
+  auto old = std::make_shared<const locaid::v1::PoseUpdate>(SamplePose(live_seq - PoseEncodings::kSlots));
+  const grpc::Slice l1 = encodings.Get(live);
+  const grpc::Slice o1 = encodings.Get(old);  // same slot, too old to be cached
+  const grpc::Slice o2 = encodings.Get(old);
+  const grpc::Slice l2 = encodings.Get(live);
+  EXPECT_EQ(l1.begin(), l2.begin());
+  EXPECT_NE(o1.begin(), o2.begin());
+  EXPECT_EQ(Bytes(EncodePoseForSubscriber(o1, 0)), old->SerializeAsString());
 }
 
 }  // namespace
