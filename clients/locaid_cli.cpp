@@ -16,10 +16,12 @@
 
 #include <Eigen/Geometry>
 
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <future>
 #include <iomanip>
@@ -27,6 +29,9 @@
 #include <memory>
 #include <sstream>
 #include <string>
+
+#include <fcntl.h>
+#include <unistd.h>
 
 namespace v1 = locaid::v1;
 
@@ -90,7 +95,10 @@ const char* CodeName(grpc::StatusCode code) {
   }
 }
 
-// Exit codes: 0 OK, 1 RPC error (status printed), 2 usage error.
+// Exit codes: 0 OK, 1 RPC error (status printed), 2 usage error, 3 health
+// NOT_SERVING / UNKNOWN, 4 the record file could not be written (subscribe:
+// disk full, file size limit, I/O error; the file is kept valid up to the
+// last complete pose and the message says how many poses it holds).
 int Fail(const grpc::Status& s) {
   std::cerr << "error: " << CodeName(s.error_code()) << ": " << s.error_message() << "\n";
   return 1;
@@ -148,23 +156,48 @@ const char* kCsvHeader =
     "sigma_e_m,sigma_n_m,sigma_u_m,mode,seconds_since_gps,vo_inliers,gps_used,gps_rejected,"
     "gps_outage,processing_latency_ms,delay_ms,dropped";
 
-// Every record is appended and flushed, so a killed client leaves a valid
-// file (GeoJSON: the closing brackets are rewritten after each feature).
+// Thrown when the record file cannot be written (disk full, file size
+// limit, I/O error). The file has already been cut back to the last complete
+// pose and is valid.
+class RecordError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Every record is written with write(2) straight to the file (no user-space
+// buffer), so a killed client leaves a valid file up to the last pose. When a
+// write fails (ENOSPC, EFBIG, EIO ...), the partial record is cut off with
+// ftruncate and, for GeoJSON, the closing brackets are put back, so the file
+// stays valid up to the last complete pose; then RecordError names the file,
+// the errno text and the number of poses kept.
 class Recorder {
  public:
-  Recorder(const std::string& format, const std::string& path) : format_(format) {
+  Recorder(const std::string& format, const std::string& path) : format_(format), path_(path) {
     if (format_ == "print") return;
     if (path.empty()) throw std::runtime_error("--out is required for --format " + format_);
-    out_.open(path, std::ios::out | std::ios::trunc);
-    if (!out_) throw std::runtime_error("cannot write '" + path + "'");
-    out_ << std::setprecision(12);
-    if (format_ == "csv") out_ << kCsvHeader << "\n";
+    fd_ = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    if (fd_ < 0) throw std::runtime_error("cannot write '" + path + "': " + std::strerror(errno));
+    if (format_ == "csv") Append(std::string(kCsvHeader) + "\n", "the CSV header");
     if (format_ == "geojson") {
-      out_ << "{\"type\":\"FeatureCollection\",\"features\":[";
-      tail_pos_ = out_.tellp();
-      out_ << "]}\n";
+      static const std::string kHead = "{\"type\":\"FeatureCollection\",\"features\":[";
+      Append(kHead + kGeoJsonTail, "the GeoJSON header");
+      committed_ = kHead.size();  // features are written from here on, before the tail
     }
-    out_.flush();
+  }
+  ~Recorder() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  Recorder(const Recorder&) = delete;
+  Recorder& operator=(const Recorder&) = delete;
+
+  uint64_t poses() const { return poses_; }
+
+  // Closes the file; throws RecordError if the kernel reports a late error.
+  void Close() {
+    if (fd_ < 0) return;
+    const int fd = fd_;
+    fd_ = -1;
+    if (::close(fd) != 0) Throw(errno, "closing the file");
   }
 
   void Add(const v1::PoseUpdate& p, double delay_ms) {
@@ -179,48 +212,105 @@ class Recorder {
                 << " latency_ms=" << p.processing_latency_ms() << " delay_ms=" << delay_ms
                 << " dropped=" << p.dropped_for_subscriber() << "\n"
                 << std::defaultfloat << std::flush;
+      ++poses_;
       return;
     }
+    std::ostringstream out;
+    out << std::setprecision(12);
     const Eigen::Quaterniond quat(q.w(), q.x(), q.y(), q.z());
     const Eigen::Matrix3d R = quat.normalized().toRotationMatrix();
     if (format_ == "tum") {
-      out_ << t_s << " " << t.x() << " " << t.y() << " " << t.z() << " " << q.x() << " " << q.y() << " " << q.z()
-           << " " << q.w() << "\n";
+      out << t_s << " " << t.x() << " " << t.y() << " " << t.z() << " " << q.x() << " " << q.y() << " " << q.z()
+          << " " << q.w() << "\n";
     } else if (format_ == "kitti") {
       for (int r = 0; r < 3; ++r) {
-        out_ << (r ? " " : "") << R(r, 0) << " " << R(r, 1) << " " << R(r, 2) << " "
-             << (r == 0 ? t.x() : r == 1 ? t.y() : t.z());
+        out << (r ? " " : "") << R(r, 0) << " " << R(r, 1) << " " << R(r, 2) << " "
+            << (r == 0 ? t.x() : r == 1 ? t.y() : t.z());
       }
-      out_ << "\n";
+      out << "\n";
     } else if (format_ == "csv") {
       auto sigma = [&](int i) {
         return p.covariance_size() == 36 ? std::sqrt(std::max(0.0, p.covariance(i * 6 + i))) : NAN;
       };
-      out_ << t_s << "," << p.frame_index() << "," << p.sequence() << "," << t.x() << "," << t.y() << "," << t.z()
-           << "," << p.latitude_deg() << "," << p.longitude_deg() << "," << p.altitude_m() << "," << q.w() << ","
-           << q.x() << "," << q.y() << "," << q.z() << "," << p.velocity_enu_mps().x() << ","
-           << p.velocity_enu_mps().y() << "," << p.velocity_enu_mps().z() << "," << sigma(0) << "," << sigma(1)
-           << "," << sigma(2) << "," << ModeName(p.mode()) << "," << p.seconds_since_gps() << ","
-           << p.vo_inliers() << "," << p.gps_used() << "," << p.gps_rejected() << ","
-           << (p.gps_outage_active() ? 1 : 0) << "," << p.processing_latency_ms() << "," << delay_ms << ","
-           << p.dropped_for_subscriber() << "\n";
+      out << t_s << "," << p.frame_index() << "," << p.sequence() << "," << t.x() << "," << t.y() << "," << t.z()
+          << "," << p.latitude_deg() << "," << p.longitude_deg() << "," << p.altitude_m() << "," << q.w() << ","
+          << q.x() << "," << q.y() << "," << q.z() << "," << p.velocity_enu_mps().x() << ","
+          << p.velocity_enu_mps().y() << "," << p.velocity_enu_mps().z() << "," << sigma(0) << "," << sigma(1)
+          << "," << sigma(2) << "," << ModeName(p.mode()) << "," << p.seconds_since_gps() << ","
+          << p.vo_inliers() << "," << p.gps_used() << "," << p.gps_rejected() << ","
+          << (p.gps_outage_active() ? 1 : 0) << "," << p.processing_latency_ms() << "," << delay_ms << ","
+          << p.dropped_for_subscriber() << "\n";
     } else if (format_ == "geojson") {
-      out_.seekp(tail_pos_);
-      out_ << (features_++ ? "," : "") << "{\"type\":\"Feature\",\"geometry\":{\"type\":\"Point\",\"coordinates\":["
-           << std::setprecision(10) << p.longitude_deg() << "," << p.latitude_deg() << "," << p.altitude_m()
-           << "]},\"properties\":{\"t_s\":" << std::setprecision(12) << t_s << ",\"sequence\":" << p.sequence()
-           << ",\"mode\":\"" << ModeName(p.mode()) << "\"}}";
-      tail_pos_ = out_.tellp();
-      out_ << "]}\n";
+      // The feature overwrites the closing brackets and brings them back.
+      out << (poses_ ? "," : "") << "{\"type\":\"Feature\",\"geometry\":{\"type\":\"Point\",\"coordinates\":["
+          << std::setprecision(10) << p.longitude_deg() << "," << p.latitude_deg() << "," << p.altitude_m()
+          << "]},\"properties\":{\"t_s\":" << std::setprecision(12) << t_s << ",\"sequence\":" << p.sequence()
+          << ",\"mode\":\"" << ModeName(p.mode()) << "\"}}";
+      const std::string feature = out.str();
+      Append(feature + kGeoJsonTail, "pose " + std::to_string(poses_ + 1));
+      committed_ += feature.size();  // the tail stays after it
+      ++poses_;
+      return;
     }
-    out_.flush();
+    Append(out.str(), "pose " + std::to_string(poses_ + 1));
+    ++poses_;
   }
 
  private:
-  std::string format_;
-  std::ofstream out_;
-  std::streampos tail_pos_{};
-  size_t features_ = 0;
+  static constexpr const char* kGeoJsonTail = "]}\n";
+
+  // Writes `bytes` at offset committed_ (the end of the last complete
+  // record). Line formats move committed_ past them; GeoJSON moves it itself.
+  void Append(const std::string& bytes, const std::string& what) {
+    size_t done = 0;
+    while (done < bytes.size()) {
+      const ssize_t n = ::pwrite(fd_, bytes.data() + done, bytes.size() - done,
+                                 static_cast<off_t>(committed_ + done));
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) {
+        const int err = n < 0 ? errno : EIO;
+        Rollback();
+        Throw(err, "writing " + what);
+      }
+      done += static_cast<size_t>(n);
+    }
+    if (format_ != "geojson") committed_ += bytes.size();
+  }
+
+  // Cuts the file back to the last complete record (GeoJSON: and its closing
+  // brackets, which were in the file before, so no new space is needed).
+  void Rollback() {
+    off_t keep = static_cast<off_t>(committed_);
+    if (format_ == "geojson" && committed_ > 0) {
+      const std::string tail = kGeoJsonTail;
+      if (::pwrite(fd_, tail.data(), tail.size(), keep) == static_cast<ssize_t>(tail.size())) {
+        keep += static_cast<off_t>(tail.size());
+      } else {
+        keep = 0;  // cannot close the document: leave an empty file rather than invalid JSON
+      }
+    }
+    if (::ftruncate(fd_, keep) != 0) rollback_error_ = errno;
+  }
+
+  [[noreturn]] void Throw(int err, const std::string& what) {
+    std::ostringstream msg;
+    msg << "recording to '" << path_ << "' failed while " << what << ": " << std::strerror(err) << " ("
+        << (err == ENOSPC ? "ENOSPC" : err == EFBIG ? "EFBIG" : err == EIO ? "EIO" : "errno " + std::to_string(err))
+        << "); kept " << poses_ << " complete pose" << (poses_ == 1 ? "" : "s");
+    if (rollback_error_ != 0) {
+      msg << ", but cutting off the partial record failed: " << std::strerror(rollback_error_)
+          << " (the last line may be incomplete)";
+    } else {
+      msg << ", the file ends with the last complete pose";
+    }
+    throw RecordError(msg.str());
+  }
+
+  std::string format_, path_;
+  int fd_ = -1;
+  uint64_t committed_ = 0;  // bytes of complete records (GeoJSON: before the closing brackets)
+  uint64_t poses_ = 0;
+  int rollback_error_ = 0;
 };
 
 std::unique_ptr<grpc::ClientContext> g_stream_ctx;
@@ -312,6 +402,9 @@ int main(int argc, char** argv) {
   stats->add_option("id", session_id)->required();
 
   CLI11_PARSE(app, argc, argv);
+  // A file size limit (RLIMIT_FSIZE) must show up as EFBIG from write(2),
+  // handled like a full disk, not kill the recorder.
+  std::signal(SIGXFSZ, SIG_IGN);
 
   try {
     auto channel = MakeChannel(c);
@@ -465,7 +558,14 @@ int main(int argc, char** argv) {
                                 std::chrono::system_clock::now().time_since_epoch())
                                 .count();
         const double delay_ms = static_cast<double>(now_ns - pose.published_unix_ns()) * 1e-6;
-        recorder.Add(pose, delay_ms);
+        try {
+          recorder.Add(pose, delay_ms);
+        } catch (const RecordError& e) {
+          g_stream_ctx->TryCancel();
+          (void)reader->Finish();
+          std::cerr << "error: " << e.what() << "\n";
+          return 4;
+        }
         ++n;
         dropped = pose.dropped_for_subscriber();
         if (progress && n % 50 == 0) {
@@ -478,6 +578,12 @@ int main(int argc, char** argv) {
         }
       }
       const grpc::Status s = reader->Finish();
+      try {
+        recorder.Close();
+      } catch (const RecordError& e) {
+        std::cerr << "error: " << e.what() << "\n";
+        return 4;
+      }
       if (progress || format != "print") {
         std::cerr << "received " << n << " poses, dropped " << dropped << "\n";
       }
@@ -485,7 +591,10 @@ int main(int argc, char** argv) {
       if (!s.ok() && s.error_code() != grpc::CANCELLED) return Fail(s);
       return 0;
     }
-  } catch (const std::exception& e) {
+  } catch (const RecordError& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 4;
+} catch (const std::exception& e) {
     std::cerr << "error: " << e.what() << "\n";
     return 2;
   }

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cstdint>
 #include <stdexcept>
+#include <utility>
 
 namespace locaid::server {
 
@@ -24,6 +25,14 @@ DatasetFrameSource::DatasetFrameSource(std::unique_ptr<kitti::StereoDataset> dat
     const int64_t t0 = dataset_->time_ns(static_cast<size_t>(first_));
     const auto& oxts = dataset_->oxts();
     while (next_oxts_ < oxts.size() && oxts[next_oxts_].t_ns < t0) ++next_oxts_;
+  }
+  // Unreadable OXTS files (NaN, wrong field count, ...) that a reader opened
+  // with skip_bad_oxts left out: counted as bad OXTS lines of the session.
+  for (const std::string& note : dataset_->report().notes) {
+    if (note.rfind("skipped bad OXTS file", 0) == 0 || note.rfind("skipped OXTS record", 0) == 0) {
+      ++skipped_oxts_;
+      skipped_oxts_error_ = note;
+    }
   }
 }
 
@@ -41,6 +50,10 @@ SourceItem DatasetFrameSource::Next() {
   }
   const auto i = static_cast<size_t>(next_++);
   item.index = static_cast<int64_t>(i);
+  if (skipped_oxts_ > 0) {  // once, with the first item
+    item.oxts_bad_lines = std::exchange(skipped_oxts_, 0);
+    item.error = std::move(skipped_oxts_error_);
+  }
   item.t_ns = dataset_->time_ns(i);
   const auto& oxts = dataset_->oxts();
   while (next_oxts_ < oxts.size() && oxts[next_oxts_].t_ns <= item.t_ns) {

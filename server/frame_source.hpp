@@ -58,6 +58,10 @@ class DatasetFrameSource : public FrameSource {
   std::unique_ptr<kitti::StereoDataset> dataset_;
   int64_t first_, end_, next_;
   size_t next_oxts_ = 0;
+  // OXTS records the reader skipped as unreadable (report() notes, when the
+  // dataset was opened with skip_bad_oxts); reported with the first item.
+  int skipped_oxts_ = 0;
+  std::string skipped_oxts_error_;
 };
 
 // One item pushed by a client.

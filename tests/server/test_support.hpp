@@ -1,6 +1,9 @@
 // Helpers for the server integration tests: an in-process server on a loopback
 // port with a deterministic estimator, subprocess runner for the real CLI,
-// and a push client.
+// and a push client. Fault tests add: child processes (fork + exec, with an
+// optional file size limit), the real locaid-server as a process, a thread
+// that collects a pose stream, a check for non-finite pose fields and a
+// synthetic drive rendered by locaid-synth.
 #pragma once
 
 #include "locaid/v1/localization.grpc.pb.h"
@@ -9,14 +12,29 @@
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
+#include <google/protobuf/descriptor.h>
+#include <google/protobuf/message.h>
+
+#include <algorithm>
 #include <array>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <csignal>
 #include <cstdio>
+#include <fcntl.h>
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <mutex>
 #include <sstream>
 #include <string>
+#include <sys/resource.h>
 #include <sys/wait.h>
+#include <thread>
+#include <unistd.h>
+#include <vector>
 
 namespace locaid::server::testing {
 
@@ -107,8 +125,8 @@ inline CliResult RunShell(const std::string& command) {
 
 inline CliResult RunCli(int port, const std::vector<std::string>& args, const std::vector<std::string>& pre = {}) {
   std::string cmd = ShellQuote(std::string(LOCAID_BIN_DIR) + "/locaid") + " --server 127.0.0.1:" + std::to_string(port);
-  for (const auto& a : pre) cmd += " " + ShellQuote(a);
-  for (const auto& a : args) cmd += " " + ShellQuote(a);
+  for (const auto& a : pre) cmd.append(" ").append(ShellQuote(a));
+  for (const auto& a : args) cmd.append(" ").append(ShellQuote(a));
   return RunShell(cmd);
 }
 
@@ -158,6 +176,273 @@ inline v1::PushRequest Oxts(int64_t t_ns, const std::string& line) {
   r.mutable_oxts()->set_t_ns(t_ns);
   r.mutable_oxts()->set_line(line);
   return r;
+}
+
+// ------------------------------------------------------ fault-test helpers --
+
+// A child process (fork + exec) with stdout and stderr in files; killed
+// (SIGKILL) and reaped by the destructor if still running.
+class ChildProcess {
+ public:
+  struct Options {
+    std::filesystem::path out = "/dev/null", err = "/dev/null";
+    // RLIMIT_FSIZE of the child, bytes (0 = unlimited). SIGXFSZ is left at
+    // its default action, so a child that does not ignore it dies of it.
+    rlim_t file_size_limit = 0;
+  };
+
+  ChildProcess(const std::vector<std::string>& argv, const Options& options) {
+    // Everything the child needs is prepared before fork (the test process
+    // has gRPC threads; the child only makes async-signal-safe calls).
+    std::vector<std::string> args = argv;
+    std::vector<char*> cargv;
+    for (auto& a : args) cargv.push_back(a.data());
+    cargv.push_back(nullptr);
+    const std::string out = options.out.string(), err = options.err.string();
+    const rlim_t limit = options.file_size_limit;
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      if (limit > 0) {
+        const rlimit rl{limit, limit};
+        if (::setrlimit(RLIMIT_FSIZE, &rl) != 0) ::_exit(126);
+      }
+      ::signal(SIGXFSZ, SIG_DFL);
+      const int o = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      const int e = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      if (o < 0 || e < 0) ::_exit(126);
+      ::dup2(o, 1);
+      ::dup2(e, 2);
+      ::execv(cargv[0], cargv.data());
+      ::_exit(127);
+    }
+  }
+  ~ChildProcess() {
+    if (running()) {
+      ::kill(pid_, SIGKILL);
+      Wait(10);
+    }
+  }
+  ChildProcess(const ChildProcess&) = delete;
+  ChildProcess& operator=(const ChildProcess&) = delete;
+
+  pid_t pid() const { return pid_; }
+  bool started() const { return pid_ > 0; }
+  bool running() const { return pid_ > 0 && !reaped_; }
+  bool Signal(int sig) const { return running() && ::kill(pid_, sig) == 0; }
+  // Waits (bounded) for the child to end; true once it has been reaped.
+  bool Wait(double timeout_s) {
+    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    while (running()) {
+      const pid_t r = ::waitpid(pid_, &status_, WNOHANG);
+      if (r == pid_ || (r < 0 && errno == ECHILD)) {
+        reaped_ = true;
+        break;
+      }
+      if (std::chrono::steady_clock::now() >= until) return false;
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+    return true;
+  }
+  // After Wait(): exit code, or -1 if it was killed by a signal.
+  int exit_code() const { return reaped_ && WIFEXITED(status_) ? WEXITSTATUS(status_) : -1; }
+  int term_signal() const { return reaped_ && WIFSIGNALED(status_) ? WTERMSIG(status_) : 0; }
+
+ private:
+  pid_t pid_ = -1;
+  int status_ = 0;
+  bool reaped_ = false;
+};
+
+// The real build/bin/locaid-server on 127.0.0.1, port picked by the OS and
+// read from --port-file. `dir` holds the port file and the server's log.
+class ServerProcess {
+ public:
+  explicit ServerProcess(const std::filesystem::path& dir, const std::vector<std::string>& extra_args = {}) {
+    std::filesystem::create_directories(dir);
+    const auto port_file = dir / "port";
+    std::filesystem::remove(port_file);
+    std::vector<std::string> argv = {std::string(LOCAID_BIN_DIR) + "/locaid-server", "--listen", "127.0.0.1:0",
+                                     "--port-file", port_file.string(), "--work-dir", (dir / "work").string()};
+    argv.insert(argv.end(), extra_args.begin(), extra_args.end());
+    log_out_ = dir / "server.out";
+    log_err_ = dir / "server.err";
+    child_ = std::make_unique<ChildProcess>(argv, ChildProcess::Options{log_out_, log_err_, 0});
+    for (int i = 0; i < 1000 && port_ == 0 && child_->running(); ++i) {  // at most 10 s
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      std::ifstream in(port_file);
+      in >> port_;
+      if (child_->Wait(0)) break;
+    }
+  }
+  int port() const { return port_; }
+  ChildProcess& process() { return *child_; }
+  std::string log() const { return Slurp(log_out_) + Slurp(log_err_); }
+  std::shared_ptr<grpc::Channel> NewChannel(int tag = 0) const {
+    // A distinct argument gives each tag its own connection.
+    grpc::ChannelArguments args;
+    args.SetInt("locaid.test.channel_tag", tag);
+    return grpc::CreateCustomChannel("127.0.0.1:" + std::to_string(port_), grpc::InsecureChannelCredentials(),
+                                     args);
+  }
+
+ private:
+  std::unique_ptr<ChildProcess> child_;
+  std::filesystem::path log_out_, log_err_;
+  int port_ = 0;
+};
+
+// argv of the real CLI against 127.0.0.1:port.
+inline std::vector<std::string> CliArgv(int port, const std::vector<std::string>& args) {
+  std::vector<std::string> argv = {std::string(LOCAID_BIN_DIR) + "/locaid", "--server",
+                                   "127.0.0.1:" + std::to_string(port)};
+  argv.insert(argv.end(), args.begin(), args.end());
+  return argv;
+}
+
+// One StreamPoses call read on its own thread until the stream ends.
+class PoseCollector {
+ public:
+  PoseCollector(std::shared_ptr<grpc::Channel> channel, const std::string& session_id, bool from_start,
+                double deadline_s = 120, uint32_t queue_size = 0)
+      : stub_(v1::Localization::NewStub(std::move(channel))) {
+    SetDeadline(&ctx_, deadline_s);
+    req_.set_session_id(session_id);
+    req_.set_from_start(from_start);
+    req_.set_queue_size(queue_size);
+    thread_ = std::thread([this] {
+      auto reader = stub_->StreamPoses(&ctx_, req_);
+      v1::PoseUpdate p;
+      while (reader->Read(&p)) {
+        std::lock_guard lock(mu_);
+        poses_.push_back(p);
+        cv_.notify_all();
+      }
+      const grpc::Status s = reader->Finish();
+      std::lock_guard lock(mu_);
+      status_ = s;
+      done_ = true;
+      cv_.notify_all();
+    });
+  }
+  ~PoseCollector() {
+    if (thread_.joinable()) {
+      ctx_.TryCancel();
+      thread_.join();
+    }
+  }
+  PoseCollector(const PoseCollector&) = delete;
+  PoseCollector& operator=(const PoseCollector&) = delete;
+
+  // Waits (bounded) for the stream to end; false on timeout.
+  bool WaitDone(double timeout_s) {
+    std::unique_lock lock(mu_);
+    return cv_.wait_for(lock, std::chrono::duration<double>(timeout_s), [this] { return done_; });
+  }
+  bool WaitPoses(size_t n, double timeout_s) {
+    std::unique_lock lock(mu_);
+    return cv_.wait_for(lock, std::chrono::duration<double>(timeout_s),
+                        [&] { return poses_.size() >= n || done_; }) &&
+           poses_.size() >= n;
+  }
+  bool done() {
+    std::lock_guard lock(mu_);
+    return done_;
+  }
+  grpc::Status status() {
+    std::lock_guard lock(mu_);
+    return status_;
+  }
+  std::vector<v1::PoseUpdate> poses() {
+    std::lock_guard lock(mu_);
+    return poses_;
+  }
+  size_t count() {
+    std::lock_guard lock(mu_);
+    return poses_.size();
+  }
+
+ private:
+  std::unique_ptr<v1::Localization::Stub> stub_;
+  grpc::ClientContext ctx_;
+  v1::StreamPosesRequest req_;
+  std::thread thread_;
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::vector<v1::PoseUpdate> poses_;
+  grpc::Status status_;
+  bool done_ = false;
+};
+
+// Names of the double/float fields of `m` (recursively, repeated ones with
+// their index) that are NaN or infinite. PoseUpdate.seconds_since_gps may be
+// +Infinity (documented: before the first accepted fix); pass it in `allow_inf`.
+inline void NonFiniteFields(const google::protobuf::Message& m, const std::string& prefix,
+                            const std::vector<std::string>& allow_inf, std::vector<std::string>* out) {
+  using google::protobuf::FieldDescriptor;
+  const auto* d = m.GetDescriptor();
+  const auto* r = m.GetReflection();
+  for (int i = 0; i < d->field_count(); ++i) {
+    const FieldDescriptor* f = d->field(i);
+    const std::string name = prefix + f->name();
+    auto check = [&](double v, const std::string& where) {
+      if (std::isnan(v)) out->push_back(where + "=nan");
+      else if (std::isinf(v) && !(v > 0 && std::find(allow_inf.begin(), allow_inf.end(), name) != allow_inf.end())) {
+        out->push_back(where + "=" + (v > 0 ? "inf" : "-inf"));
+      }
+    };
+    if (f->is_repeated()) {
+      const int n = r->FieldSize(m, f);
+      for (int k = 0; k < n; ++k) {
+        const std::string where = name + "[" + std::to_string(k) + "]";
+        if (f->cpp_type() == FieldDescriptor::CPPTYPE_DOUBLE) check(r->GetRepeatedDouble(m, f, k), where);
+        if (f->cpp_type() == FieldDescriptor::CPPTYPE_FLOAT) check(r->GetRepeatedFloat(m, f, k), where);
+        if (f->cpp_type() == FieldDescriptor::CPPTYPE_MESSAGE) {
+          NonFiniteFields(r->GetRepeatedMessage(m, f, k), where + ".", allow_inf, out);
+        }
+      }
+    } else {
+      if (f->cpp_type() == FieldDescriptor::CPPTYPE_DOUBLE) check(r->GetDouble(m, f), name);
+      if (f->cpp_type() == FieldDescriptor::CPPTYPE_FLOAT) check(r->GetFloat(m, f), name);
+      if (f->cpp_type() == FieldDescriptor::CPPTYPE_MESSAGE && r->HasField(m, f)) {
+        NonFiniteFields(r->GetMessage(m, f), name + ".", allow_inf, out);
+      }
+    }
+  }
+}
+
+inline std::vector<std::string> NonFinitePoseFields(const v1::PoseUpdate& p) {
+  std::vector<std::string> out;
+  NonFiniteFields(p, "", {"seconds_since_gps"}, &out);
+  return out;
+}
+
+// Renders a synthetic KITTI raw sync drive with build/bin/locaid-synth into
+// `date_dir`; returns the drive folder (or "" with the error in *error).
+inline std::filesystem::path RenderSynthDrive(const std::filesystem::path& date_dir, int frames, uint64_t seed,
+                                              int width, int height, std::string* error) {
+  std::filesystem::remove_all(date_dir);
+  const CliResult r = RunShell(ShellQuote(std::string(LOCAID_BIN_DIR) + "/locaid-synth") + " -q --out " +
+                               ShellQuote(date_dir.string()) + " --frames " + std::to_string(frames) + " --seed " +
+                               std::to_string(seed) + " --width " + std::to_string(width) + " --height " +
+                               std::to_string(height));
+  if (r.exit_code != 0) {
+    *error = "locaid-synth failed (" + std::to_string(r.exit_code) + "): " + r.err;
+    return {};
+  }
+  for (const auto& e : std::filesystem::directory_iterator(date_dir)) {
+    if (e.is_directory() && e.path().filename().string().find("_sync") != std::string::npos) return e.path();
+  }
+  *error = "locaid-synth wrote no *_sync folder into " + date_dir.string();
+  return {};
+}
+
+// A folder of its own under TempDir() for one test of this process.
+inline std::filesystem::path FreshTestDir(const std::string& name) {
+  const auto dir = std::filesystem::path(::testing::TempDir()) /
+                   ("locaid_" + name + "_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
 }
 
 }  // namespace locaid::server::testing
