@@ -64,11 +64,18 @@ SourceItem DatasetFrameSource::Next() {
     item.error = "frame " + std::to_string(i) + ": left or right image missing";
     return item;
   }
+  if (item.t_ns <= last_frame_ns_) {
+    item.kind = SourceItem::Kind::kCorrupt;
+    item.error = "frame " + std::to_string(i) + ": time " + std::to_string(item.t_ns) +
+                 " ns not after the previous frame (" + std::to_string(last_frame_ns_) + " ns)";
+    return item;
+  }
   try {
     kitti::StereoImages images = dataset_->Load(i);
     item.left = std::move(images.left);
     item.right = std::move(images.right);
     item.kind = SourceItem::Kind::kFrame;
+    last_frame_ns_ = item.t_ns;
   } catch (const std::exception& e) {
     item.kind = SourceItem::Kind::kCorrupt;
     item.error = e.what();

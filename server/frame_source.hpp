@@ -44,7 +44,9 @@ class FrameSource {
   virtual Eigen::Isometry3d T_cam0_imu() const = 0;
 };
 
-// Frames [first, last] of a dataset (last < 0: to the end).
+// Frames [first, last] of a dataset (last < 0: to the end). A frame whose
+// time is not after the previous delivered frame's is kCorrupt (as for
+// pushed frames).
 class DatasetFrameSource : public FrameSource {
  public:
   DatasetFrameSource(std::unique_ptr<kitti::StereoDataset> dataset, int64_t first, int64_t last);
@@ -62,6 +64,7 @@ class DatasetFrameSource : public FrameSource {
   // dataset was opened with skip_bad_oxts); reported with the first item.
   int skipped_oxts_ = 0;
   std::string skipped_oxts_error_;
+  int64_t last_frame_ns_ = INT64_MIN;  // time of the last frame delivered
 };
 
 // One item pushed by a client.

@@ -11,6 +11,12 @@ StepResult SourcePipeline::Step() {
   r.t_ns = item.t_ns;
   r.oxts_bad_lines = item.oxts_bad_lines;
   r.error = item.error;
+  if (item.kind != SourceItem::Kind::kFrame) {
+    carried_oxts_.insert(carried_oxts_.end(), item.oxts.begin(), item.oxts.end());
+  } else if (!carried_oxts_.empty()) {
+    item.oxts.insert(item.oxts.begin(), carried_oxts_.begin(), carried_oxts_.end());
+    carried_oxts_.clear();
+  }
   switch (item.kind) {
     case SourceItem::Kind::kEnd: r.kind = StepResult::Kind::kEnd; return r;
     case SourceItem::Kind::kIdle: r.kind = StepResult::Kind::kIdle; return r;

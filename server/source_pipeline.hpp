@@ -72,6 +72,9 @@ class SourcePipeline : public SessionPipeline {
   std::optional<int64_t> first_t_ns_;
   int64_t last_t_ns_ = 0;
   std::vector<std::pair<double, double>> early_windows_;  // before the first frame
+  // OXTS samples that came with skipped / corrupt items: given to the
+  // estimator with the next good frame instead of being lost.
+  std::vector<kitti::OxtsSample> carried_oxts_;
 };
 
 }  // namespace locaid::server

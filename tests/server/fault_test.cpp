@@ -144,8 +144,8 @@ std::vector<std::vector<std::string>> CsvRows(const fs::path& p, const std::stri
 
 // A synthetic drive damaged the ways a real disk or logger does it, played
 // by the real estimator: images truncated / overwritten with garbage /
-// deleted / repeated, OXTS records with NaN fields, an OXTS time that goes
-// backwards. The session must play to the end, skip and count exactly the
+// deleted / repeated, a camera time that jumps back, OXTS records with NaN
+// fields, an OXTS time that goes backwards. The session must play to the end, skip and count exactly the
 // damaged frames and bad OXTS records, never send a NaN/Inf, and the server
 // must keep serving.
 TEST(FaultTest, DamagedDriveMidSessionIsSkippedCountedAndTheServerKeepsServing) {
@@ -177,7 +177,18 @@ TEST(FaultTest, DamagedDriveMidSessionIsSkippedCountedAndTheServerKeepsServing) 
   for (const fs::path& cam : {left, right}) {
     fs::copy_file(cam / FrameFile(29, "png"), cam / FrameFile(30, "png"), fs::copy_options::overwrite_existing);
   }
-  const std::set<int64_t> kSkipped = {15, 25}, kCorrupt = {10, 20};
+  // Camera clock that jumps back: frame 33 stamped 0.2 s before frame 32.
+  {
+    auto stamps = ReadLines(drive / "image_00" / "timestamps.txt");
+    ASSERT_EQ(stamps.size(), static_cast<size_t>(kFrames));
+    const double sec = std::stod(stamps[32].substr(17));
+    ASSERT_GT(sec, 0.5) << "pick another seed: frame 32 at " << stamps[32];
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%012.9f", sec - 0.2);
+    stamps[33] = stamps[32].substr(0, 17) + buf;
+    WriteLines(drive / "image_00" / "timestamps.txt", stamps);
+  }
+  const std::set<int64_t> kSkipped = {15, 25}, kCorrupt = {10, 20, 33};
   // OXTS: NaN longitude in record 12, NaN forward velocity (field 9) in 27.
   const fs::path oxts = drive / "oxts" / "data";
   for (const auto& [record, field] : {std::pair{12, 1}, std::pair{27, 8}}) {
@@ -244,7 +255,10 @@ TEST(FaultTest, DamagedDriveMidSessionIsSkippedCountedAndTheServerKeepsServing) 
     const auto bad = NonFinitePoseFields(poses[k]);
     non_finite += bad.empty() ? 0 : 1;
     EXPECT_TRUE(bad.empty()) << "pose " << k << " (frame " << poses[k].frame_index() << "): " << bad.front();
-    EXPECT_FALSE(std::isnan(poses[k].seconds_since_gps()));
+    EXPECT_GE(poses[k].seconds_since_gps(), 0.0) << "pose " << k;  // also false for NaN
+    if (k > 0) {
+      EXPECT_GT(poses[k].t_ns(), poses[k - 1].t_ns()) << "pose " << k << ": time went backwards";
+    }
   }
   EXPECT_EQ(non_finite, 0u);
   // The CLI's record holds the same poses.
@@ -303,6 +317,40 @@ TEST(FaultTest, DatasetSourceCountsTheOxtsFilesTheReaderSkipped) {
   EXPECT_EQ(bad, 2);
   EXPECT_EQ(oxts, expected_oxts);
   EXPECT_NE(first_error.find("OXTS"), std::string::npos) << first_error;
+  fs::remove_all(dir);
+}
+
+// GPS/IMU samples that arrive with a frame that is then skipped (missing or
+// corrupt image) are not lost: they reach the estimator with the next frame.
+TEST(FaultTest, OxtsOfSkippedFramesReachTheEstimatorWithTheNextFrame) {
+  const fs::path dir = FreshTestDir("fault_carry");
+  constexpr int kFrames = 12;
+  std::string error;
+  const fs::path drive = RenderSynthDrive(dir / "drive", kFrames, kSynthSeed, kSynthWidth, kSynthHeight, &error);
+  ASSERT_FALSE(drive.empty()) << error;
+  ASSERT_TRUE(fs::remove(drive / "image_00" / "data" / FrameFile(3, "png")));
+  ASSERT_TRUE(fs::remove(drive / "image_01" / "data" / FrameFile(4, "png")));
+  fs::resize_file(drive / "image_00" / "data" / FrameFile(7, "png"), 100);
+  const auto reference = kitti::OpenDataset(drive);
+  int expected = 0;
+  for (const auto& o : reference->oxts()) {
+    expected += o.t_ns >= reference->time_ns(0) && o.t_ns <= reference->time_ns(kFrames - 1) ? 1 : 0;
+  }
+  ASSERT_GE(expected, kFrames - 1);
+  SourcePipeline pipeline(std::make_unique<DatasetFrameSource>(kitti::OpenDataset(drive), 0, -1),
+                          std::make_unique<FakeEstimator>());  // gps_used = OXTS samples given so far
+  int poses = 0, skipped = 0, gps_used = 0;
+  for (StepResult r = pipeline.Step(); r.kind != StepResult::Kind::kEnd; r = pipeline.Step()) {
+    if (r.kind == StepResult::Kind::kPose) {
+      ++poses;
+      gps_used = r.pose.gps_used;
+    } else {
+      ++skipped;
+    }
+  }
+  EXPECT_EQ(poses, kFrames - 3);
+  EXPECT_EQ(skipped, 3);
+  EXPECT_EQ(gps_used, expected);
   fs::remove_all(dir);
 }
 
