@@ -1,6 +1,7 @@
 #include "server/service.hpp"
 
 #include "kitti/dataset.hpp"
+#include "kitti/raw_drive.hpp"
 #include "server/frame_source.hpp"
 #include "server/synthetic_drive.hpp"
 
@@ -524,7 +525,11 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
           return Invalid("kitti.path '" + k.path() + "': not a directory");
         }
         if (k.first_frame() < 0) return Invalid("kitti.first_frame: must be >= 0");
-        auto dataset = kitti::OpenDataset(k.path());
+        // A bad OXTS file mid-drive is skipped and counted (DatasetFrameSource
+        // reports it as bad OXTS lines), not a refused drive.
+        kitti::RawDriveOptions open_options;
+        open_options.skip_bad_oxts = true;
+        auto dataset = kitti::OpenDataset(k.path(), open_options);
         if (dataset->size() == 0) return {StatusCode::FAILED_PRECONDITION, "kitti.path '" + k.path() + "': no frames"};
         if (static_cast<size_t>(k.first_frame()) >= dataset->size()) {
           return Invalid("kitti.first_frame " + std::to_string(k.first_frame()) + ": the drive has " +
