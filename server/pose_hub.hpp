@@ -13,11 +13,13 @@
 // held). Thread-safe: one producer thread, any number of consumer threads.
 //
 // With StartFanoutThread() the wakes are not called by Publish()/Close() but
-// by one fan-out thread owned by the hub (joined by StopFanoutThread() or
-// the destructor): the producer then does O(1) work per subscriber under the
-// subscriber's short lock (push one shared pointer), and the wake callbacks
-// (which start gRPC writes) run off the producer thread. Wakes are coalesced:
-// a subscriber woken once after several publishes pulls all queued items.
+// by fan-out worker threads owned by the hub (one per core by default, joined
+// by StopFanoutThread() or the destructor): the producer then does O(1) work
+// per subscriber under the subscriber's short lock (push one shared
+// pointer), and the wake callbacks (which start gRPC writes, a syscall each)
+// run off the producer thread, split across the workers by subscriber id.
+// Wakes are coalesced: a subscriber woken once after several publishes pulls
+// all queued items.
 #pragma once
 
 #include <algorithm>
