@@ -34,7 +34,7 @@ struct ServerConfig {
   size_t synthetic_default_frames = 100;
   double keepalive_time_s = 20;            // HTTP/2 pings on idle connections
   double keepalive_timeout_s = 10;
-  double shutdown_grace_s = 1.5;           // open streams are cancelled after this
+  double shutdown_grace_s = 1.5;           // streams still open this long after SIGTERM are cancelled
   std::string port_file;                   // write the bound port here once listening
   bool log_shutdown = false;               // print shutdown timings (locaid-server sets it)
 };

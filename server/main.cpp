@@ -51,7 +51,7 @@ int main(int argc, char** argv) {
   app.add_option("--default-scenario", cli.default_scenario, "GPS scenario when a session names none")
       ->capture_default_str();
   app.add_option("--default-vo", cli.default_vo_method, "VO method when a session names none")->capture_default_str();
-  app.add_option("--shutdown-grace-s", cli.shutdown_grace_s, "streams are cancelled this long after SIGTERM")
+  app.add_option("--shutdown-grace-s", cli.shutdown_grace_s, "streams still open this long after SIGTERM are cancelled")
       ->capture_default_str();
   app.add_option("--port-file", cli.port_file, "write the bound port to this file once listening");
   CLI11_PARSE(app, argc, argv);

@@ -453,6 +453,12 @@ void LocalizationService::Register(const std::shared_ptr<Waker>& waker) {
 void LocalizationService::Unregister(const std::shared_ptr<Waker>& waker) {
   std::lock_guard lock(mu_);
   streams_.erase(waker);
+  if (streams_.empty()) streams_cv_.notify_all();
+}
+
+bool LocalizationService::WaitForStreams(std::chrono::steady_clock::time_point deadline) {
+  std::unique_lock lock(mu_);
+  return streams_cv_.wait_until(lock, deadline, [this] { return streams_.empty(); });
 }
 
 Status LocalizationService::ResolveScenario(const v1::Scenario& s, fusion::Scenario* out, std::string* name) const {
@@ -854,9 +860,14 @@ void LocalizationServer::Shutdown() {
     };
     server_->GetHealthCheckService()->SetServingStatus(false);
     service_->BeginShutdown();
-    const auto deadline = std::chrono::system_clock::now() +
-                          std::chrono::milliseconds(static_cast<int64_t>(config_.shutdown_grace_s * 1000));
-    server_->Shutdown(deadline);
+    // Every stream was just told to end with UNAVAILABLE; once all have
+    // delivered that status nothing is left to wait for, so idle client
+    // connections (which grpc::Server::Shutdown(deadline) would wait on for
+    // the whole grace time) are cut at once.
+    const auto grace = std::chrono::milliseconds(static_cast<int64_t>(config_.shutdown_grace_s * 1000));
+    const bool streams_done = service_->WaitForStreams(std::chrono::steady_clock::now() + grace);
+    server_->Shutdown(streams_done ? std::chrono::system_clock::now()
+                                   : std::chrono::system_clock::now() + std::chrono::milliseconds(100));
     const double grpc_ms = ms();
     service_->JoinSessions();
     if (config_.log_shutdown) {

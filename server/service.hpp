@@ -10,6 +10,8 @@
 
 #include <array>
 #include <atomic>
+#include <chrono>
+#include <condition_variable>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -111,6 +113,9 @@ class LocalizationService final
   void BeginShutdown();
   // Joins every session thread.
   void JoinSessions();
+  // Waits until every stream has finished (its status delivered) or the
+  // deadline passes; true when none is left.
+  bool WaitForStreams(std::chrono::steady_clock::time_point deadline);
 
   // Internal, used by the reactors.
   grpc::Status Authorize(const grpc::CallbackServerContext* ctx) const;
@@ -141,6 +146,7 @@ class LocalizationService final
   std::map<std::string, Entry> sessions_;
   uint64_t next_id_ = 1;
   std::set<std::shared_ptr<Waker>> streams_;
+  std::condition_variable streams_cv_;  // streams_ became empty
   std::atomic<bool> shutting_down_{false};
 };
 
