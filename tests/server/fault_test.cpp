@@ -142,6 +142,14 @@ std::vector<std::vector<std::string>> CsvRows(const fs::path& p, const std::stri
 
 // ------------------------------------------------ 1. a drive that goes bad --
 
+// After a fault: the server process still runs, and SIGTERM ends it cleanly.
+void ExpectStillRunningThenCleanExit(ServerProcess& server) {
+  EXPECT_TRUE(server.process().running()) << server.log();
+  ASSERT_TRUE(server.process().Signal(SIGTERM));
+  ASSERT_TRUE(server.process().Wait(10)) << server.log();
+  EXPECT_EQ(server.process().exit_code(), 0) << server.log();
+}
+
 // A synthetic drive damaged the ways a real disk or logger does it, played
 // by the real estimator: images truncated / overwritten with garbage /
 // deleted / repeated, a camera time that jumps back, OXTS records with NaN
@@ -275,10 +283,7 @@ TEST(FaultTest, DamagedDriveMidSessionIsSkippedCountedAndTheServerKeepsServing) 
   EXPECT_TRUE(second.status().ok()) << second.status().error_message();
   EXPECT_EQ(second.count(), static_cast<size_t>(kFrames));
   EXPECT_EQ(WaitSessionEnd(stub.get(), id2, 30).state(), v1::SESSION_STATE_FINISHED);
-  EXPECT_TRUE(server.process().running()) << server.log();
-  ASSERT_TRUE(server.process().Signal(SIGTERM));
-  ASSERT_TRUE(server.process().Wait(10)) << server.log();
-  EXPECT_EQ(server.process().exit_code(), 0) << server.log();
+  ExpectStillRunningThenCleanExit(server);
   fs::remove_all(dir);
 }
 
@@ -597,10 +602,7 @@ TEST(FaultTest, ClientsKilledMidStreamDoNotDisturbTheOthers) {
   EXPECT_EQ(end.frames_processed(), static_cast<uint64_t>(kFrames));
   EXPECT_EQ(end.subscribers(), 0u);
   EXPECT_EQ(RunCli(server.port(), {"health"}).out, "SERVING\n");
-  EXPECT_TRUE(server.process().running()) << server.log();
-  ASSERT_TRUE(server.process().Signal(SIGTERM));
-  ASSERT_TRUE(server.process().Wait(10)) << server.log();
-  EXPECT_EQ(server.process().exit_code(), 0) << server.log();
+  ExpectStillRunningThenCleanExit(server);
   fs::remove_all(dir);
 }
 
