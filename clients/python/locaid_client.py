@@ -12,6 +12,8 @@ The CSV has the same columns as `locaid subscribe --format csv`
 """
 import argparse
 import csv
+import errno
+import io
 import math
 import os
 import sys
@@ -68,25 +70,64 @@ def pose_row(p, delay_ms):
     ]
 
 
+class RecordError(Exception):
+    pass
+
+
+class CsvRecorder:
+    """Appends one complete CSV line per pose with a single unbuffered write.
+
+    A killed client leaves a valid file. When a write fails (disk full,
+    file-size limit, I/O error) the partial line is cut off, so the file ends
+    with the last complete pose, and RecordError says how many it holds.
+    """
+
+    def __init__(self, path):
+        self.path = path
+        self.fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        self.good = 0  # bytes of complete lines
+        self.rows = 0
+        self._write(CSV_COLUMNS, header=True)
+
+    def _write(self, row, header=False):
+        buf = io.StringIO()
+        csv.writer(buf, lineterminator="\n").writerow(row)
+        data = buf.getvalue().encode()
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(self.fd, view):]
+        except OSError as e:
+            os.ftruncate(self.fd, self.good)
+            what = "the header" if header else "pose %d" % (self.rows + 1)
+            raise RecordError("recording to '%s' failed while writing %s: %s (%s); kept %d complete poses, "
+                              "the file ends with the last complete pose" % (
+                                  self.path, what, e.strerror, errno.errorcode.get(e.errno, e.errno), self.rows))
+        self.good += len(data)
+        if not header:
+            self.rows += 1
+
+    def write(self, row):
+        self._write(row)
+
+    def close(self):
+        os.close(self.fd)
+
+
 def subscribe(args, pb2, pb2_grpc):
     import grpc
     stub = pb2_grpc.LocalizationStub(make_channel(args))
     req = pb2.StreamPosesRequest(session_id=args.session, from_start=args.from_start, queue_size=args.queue)
-    out = None
-    writer = None
-    if args.csv:
-        out = open(args.csv, "w", newline="")
-        writer = csv.writer(out, lineterminator="\n")
-        writer.writerow(CSV_COLUMNS)
-        out.flush()
+    recorder = None
     n = 0
     try:
+        if args.csv:
+            recorder = CsvRecorder(args.csv)
         for p in stub.StreamPoses(req, timeout=args.stream_timeout_s, metadata=metadata(args)):
             delay_ms = (time.time_ns() - p.published_unix_ns) * 1e-6
             n += 1
-            if writer:
-                writer.writerow(pose_row(p, delay_ms))
-                out.flush()  # a killed client leaves a valid file
+            if recorder:
+                recorder.write(pose_row(p, delay_ms))
             else:
                 print("seq=%d t=%.3f enu=(%.3f,%.3f,%.3f) mode=%s delay_ms=%.3f dropped=%d" % (
                     p.sequence, p.t_ns * 1e-9, p.position_enu_m.x, p.position_enu_m.y, p.position_enu_m.z,
@@ -96,9 +137,15 @@ def subscribe(args, pb2, pb2_grpc):
     except grpc.RpcError as e:
         sys.stderr.write("error: %s: %s\n" % (e.code().name, e.details()))
         return 1
+    except RecordError as e:
+        sys.stderr.write("error: %s\n" % e)
+        return 4
+    except OSError as e:
+        sys.stderr.write("error: %s: %s\n" % (args.csv, e.strerror))
+        return 4
     finally:
-        if out:
-            out.close()
+        if recorder:
+            recorder.close()
     sys.stderr.write("received %d poses\n" % n)
     return 0
 

@@ -339,6 +339,47 @@ TEST_F(ServerTest, PythonClientRecordsCsvWithTheCliColumns) {
   EXPECT_EQ(std::count(a.begin(), a.end(), '\n'), kFrames + 1);
 }
 
+// The Python recorder on a 1 KiB file-size limit (`ulimit -f 1`; Python
+// ignores SIGXFSZ, so the write fails with EFBIG): exit 4, a message naming
+// the file and the poses kept, and a CSV that ends with its last complete row.
+TEST_F(ServerTest, PythonRecorderKeepsAValidCsvWhenTheFileCannotGrow) {
+  if (std::system("/usr/bin/python3 -c 'import grpc' 2>/dev/null") != 0) {
+    GTEST_SKIP() << "python3-grpcio not installed";
+  }
+  Pusher push(stub_.get(), "");
+  ASSERT_TRUE(push.ok());
+  const std::string id = push.session().id();
+  constexpr int kFrames = 20;
+  for (int i = 0; i < kFrames; ++i) ASSERT_TRUE(push.Write(Gray8Frame((i + 1) * kFramePeriodNs)));
+  ASSERT_TRUE(push.WaitPoses(kFrames));
+  ASSERT_TRUE(push.Close().ok());
+  const auto csv = std::filesystem::path(::testing::TempDir()) / "python_limited.csv";
+  const CliResult py = RunShell("ulimit -f 1; PYTHONPATH=" + ShellQuote(LOCAID_PYTHON_STUBS) + " /usr/bin/python3 " +
+                                ShellQuote(std::string(LOCAID_SOURCE_DIR) + "/clients/python/locaid_client.py") +
+                                " --server 127.0.0.1:" + std::to_string(port_) + " subscribe " + id +
+                                " --from-start --csv " + ShellQuote(csv.string()));
+  EXPECT_EQ(py.exit_code, 4) << py.out << py.err;
+  EXPECT_NE(py.err.find(csv.string()), std::string::npos) << py.err;
+  EXPECT_NE(py.err.find("EFBIG"), std::string::npos) << py.err;
+  EXPECT_NE(py.err.find("complete poses"), std::string::npos) << py.err;
+  const std::string text = Slurp(csv);
+  ASSERT_FALSE(text.empty());
+  EXPECT_EQ(text.back(), '\n') << "the file must end with a complete row";
+  EXPECT_LE(text.size(), 1024u);
+  std::istringstream lines(text);
+  std::string line;
+  std::getline(lines, line);
+  const auto columns = std::count(line.begin(), line.end(), ',');
+  int rows = 0;
+  while (std::getline(lines, line)) {
+    EXPECT_EQ(std::count(line.begin(), line.end(), ','), columns) << "row " << rows;
+    ++rows;
+  }
+  EXPECT_GE(rows, 1);
+  EXPECT_LT(rows, kFrames);
+  EXPECT_NE(py.err.find("kept " + std::to_string(rows) + " complete poses"), std::string::npos) << py.err;
+}
+
 TEST_F(ServerTest, BadRequestsGetPreciseStatusesAndTheServerKeepsServing) {
   // Unknown session.
   CliResult r = RunCli(port_, {"session", "get", "s999"});
