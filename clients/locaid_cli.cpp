@@ -212,6 +212,10 @@ class Recorder {
                 << " latency_ms=" << p.processing_latency_ms() << " delay_ms=" << delay_ms
                 << " dropped=" << p.dropped_for_subscriber() << "\n"
                 << std::defaultfloat << std::flush;
+      if (!std::cout) {
+        throw RecordError("writing pose " + std::to_string(poses_ + 1) + " to standard output failed (" +
+                          std::strerror(errno) + "); " + std::to_string(poses_) + " poses were printed");
+      }
       ++poses_;
       return;
     }

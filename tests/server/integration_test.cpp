@@ -380,6 +380,24 @@ TEST_F(ServerTest, PythonRecorderKeepsAValidCsvWhenTheFileCannotGrow) {
   EXPECT_NE(py.err.find("kept " + std::to_string(rows) + " complete poses"), std::string::npos) << py.err;
 }
 
+// `locaid subscribe` printing to a full device (/dev/full): exit 4 and a
+// message saying how many poses were printed, not a silent success.
+TEST_F(ServerTest, PrintToAFullDeviceExitsWithARecordError) {
+  Pusher push(stub_.get(), "");
+  ASSERT_TRUE(push.ok());
+  const std::string id = push.session().id();
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(push.Write(Gray8Frame((i + 1) * kFramePeriodNs)));
+  ASSERT_TRUE(push.WaitPoses(3));
+  ASSERT_TRUE(push.Close().ok());
+  // A subshell, so RunShell's own redirection of stdout does not replace ours.
+  const CliResult r = RunShell("(" + ShellQuote(std::string(LOCAID_BIN_DIR) + "/locaid") + " --server 127.0.0.1:" +
+                               std::to_string(port_) + " subscribe " + id + " --from-start > /dev/full)");
+  EXPECT_EQ(r.exit_code, 4) << r.err;
+  EXPECT_NE(r.err.find("to standard output failed (No space left on device); 0 poses were printed"),
+            std::string::npos)
+      << r.err;
+}
+
 TEST_F(ServerTest, BadRequestsGetPreciseStatusesAndTheServerKeepsServing) {
   // Unknown session.
   CliResult r = RunCli(port_, {"session", "get", "s999"});
