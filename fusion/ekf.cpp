@@ -147,15 +147,18 @@ bool Ekf::UpdateGps(const GpsFix& fix) {
 
 // ------------------------------------------------------------------ VO
 
-void Ekf::ProcessVo(const VoMeasurement& m_in, bool vo_ok) {
-  VoMeasurement m = m_in;
-  // A non-finite motion or covariance is treated as VO lost (and counted).
-  if (!m.T_prev_curr.matrix().allFinite() || !m.covariance.allFinite()) {
+void Ekf::ProcessVo(const VoMeasurement& measured, bool vo_ok) {
+  // A non-finite motion or covariance is treated as VO lost (and counted);
+  // only then is a cleaned copy made.
+  const bool finite = measured.T_prev_curr.matrix().allFinite() && measured.covariance.allFinite();
+  VoMeasurement cleaned;  // identity motion and covariance
+  if (!finite) {
     if (vo_ok) ++vo_rejected_;
     vo_ok = false;
-    m.T_prev_curr = Eigen::Isometry3d::Identity();
-    m.covariance = Mat6::Identity();
+    cleaned.t_prev_ns = measured.t_prev_ns;
+    cleaned.t_ns = measured.t_ns;
   }
+  const VoMeasurement& m = finite ? measured : cleaned;
   const double dt = std::max(1e-3, Seconds(m.t_ns, m.t_prev_ns));
   Eigen::Isometry3d motion = m.T_prev_curr;
   if (!vo_ok) {
