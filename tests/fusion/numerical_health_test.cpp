@@ -325,19 +325,40 @@ struct Partial {
   size_t next = 0;
   int64_t last_frame_ns = 0;
 };
+// One simulated event into the filter, as the pipeline feeds it.
+void FeedEvent(Ekf& ekf, const SimEvent& e) {
+  if (e.kind == SimEvent::kImu) ekf.PropagateImu(e.imu);
+  else if (e.kind == SimEvent::kGps) ekf.UpdateGps(e.gps);
+  else if (e.vo.t_ns > 0) ekf.ProcessVo(e.vo, true);
+}
+
 Partial RunUntil(Ekf& ekf, const std::vector<SimEvent>& ev, double until_s) {
   Partial p;
   for (; p.next < ev.size(); ++p.next) {
     const SimEvent& e = ev[p.next];
     if (static_cast<double>(e.truth.t_ns) * 1e-9 > until_s) break;
-    if (e.kind == SimEvent::kImu) ekf.PropagateImu(e.imu);
-    else if (e.kind == SimEvent::kGps) ekf.UpdateGps(e.gps);
-    else if (e.vo.t_ns > 0) {
-      ekf.ProcessVo(e.vo, true);
-      p.last_frame_ns = e.vo.t_ns;
-    }
+    FeedEvent(ekf, e);
+    if (e.kind == SimEvent::kFrame && e.vo.t_ns > 0) p.last_frame_ns = e.vo.t_ns;
   }
   return p;
+}
+
+// Feeds events from *next on until the next one of `kind` (left unfed).
+void FeedUntil(Ekf& ekf, const std::vector<SimEvent>& ev, size_t* next, SimEvent::Kind kind) {
+  while (*next < ev.size() && ev[*next].kind != kind) FeedEvent(ekf, ev[(*next)++]);
+}
+
+Ekf EkfFor(bool use_imu) {
+  EkfConfig config;
+  config.use_imu = use_imu;
+  return Ekf(config);
+}
+
+void ExpectFiniteFilter(const Ekf& ekf) {
+  EXPECT_TRUE(ekf.state().p_enu_m.allFinite() && ekf.state().v_enu_mps.allFinite() &&
+              ekf.state().R_enu_body.allFinite())
+      << "NaN/Inf absorbed into the state";
+  EXPECT_TRUE(ekf.covariance().allFinite()) << "NaN/Inf absorbed into the covariance";
 }
 
 // The rest of the drive must stay healthy and end GPS_FUSED near the truth.
@@ -382,9 +403,7 @@ TEST_P(EkfBadNumbers, NonFiniteGpsFixIsRejectedAndCountedNotAbsorbed) {
   };
   for (const Bad& b : bads) {
     SCOPED_TRACE(b.name);
-    EkfConfig config;
-    config.use_imu = use_imu;
-    Ekf ekf(config);
+    Ekf ekf = EkfFor(use_imu);
     const Partial p = RunUntil(ekf, ev, 30);
     ASSERT_TRUE(ekf.initialized());
     // A valid fix at the state time (no propagation happens) with one bad field.
@@ -414,9 +433,7 @@ TEST_P(EkfBadNumbers, NonFiniteFirstFixDoesNotPoisonTheEnuOrigin) {
   // would make every later fix and output NaN.
   const bool use_imu = GetParam();
   const auto ev = Simulate(ShortDrive(82));
-  EkfConfig config;
-  config.use_imu = use_imu;
-  Ekf ekf(config);
+  Ekf ekf = EkfFor(use_imu);
   GpsFix bad;
   bad.t_ns = 0;
   bad.lat_deg = kNaN;
@@ -446,26 +463,17 @@ TEST_P(EkfBadNumbers, NonFiniteVoMeasurementIsNotAbsorbed) {
   };
   for (const Bad& b : bads) {
     SCOPED_TRACE(b.name);
-    EkfConfig config;
-    config.use_imu = use_imu;
-    Ekf ekf(config);
+    Ekf ekf = EkfFor(use_imu);
     Partial p = RunUntil(ekf, ev, 30);
     ASSERT_TRUE(ekf.initialized());
     // Replace the next frame's measurement by a spoiled copy.
-    while (p.next < ev.size() && ev[p.next].kind != SimEvent::kFrame) {
-      const SimEvent& e = ev[p.next++];
-      if (e.kind == SimEvent::kImu) ekf.PropagateImu(e.imu);
-      else ekf.UpdateGps(e.gps);
-    }
+    FeedUntil(ekf, ev, &p.next, SimEvent::kFrame);
     ASSERT_LT(p.next, ev.size());
     VoMeasurement m = ev[p.next++].vo;
     b.spoil(m);
     const int vo_rejected_before = ekf.vo_rejected();
     const bool threw = FeedBad([&] { ekf.ProcessVo(m, true); }, b.field);
-    EXPECT_TRUE(ekf.state().p_enu_m.allFinite() && ekf.state().v_enu_mps.allFinite() &&
-                ekf.state().R_enu_body.allFinite())
-        << "NaN/Inf absorbed into the state";
-    EXPECT_TRUE(ekf.covariance().allFinite()) << "NaN/Inf absorbed into the covariance";
+    ExpectFiniteFilter(ekf);
     const FusedPose out = ekf.Output(m.t_ns, true);
     EXPECT_TRUE(out.T_enu_body.matrix().allFinite() && out.covariance.allFinite() && std::isfinite(out.lat_deg));
     if (use_imu && !threw) {
@@ -489,32 +497,19 @@ TEST_P(EkfBadNumbers, NonFiniteImuSampleIsNotAbsorbed) {
   };
   for (const Bad& b : bads) {
     SCOPED_TRACE(b.name);
-    EkfConfig config;
-    config.use_imu = use_imu;
-    Ekf ekf(config);
+    Ekf ekf = EkfFor(use_imu);
     Partial p = RunUntil(ekf, ev, 30);
     ASSERT_TRUE(ekf.initialized());
-    while (p.next < ev.size() && ev[p.next].kind != SimEvent::kImu) {
-      const SimEvent& e = ev[p.next++];
-      if (e.kind == SimEvent::kGps) ekf.UpdateGps(e.gps);
-      else if (e.vo.t_ns > 0) ekf.ProcessVo(e.vo, true);
-    }
+    FeedUntil(ekf, ev, &p.next, SimEvent::kImu);
     ASSERT_LT(p.next, ev.size());
     ImuSample s = ev[p.next++].imu;
     b.spoil(s);
     FeedBad([&] { ekf.PropagateImu(s); }, b.field);
     // The next good sample propagates over the interval the bad one opened.
-    while (p.next < ev.size() && ev[p.next].kind != SimEvent::kImu) {
-      const SimEvent& e = ev[p.next++];
-      if (e.kind == SimEvent::kGps) ekf.UpdateGps(e.gps);
-      else if (e.vo.t_ns > 0) ekf.ProcessVo(e.vo, true);
-    }
+    FeedUntil(ekf, ev, &p.next, SimEvent::kImu);
     ASSERT_LT(p.next, ev.size());
     ekf.PropagateImu(ev[p.next++].imu);
-    EXPECT_TRUE(ekf.state().p_enu_m.allFinite() && ekf.state().v_enu_mps.allFinite() &&
-                ekf.state().R_enu_body.allFinite())
-        << "NaN/Inf absorbed into the state";
-    EXPECT_TRUE(ekf.covariance().allFinite()) << "NaN/Inf absorbed into the covariance";
+    ExpectFiniteFilter(ekf);
     FinishHealthy(ekf, ev, p.next, std::string(use_imu ? "imu/" : "no-imu/") + b.name);
   }
 }
