@@ -65,23 +65,15 @@ bool IsNumber(const std::string& s) {
 }
 
 v1::SessionStats GetStats(v1::Localization::Stub* stub, const std::string& id) {
-  grpc::ClientContext ctx;
-  SetDeadline(&ctx, 10);
-  v1::GetStatsRequest req;
-  req.set_session_id(id);
   v1::SessionStats stats;
-  const grpc::Status s = stub->GetStats(&ctx, req, &stats);
+  const grpc::Status s = FetchStats(stub, id, &stats);
   EXPECT_TRUE(s.ok()) << s.error_message();
   return stats;
 }
 
 v1::Session GetSession(v1::Localization::Stub* stub, const std::string& id) {
-  grpc::ClientContext ctx;
-  SetDeadline(&ctx, 10);
-  v1::GetSessionRequest req;
-  req.set_session_id(id);
   v1::Session session;
-  const grpc::Status s = stub->GetSession(&ctx, req, &session);
+  const grpc::Status s = FetchSession(stub, id, &session);
   EXPECT_TRUE(s.ok()) << s.error_message();
   return session;
 }

@@ -42,12 +42,8 @@ class ServerTest : public ::testing::Test {
   }
 
   v1::SessionStats Stats(const std::string& id) {
-    grpc::ClientContext ctx;
-    SetDeadline(&ctx);
-    v1::GetStatsRequest req;
-    req.set_session_id(id);
     v1::SessionStats stats;
-    EXPECT_TRUE(stub_->GetStats(&ctx, req, &stats).ok());
+    EXPECT_TRUE(FetchStats(stub_.get(), id, &stats).ok());
     return stats;
   }
 

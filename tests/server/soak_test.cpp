@@ -211,12 +211,8 @@ class Load {
 
  private:
   v1::SessionStats Stats(const std::string& id) {
-    grpc::ClientContext ctx;
-    SetDeadline(&ctx, 10);
-    v1::GetStatsRequest req;
-    req.set_session_id(id);
     v1::SessionStats stats;
-    const grpc::Status s = control_->GetStats(&ctx, req, &stats);
+    const grpc::Status s = FetchStats(control_.get(), id, &stats);
     if (!s.ok()) fig_->Fail("GetStats " + id + ": " + s.error_message());
     return stats;
   }

@@ -140,6 +140,22 @@ inline void SetDeadline(grpc::ClientContext* ctx, double seconds = 30) {
   ctx->set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(static_cast<int64_t>(seconds * 1000)));
 }
 
+// Unary GetStats / GetSession of one session with a 10 s deadline.
+inline grpc::Status FetchStats(v1::Localization::Stub* stub, const std::string& id, v1::SessionStats* out) {
+  grpc::ClientContext ctx;
+  SetDeadline(&ctx, 10);
+  v1::GetStatsRequest req;
+  req.set_session_id(id);
+  return stub->GetStats(&ctx, req, out);
+}
+inline grpc::Status FetchSession(v1::Localization::Stub* stub, const std::string& id, v1::Session* out) {
+  grpc::ClientContext ctx;
+  SetDeadline(&ctx, 10);
+  v1::GetSessionRequest req;
+  req.set_session_id(id);
+  return stub->GetSession(&ctx, req, out);
+}
+
 inline v1::LiveSource SmallCamera(int w = 32, int h = 24) {
   v1::LiveSource l;
   l.set_fx(30);
