@@ -51,7 +51,7 @@ def main():
     a = ap.parse_args()
     rows = read(a.csv)
     prefix = a.out or (a.csv[:-4] if a.csv.endswith(".csv") else a.csv)
-    f = lambda r, k: float(r[k])
+    f = lambda r, k: float(r[k]) if r[k] != "" else math.nan  # empty: no ground truth at that frame
     init = [r for r in rows if r["initialized"] == "1"]
     gps = [r for r in rows if r["gps_e"] != ""]
 

@@ -8,9 +8,14 @@ perfectly, better than any VO) to fixes 1..k, evaluated at fix k. No causal
 estimator that sees the same fixes can beat it on average, whatever its
 odometry, so its RMSE is a lower bound for rmse_gps_m on that noise draw.
 
-  bench/fusion/causal_bound.py run.csv [--skip-fixes 0] [--json]
+  bench/fusion/causal_bound.py run.csv [--min-fixes 6] [--json]
 
 Prints the bound and the filter's own horizontal RMSE at the same frames.
+For every outage (CSV column in_outage) it also prints the bound on the
+end-of-outage error: the same rigid fit to the accepted fixes before the
+outage, carried along the ground-truth track to the outage's last frame,
+against the filter's error there (both also in % of the distance driven in
+the outage, as locaid-replay's end_error_pct).
 The ground truth of each fix is taken at the fix's own time (columns
 gps_gt_e/gps_gt_n), the estimate at the frame the fix was fed at.
 """
@@ -34,7 +39,7 @@ def main():
             rows = list(csv.DictReader(f))
     except OSError as e:
         sys.exit(f"{args.csv}: {e.strerror}")
-    need = {"gt_e", "gt_n", "est_e", "est_n", "gps_e", "gps_n", "gps_rejected", "initialized", "mode",
+    need = {"t_s", "in_outage", "gt_e", "gt_n", "est_e", "est_n", "gps_e", "gps_n", "gps_rejected", "initialized", "mode",
             "gps_gt_e", "gps_gt_n"}
     if not rows or not need <= set(rows[0]):
         sys.exit(f"{args.csv}: not a locaid-replay CSV (needs columns {', '.join(sorted(need))})")
@@ -44,14 +49,10 @@ def main():
     gt_fix = np.array([[float(rows[i]["gps_gt_e"]), float(rows[i]["gps_gt_n"])] for i in fixes])
     bound, filt = [], []
     for k in range(args.min_fixes, len(fixes) + 1):
-        q, p = gt_fix[:k], z[:k]
-        qm, pm = q.mean(0), p.mean(0)
-        h = (q - qm).T @ (p - pm)
-        psi = math.atan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1])
-        rot = np.array([[math.cos(psi), -math.sin(psi)], [math.sin(psi), math.cos(psi)]])
+        rot, qm, pm = rigid_fit(gt_fix[:k], z[:k])
         i = fixes[k - 1]
         r = rows[i]
-        if r["initialized"] != "1" or r["mode"] not in ("GPS_FUSED", "GPS_DEGRADED"):
+        if r["initialized"] != "1" or r["gt_e"] == "" or r["mode"] not in ("GPS_FUSED", "GPS_DEGRADED"):
             continue
         # Both at the fix time: the filter's estimate at the frame carries the
         # motion since the fix, the bound is moved by the same true motion.
@@ -61,12 +62,67 @@ def main():
     if not bound:
         sys.exit(f"{args.csv}: no initialised frames with an accepted fix")
     rms = lambda v: math.sqrt(sum(x * x for x in v) / len(v))
-    out = {"csv": args.csv, "fixes": len(bound), "causal_ls_rmse_m": rms(bound), "filter_rmse_m": rms(filt)}
+    out = {"csv": args.csv, "fixes": len(bound), "causal_ls_rmse_m": rms(bound), "filter_rmse_m": rms(filt),
+           "outages": outage_bounds(rows, fixes, z, gt_fix, args.min_fixes)}
     if args.json:
         print(json.dumps(out, indent=2))
-    else:
-        print(f"{args.csv}: {len(bound)} accepted fixes; causal least-squares bound {out['causal_ls_rmse_m']:.3f} m, "
-              f"filter {out['filter_rmse_m']:.3f} m (horizontal RMSE at the same frames)")
+        return
+    print(f"{args.csv}: {len(bound)} accepted fixes; causal least-squares bound {out['causal_ls_rmse_m']:.3f} m, "
+          f"filter {out['filter_rmse_m']:.3f} m (horizontal RMSE at the same frames)")
+    for o in out["outages"]:
+        if o["bound_end_error_m"] is None:
+            print(f"  outage at {o['start_s']:.1f} s: only {o['fixes_before']} accepted fixes before it, no bound")
+            continue
+        print(f"  outage at {o['start_s']:.1f} s ({o['distance_m']:.1f} m, {o['fixes_before']} fixes before): "
+              f"end error bound {o['bound_end_error_m']:.2f} m ({o['bound_end_error_pct']:.2f} %), "
+              f"filter {o['filter_end_error_m']:.2f} m ({o['filter_end_error_pct']:.2f} %)")
+
+
+def rigid_fit(q, p):
+    """2D rotation + translation that maps q onto p in least squares: (rot, q_mean, p_mean)."""
+    qm, pm = q.mean(0), p.mean(0)
+    h = (q - qm).T @ (p - pm)
+    psi = math.atan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1])
+    return np.array([[math.cos(psi), -math.sin(psi)], [math.sin(psi), math.cos(psi)]]), qm, pm
+
+
+def outage_bounds(rows, fixes, z, gt_fix, min_fixes):
+    """Per outage window (runs of in_outage == 1): the causal LS end-of-outage error bound."""
+    xy = lambda r, a, b: np.array([float(r[a]), float(r[b])])
+    windows, start = [], None
+    for i, r in enumerate(rows):
+        if r.get("in_outage") == "1" and start is None:
+            start = i
+        elif r.get("in_outage") != "1" and start is not None:
+            windows.append((start, i - 1))
+            start = None
+    if start is not None:
+        windows.append((start, len(rows) - 1))
+    t0 = float(rows[0]["t_s"])
+    result = []
+    for i0, i1 in windows:
+        k = sum(1 for i in fixes if i < i0)
+        # Frames without ground truth (empty gt columns) are skipped; the
+        # outage ends at its last frame that has it.
+        # Distance from the last frame before the outage, as locaid-replay.
+        with_gt = [i for i in range(max(i0 - 1, 0), i1 + 1) if rows[i]["gt_e"] != ""]
+        if not with_gt or with_gt[-1] < i0:
+            continue
+        i1 = with_gt[-1]
+        gt_end = xy(rows[i1], "gt_e", "gt_n")
+        dist = sum(float(np.linalg.norm(xy(rows[b], "gt_e", "gt_n") - xy(rows[a], "gt_e", "gt_n")))
+                   for a, b in zip(with_gt, with_gt[1:]))
+        filt = float(np.linalg.norm(xy(rows[i1], "est_e", "est_n") - gt_end))
+        o = {"start_s": float(rows[i0]["t_s"]) - t0, "distance_m": dist, "fixes_before": k,
+             "filter_end_error_m": filt, "filter_end_error_pct": 100 * filt / dist if dist > 0 else None,
+             "bound_end_error_m": None, "bound_end_error_pct": None}
+        if k >= max(min_fixes, 2):
+            rot, qm, pm = rigid_fit(gt_fix[:k], z[:k])
+            b = float(np.linalg.norm(rot @ (gt_end - qm) + pm - gt_end))
+            o["bound_end_error_m"] = b
+            o["bound_end_error_pct"] = 100 * b / dist if dist > 0 else None
+        result.append(o)
+    return result
 
 
 if __name__ == "__main__":

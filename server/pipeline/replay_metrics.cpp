@@ -14,10 +14,12 @@ ReplayMetrics ComputeReplayMetrics(const std::vector<ReplaySample>& s, double si
   ReplayMetrics m;
   m.frames = static_cast<int>(s.size());
   auto err_h = [&](size_t i) { return (s[i].p_enu_est_m - s[i].p_enu_gt_m).head<2>().norm(); };
+  // A frame is scored only with a valid pose AND ground truth.
+  auto scored = [&](size_t i) { return s[i].initialized && s[i].has_gt; };
   double sum2 = 0, nees = 0;
   int n = 0;
   for (size_t i = 0; i < s.size(); ++i) {
-    if (!s[i].initialized) continue;
+    if (!scored(i)) continue;
     const Eigen::Vector3d e = s[i].p_enu_est_m - s[i].p_enu_gt_m;
     const double q = e.dot(s[i].P_pos_m2.ldlt().solve(e));
     if (std::isfinite(q)) { nees += q; ++m.nees_frames; }
@@ -36,16 +38,21 @@ ReplayMetrics ComputeReplayMetrics(const std::vector<ReplaySample>& s, double si
     o.start_s = s[i].t_s;
     o.duration_s = (j + 1 < s.size() ? s[j + 1].t_s : s[j].t_s) - s[i].t_s;
     const size_t first = i > 0 ? i - 1 : i;  // last frame with GPS before the outage
-    for (size_t k = first + 1; k <= j; ++k)
-      o.distance_m += (s[k].p_enu_gt_m - s[k - 1].p_enu_gt_m).norm();
+    // Path length over the frames with ground truth (a gap is bridged).
+    for (size_t k = first, prev = s.size(); k <= j; ++k) {
+      if (!s[k].has_gt) continue;
+      if (prev < s.size()) o.distance_m += (s[k].p_enu_gt_m - s[prev].p_enu_gt_m).norm();
+      prev = k;
+    }
     for (size_t k = i; k <= j; ++k)
-      if (s[k].initialized) o.max_error_m = std::max(o.max_error_m, err_h(k));
-    o.end_error_m = s[j].initialized ? err_h(j) : std::nan("");
+      if (scored(k)) o.max_error_m = std::max(o.max_error_m, err_h(k));
+    o.end_error_m = scored(j) ? err_h(j) : std::nan("");
     o.end_error_pct = o.distance_m > 0 ? 100.0 * o.end_error_m / o.distance_m : std::nan("");
     for (size_t k = j + 1; k < s.size() && !s[k].in_outage; ++k) {
-      if (err_h(k) <= 2 * sigma_h) { o.reconverge_s = s[k].t_s - s[j].t_s; break; }
+      if (scored(k) && err_h(k) <= 2 * sigma_h) { o.reconverge_s = s[k].t_s - s[j].t_s; break; }
     }
     for (size_t k = j + 1; k < s.size() && s[k].t_s - s[j].t_s <= 10.0; ++k) {
+      if (!scored(k) || !scored(k - 1)) continue;
       const Eigen::Vector3d d_est = s[k].p_enu_est_m - s[k - 1].p_enu_est_m;
       const Eigen::Vector3d d_gt = s[k].p_enu_gt_m - s[k - 1].p_enu_gt_m;
       o.max_jump_m = std::max(o.max_jump_m, (d_est - d_gt).head<2>().norm());
@@ -104,14 +111,15 @@ void WritePlotCsv(const std::string& path, const std::vector<ReplaySample>& samp
     const PlotExtras none;
     const PlotExtras& x = extras.empty() ? none : extras[k];
     csv << s.t_s << ',';
-    xyz(s.p_enu_gt_m);
+    xyz(s.has_gt ? std::optional<Eigen::Vector3d>(s.p_enu_gt_m) : std::nullopt);
     xyz(s.p_enu_est_m);
     xyz(x.p_enu_gps_m);
     csv << int(x.gps_rejected) << ',';
     xyz(x.p_enu_vo_m);
     csv << std::sqrt(s.P_pos_m2(0, 0)) << ',' << std::sqrt(s.P_pos_m2(1, 1)) << ','
-        << std::sqrt(s.P_pos_m2(2, 2)) << ',' << (s.p_enu_est_m - s.p_enu_gt_m).head<2>().norm() << ','
-        << fusion::ToString(s.mode) << ',' << int(s.in_outage) << ',' << int(s.initialized) << ',';
+        << std::sqrt(s.P_pos_m2(2, 2)) << ',';
+    if (s.has_gt) csv << (s.p_enu_est_m - s.p_enu_gt_m).head<2>().norm();
+    csv << ',' << fusion::ToString(s.mode) << ',' << int(s.in_outage) << ',' << int(s.initialized) << ',';
     if (x.p_enu_gt_at_gps_m) csv << x.p_enu_gt_at_gps_m->x() << ',' << x.p_enu_gt_at_gps_m->y() << ',' << x.p_enu_gt_at_gps_m->z();
     else csv << ",,";
     csv << '\n';

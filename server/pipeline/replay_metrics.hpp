@@ -19,6 +19,7 @@ struct ReplaySample {
   Eigen::Matrix3d P_pos_m2 = Eigen::Matrix3d::Identity();  // position covariance
   fusion::Mode mode = fusion::Mode::kLost;
   bool initialized = false;  // filter initialised (pose valid)
+  bool has_gt = true;        // p_enu_gt_m known (false: frame left out of every metric)
   bool in_outage = false;
 };
 

@@ -1,6 +1,8 @@
 // locaid-replay as a user runs it: on a small rendered drive, the VO cache
 // gives the same filter result without rerunning VO, a cache of another run
-// is refused by name, and --ekf settings are checked.
+// is refused by name, and --ekf settings are checked. Also
+// bench/fusion/causal_bound.py, on a CSV whose answer is known by hand and on
+// a real locaid-replay CSV.
 #include <gtest/gtest.h>
 
 #include <array>
@@ -107,6 +109,69 @@ TEST_F(ReplayCli, BadEkfSettingsNameTheProblem) {
     EXPECT_NE(r.exit_code, 0) << bad;
     EXPECT_NE(r.out.find("value must be a finite number >= 0"), std::string::npos) << bad << ": " << r.out;
   }
+}
+
+std::string CausalBound(const fs::path& csv) {
+  return "/usr/bin/python3 " + std::string(LOCAID_SOURCE_DIR) + "/bench/fusion/causal_bound.py --json " +
+         csv.string();
+}
+
+// A straight drive east at 1 m per frame, a fix on every frame exactly 0.5 m
+// east of the truth, an outage on frames 20-29 (distance counted from frame
+// 19, the last with GPS, as locaid-replay does: 10 m) and a filter that is
+// 2 m north at the outage's last frame: the rigid fit recovers the 0.5 m
+// offset exactly, so every bound figure is known.
+TEST_F(ReplayCli, CausalBoundScriptOnAKnownTrack) {
+  const fs::path csv = root_ / "known.csv";
+  {
+    std::ofstream f(csv);
+    f << "t_s,gt_e,gt_n,gt_u,est_e,est_n,est_u,gps_e,gps_n,gps_u,gps_rejected,vo_e,vo_n,vo_u,sigma_e,sigma_n,"
+         "sigma_u,err_h,mode,in_outage,initialized,gps_gt_e,gps_gt_n,gps_gt_u\n";
+    for (int i = 0; i < 40; ++i) {
+      const bool outage = i >= 20 && i < 30;
+      const double e = i, est_n = i == 29 ? 2.0 : 0.0;
+      f << 100 + 0.1 * i << "," << e << ",0,0," << e << "," << est_n << ",0,";
+      if (outage) f << ",,,,";
+      else f << e + 0.5 << ",0,0,0,";
+      f << ",,,1,1,1,0," << (outage ? "VO_ONLY" : "GPS_FUSED") << "," << (outage ? 1 : 0) << ",1,";
+      if (outage) f << ",,\n";
+      else f << e << ",0,0\n";
+    }
+  }
+  const auto r = RunCommand(CausalBound(csv));
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NEAR(std::stod(JsonField(r.out, "causal_ls_rmse_m")), 0.5, 1e-9) << r.out;
+  EXPECT_NEAR(std::stod(JsonField(r.out, "fixes_before")), 20, 0) << r.out;
+  EXPECT_NEAR(std::stod(JsonField(r.out, "distance_m")), 10.0, 1e-9) << r.out;
+  EXPECT_NEAR(std::stod(JsonField(r.out, "bound_end_error_m")), 0.5, 1e-9) << r.out;
+  EXPECT_NEAR(std::stod(JsonField(r.out, "filter_end_error_m")), 2.0, 1e-9) << r.out;
+  EXPECT_NEAR(std::stod(JsonField(r.out, "filter_end_error_pct")), 20.0, 1e-9) << r.out;
+  EXPECT_NEAR(std::stod(JsonField(r.out, "bound_end_error_pct")), 5.0, 1e-9) << r.out;
+
+  std::ofstream(root_ / "not_replay.csv") << "a,b\n1,2\n";
+  const auto bad = RunCommand(CausalBound(root_ / "not_replay.csv"));
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.out.find("not a locaid-replay CSV"), std::string::npos) << bad.out;
+}
+
+// On a real run with an outage the script agrees with locaid-replay on the
+// filter's end-of-outage error and distance (to the CSV's 4 decimals).
+TEST_F(ReplayCli, CausalBoundScriptAgreesWithReplayOnTheOutage) {
+  ASSERT_FALSE(drive_.empty());
+  const fs::path scenario = root_ / "outage.yaml", csv = root_ / "outage.csv";
+  std::ofstream(scenario) << "base: open-sky\noutages:\n  - {start_s: 4, duration_s: 2}\n";
+  const auto replay = RunCommand(std::string(LOCAID_BIN_DIR) + "/locaid-replay --drive " + drive_.string() +
+                                 " --scenario " + scenario.string() + " --json --out-csv " + csv.string());
+  ASSERT_EQ(replay.exit_code, 0) << replay.out;
+  const auto r = RunCommand(CausalBound(csv));
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NEAR(std::stod(JsonField(r.out, "filter_end_error_m")), std::stod(JsonField(replay.out, "end_error_m")),
+              1e-3)
+      << replay.out << "\n" << r.out;
+  EXPECT_NEAR(std::stod(JsonField(r.out, "distance_m")), std::stod(JsonField(replay.out, "distance_m")), 1e-2)
+      << replay.out << "\n" << r.out;
+  EXPECT_GE(std::stod(JsonField(r.out, "bound_end_error_m")), 0.0) << r.out;
+  EXPECT_GT(std::stod(JsonField(r.out, "fixes_before")), 10) << r.out;
 }
 
 }  // namespace

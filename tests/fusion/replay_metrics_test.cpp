@@ -43,6 +43,32 @@ TEST(ReplayMetrics, RmseWhileGpsUsedIsTheHorizontalOffset) {
   EXPECT_TRUE(metrics.outages.empty());
 }
 
+// A frame without ground truth (its position reads as zero) after an outage
+// must not count as a pose jump, stretch the outage distance, or enter the
+// RMSE; the CSV leaves its ground truth and error empty.
+TEST(ReplayMetrics, FramesWithoutGroundTruthAreLeftOutOfEveryMetric) {
+  auto samples = StraightDrive(60);
+  for (int k = 20; k < 30; ++k) samples[k].in_outage = true;
+  samples[25].has_gt = false;
+  samples[25].p_enu_gt_m.setZero();
+  samples[59].has_gt = false;
+  samples[59].p_enu_gt_m.setZero();
+  const auto metrics = locaid::pipeline::ComputeReplayMetrics(samples, 3.0);
+  EXPECT_NEAR(metrics.rmse_gps_m, 1.0, 1e-9);
+  ASSERT_EQ(metrics.outages.size(), 1u);
+  EXPECT_NEAR(metrics.outages[0].distance_m, 10.0, 1e-9);  // frames 19 -> 29, 1 m each
+  EXPECT_NEAR(metrics.outages[0].end_error_m, 1.0, 1e-9);
+  EXPECT_NEAR(metrics.outages[0].max_error_m, 1.0, 1e-9);
+  EXPECT_NEAR(metrics.outages[0].max_jump_m, 0.0, 1e-9);
+
+  const std::string path = (std::filesystem::path(::testing::TempDir()) / "plot_no_gt.csv").string();
+  locaid::pipeline::WritePlotCsv(path, samples);
+  const auto lines = Lines(path);
+  ASSERT_EQ(lines.size(), 61u);
+  EXPECT_EQ(lines[60].rfind("5.9000,,,,1.0000,59.0000,0.0000,", 0), 0u) << lines[60];
+  EXPECT_NE(lines[60].find(",1.0000,1.0000,1.0000,,GPS_FUSED,0,1,"), std::string::npos) << lines[60];
+}
+
 TEST(ReplayMetrics, PlotCsvLeavesUnknownTracksEmptyAndFillsKnownOnes) {
   const auto samples = StraightDrive(3);
   const auto dir = std::filesystem::path(::testing::TempDir());

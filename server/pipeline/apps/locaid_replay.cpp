@@ -293,9 +293,12 @@ int main(int argc, char** argv) {
       s.in_outage = r.in_outage;
       s.p_enu_est_m = r.pose.T_enu_body.translation();
       s.P_pos_m2 = r.pose.covariance.topLeftCorner<3, 3>();
+      s.has_gt = false;  // no ground truth here: left out of the metrics
       if (gt_enu) {
-        if (auto gt = gt_at(t_ns)) s.p_enu_gt_m = gt->translation();
-        else s.initialized = false;  // no ground truth here: leave out of the metrics
+        if (auto gt = gt_at(t_ns)) {
+          s.p_enu_gt_m = gt->translation();
+          s.has_gt = true;
+        }
       }
       samples.push_back(s);
       std::optional<Eigen::Vector3d> g, g_gt;
@@ -346,7 +349,7 @@ int main(int argc, char** argv) {
       if (!tum) throw std::runtime_error(out_tum + ": cannot write");
       tum << std::fixed << std::setprecision(6);
       for (size_t k = 0; k < results.size(); ++k) {
-        if (!samples[k].initialized) continue;
+        if (!samples[k].initialized) continue;  // a pose without ground truth is still written
         const auto& T = results[k].pose.T_enu_body;
         const Eigen::Quaterniond q(T.linear());
         tum << dataset->tum_time_s(k) << ' ' << T.translation().x() << ' ' << T.translation().y() << ' '
