@@ -4,6 +4,15 @@
 // lengths given by --lengths (default 25 50 75 100 m for short drives), plus
 // the final position error as % of the ground-truth path length.
 //
+// Error split (JSON "split"): every devkit segment's translation error, in the
+// segment's first ground-truth camera frame, cut into its horizontal (camera
+// x, z) and vertical (camera y) parts, each averaged like t_rel. And the
+// "slant" of the motion: for blocks of 10 frames, the angle of the block's
+// translation out of the camera's x-z plane, atan2(-t_y, |t_xz|); a car moves
+// along its floor, so this stays near the camera's mounting pitch. The spread
+// (max |slant - median|) of the ground truth next to the estimate's shows how
+// much vertical motion the reference has that the camera did not see.
+//
 //   vo_bench --drive DIR [--method NAME|all] [--lengths 25 50 75 100] [--max-frames N]
 #include "kitti/dataset.hpp"
 #include "kitti/eval/devkit.hpp"
@@ -14,9 +23,63 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+
+namespace {
+
+using locaid::kitti::eval::SegmentError;
+
+struct SplitError {
+  double horizontal = 0, vertical = 0;  // mean over segments, fraction of the length
+};
+
+// Mean horizontal / vertical error of the segments (devkit pose error).
+SplitError SplitSegmentErrors(const std::vector<Eigen::Isometry3d>& gt, const std::vector<Eigen::Isometry3d>& est,
+                              const std::vector<SegmentError>& segments, float length_m = 0) {
+  SplitError out;
+  int n = 0;
+  for (const SegmentError& seg : segments) {
+    if (length_m > 0 && seg.length_m != length_m) continue;
+    const Eigen::Isometry3d d_gt = gt[seg.first_frame].inverse() * gt[seg.last_frame];
+    const Eigen::Isometry3d d_est = est[seg.first_frame].inverse() * est[seg.last_frame];
+    const Eigen::Vector3d e = (d_est.inverse() * d_gt).translation();
+    out.horizontal += std::hypot(e.x(), e.z()) / seg.length_m;
+    out.vertical += std::abs(e.y()) / seg.length_m;
+    ++n;
+  }
+  if (n > 0) {
+    out.horizontal /= n;
+    out.vertical /= n;
+  }
+  return out;
+}
+
+struct Slant {
+  double median_deg = 0, max_dev_deg = 0;
+};
+
+// Angle of each 10-frame block's motion out of the camera x-z plane (moving
+// blocks only: > 2 m).
+Slant MotionSlant(const std::vector<Eigen::Isometry3d>& poses) {
+  std::vector<double> deg;
+  for (size_t i = 0; i + 10 < poses.size(); i += 10) {
+    const Eigen::Vector3d t = (poses[i].inverse() * poses[i + 10]).translation();
+    if (t.norm() < 2.0) continue;
+    deg.push_back(std::atan2(-t.y(), std::hypot(t.x(), t.z())) * 180 / M_PI);
+  }
+  Slant s;
+  if (deg.empty()) return s;
+  std::vector<double> sorted = deg;
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<long>(sorted.size() / 2), sorted.end());
+  s.median_deg = sorted[sorted.size() / 2];
+  for (double d : deg) s.max_dev_deg = std::max(s.max_dev_deg, std::abs(d - s.median_deg));
+  return s;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   using namespace locaid;
@@ -86,6 +149,19 @@ int main(int argc, char** argv) {
       for (const auto& pl : r.per_length)
         if (pl.t_err)
           j["t_rel_pct_by_length"][std::to_string(static_cast<int>(pl.length_m))] = *pl.t_err * 100;
+      const SplitError split = SplitSegmentErrors(gt, est, r.segments);
+      j["split"]["t_rel_horizontal_pct"] = split.horizontal * 100;
+      j["split"]["t_rel_vertical_pct"] = split.vertical * 100;
+      for (const auto& pl : r.per_length) {
+        if (!pl.t_err) continue;
+        const SplitError sl = SplitSegmentErrors(gt, est, r.segments, pl.length_m);
+        const std::string key = std::to_string(static_cast<int>(pl.length_m));
+        j["split"]["horizontal_pct_by_length"][key] = sl.horizontal * 100;
+        j["split"]["vertical_pct_by_length"][key] = sl.vertical * 100;
+      }
+      const Slant slant_gt = MotionSlant(gt), slant_est = MotionSlant(est);
+      j["split"]["slant_10_frames_gt_deg"] = {{"median", slant_gt.median_deg}, {"max_dev", slant_gt.max_dev_deg}};
+      j["split"]["slant_10_frames_est_deg"] = {{"median", slant_est.median_deg}, {"max_dev", slant_est.max_dev_deg}};
       j["final_error_m"] = final_err;
       j["final_error_pct"] = 100 * final_err / length;
       j["ms_per_frame_median"] = s.ms_per_frame_median;
