@@ -45,7 +45,9 @@ SplitError SplitSegmentErrors(const std::vector<Eigen::Isometry3d>& gt, const st
     if (length_m > 0 && seg.length_m != length_m) continue;
     const Eigen::Isometry3d d_gt = gt[seg.first_frame].inverse() * gt[seg.last_frame];
     const Eigen::Isometry3d d_est = est[seg.first_frame].inverse() * est[seg.last_frame];
-    const Eigen::Vector3d e = (d_est.inverse() * d_gt).translation();
+    // End-position difference in the segment's start camera frame (the devkit
+    // error has the same norm, expressed in the estimate's end frame).
+    const Eigen::Vector3d e = d_gt.translation() - d_est.translation();
     out.horizontal += std::hypot(e.x(), e.z()) / seg.length_m;
     out.vertical += std::abs(e.y()) / seg.length_m;
     ++n;
