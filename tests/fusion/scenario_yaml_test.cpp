@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
@@ -14,6 +15,27 @@ std::string WriteTemp(const std::string& name, const std::string& text) {
   const auto path = std::filesystem::path(::testing::TempDir()) / name;
   std::ofstream(path) << text;
   return path.string();
+}
+
+// Every example shipped in scenarios/ loads, and the two urban-canyon files
+// differ from the built-in only where they say.
+TEST(ScenarioYaml, ShippedExamplesLoad) {
+  const auto dir = std::filesystem::path(LOCAID_SOURCE_DIR) / "scenarios";
+  int files = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) {
+    if (e.path().extension() != ".yaml") continue;
+    ++files;
+    EXPECT_NO_THROW(LoadScenario(e.path().string())) << e.path();
+  }
+  EXPECT_GE(files, 5);
+  const auto builtin = fusion::BuiltinScenario("urban-canyon");
+  const auto per_axis = LoadScenario((dir / "urban-canyon.yaml").string());
+  const auto two_d = LoadScenario((dir / "urban-canyon-2drms.yaml").string());
+  EXPECT_DOUBLE_EQ(per_axis.gps_sigma_h_m, builtin.gps_sigma_h_m);
+  EXPECT_NEAR(two_d.gps_sigma_h_m * std::sqrt(2.0), builtin.gps_sigma_h_m, 1e-4);
+  EXPECT_DOUBLE_EQ(two_d.gps_rate_hz, builtin.gps_rate_hz);
+  EXPECT_DOUBLE_EQ(two_d.jump_probability, builtin.jump_probability);
+  EXPECT_DOUBLE_EQ(two_d.jump_size_m, builtin.jump_size_m);
 }
 
 TEST(ScenarioYaml, LoadsAGoodFile) {
