@@ -636,7 +636,23 @@ TEST(FaultTest, SigtermWith100OpenStreamsEndsEveryStreamAndExitsPromptly) {
   }
   const v1::SessionStats attached = WaitStats(
       stub.get(), id, 30, [&](const v1::SessionStats& s) { return s.subscribers() >= kStreams + kClis; });
-  ASSERT_EQ(attached.subscribers(), static_cast<uint32_t>(kStreams + kClis));
+  if (attached.subscribers() != static_cast<uint32_t>(kStreams + kClis)) {
+    // Say which ones are missing and why (a stream that ended, a CLI that exited).
+    std::string why;
+    for (size_t i = 0; i < streams.size(); ++i) {
+      if (!streams[i]->done()) continue;
+      const grpc::Status st = streams[i]->status();
+      why += "stream " + std::to_string(i) + " (connection " + std::to_string(i % kConnections) +
+             ") ended: " + std::to_string(st.error_code()) + " " + st.error_message() + "\n";
+    }
+    for (int i = 0; i < kClis; ++i) {
+      const std::string n = std::to_string(i);
+      why += "cli " + n + (clis[static_cast<size_t>(i)]->Wait(0) ? " exited: " : " running: ") +
+             Slurp(dir / ("cli" + n + ".err")) + "\n";
+    }
+    FAIL() << attached.subscribers() << " of " << kStreams + kClis << " subscribers attached within 30 s\n"
+           << why << "server log:\n" << server.log();
+  }
   for (auto& s : streams) ASSERT_TRUE(s->WaitPoses(1, 20)) << "a stream saw no pose";
   const v1::Session before = GetSession(stub.get(), id);
   ASSERT_EQ(before.state(), v1::SESSION_STATE_RUNNING) << "the session must still run at SIGTERM";
