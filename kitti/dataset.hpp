@@ -25,6 +25,9 @@ struct DatasetReport {
   int oxts_records = 0;                          // records present
   int oxts_expected = 0;                         // records the index range implies
   bool oxts_timestamps_estimated = false;        // no oxts/timestamps.txt
+  // Why each unreadable OXTS record was left out (only with skip_bad_oxts);
+  // each is also in `notes`.
+  std::vector<std::string> oxts_skipped;
   std::vector<std::string> notes;                // human-readable, one per finding
 };
 

@@ -168,7 +168,8 @@ void RawDrive::ReadOxts(const RawDriveOptions& options) {
       records[index] = ReadOxtsFile(entry.path());
     } catch (const Error& e) {
       if (!options.skip_bad_oxts) throw;
-      report_.notes.push_back(std::string("skipped bad OXTS file: ") + e.what());
+      report_.oxts_skipped.push_back(std::string("skipped bad OXTS file: ") + e.what());
+      report_.notes.push_back(report_.oxts_skipped.back());
     }
   }
   report_.oxts_records = static_cast<int>(records.size());
@@ -208,7 +209,8 @@ void RawDrive::ReadOxts(const RawDriveOptions& options) {
                                 " has no time (" + std::to_string(times.size()) + " lines in " +
                                 (have_ts ? "oxts" : "image_00") + "/timestamps.txt)";
         if (!options.skip_bad_oxts) throw Error(msg);
-        report_.notes.push_back("skipped OXTS record: " + msg);
+        report_.oxts_skipped.push_back("skipped OXTS record: " + msg);
+        report_.notes.push_back(report_.oxts_skipped.back());
         continue;
       }
       t = times[static_cast<size_t>(index)];

@@ -28,12 +28,9 @@ DatasetFrameSource::DatasetFrameSource(std::unique_ptr<kitti::StereoDataset> dat
   }
   // Unreadable OXTS files (NaN, wrong field count, ...) that a reader opened
   // with skip_bad_oxts left out: counted as bad OXTS lines of the session.
-  for (const std::string& note : dataset_->report().notes) {
-    if (note.rfind("skipped bad OXTS file", 0) == 0 || note.rfind("skipped OXTS record", 0) == 0) {
-      ++skipped_oxts_;
-      skipped_oxts_error_ = note;
-    }
-  }
+  const auto& skipped = dataset_->report().oxts_skipped;
+  skipped_oxts_ = static_cast<int>(skipped.size());
+  if (!skipped.empty()) skipped_oxts_error_ = skipped.back();
 }
 
 double DatasetFrameSource::duration_s() const {

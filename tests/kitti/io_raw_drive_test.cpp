@@ -206,6 +206,8 @@ TEST(IoRawDrive, BadOxtsThrowsOrIsSkippedOnRequest) {
   EXPECT_EQ(ds->report().oxts_records, kFrames - 1);
   EXPECT_EQ(ds->report().oxts_expected, kFrames);
   EXPECT_TRUE(HasNote(*ds, bad.string() + ":1: 29 fields"));
+  ASSERT_EQ(ds->report().oxts_skipped.size(), 1u);
+  EXPECT_NE(ds->report().oxts_skipped[0].find(bad.string() + ":1: 29 fields"), std::string::npos);
   // Frame 2 is interpolated between OXTS 1 and 3 (0.2 s gap < 0.5 s).
   ASSERT_TRUE(ds->ground_truth(2).has_value());
   EXPECT_NEAR(ds->ground_truth(2)->translation().norm(), 2 * kSpeedMps * 0.1, kPoseTol);
