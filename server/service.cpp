@@ -105,12 +105,23 @@ class HubStream : public Reactor, public StreamTarget {
         std::move(peer));
   }
 
-  // The hub status at the end of the stream: OK, or ABORTED when the
-  // session failed.
-  Status EndStatus() const {
-    return session_->state() == v1::SESSION_STATE_FAILED
-               ? Status(StatusCode::ABORTED, "session " + session_->id() + " failed: " + session_->ToProto().error())
-               : Status::OK;
+  // The next hub item of this stream: kWrite with *item and the subscriber's
+  // drop count, kEnd with the end status (OK, or ABORTED when the session
+  // failed), kIdle while the queue is empty. With mu_ held, after Subscribe().
+  Next PopLocked(Hub::Item* item, uint64_t* dropped, Status* end) {
+    switch (sub_->Pop(item, dropped)) {
+      case Hub::Subscriber::PopResult::kItem:
+        return Next::kWrite;
+      case Hub::Subscriber::PopResult::kEnd:
+        *end = session_->state() == v1::SESSION_STATE_FAILED
+                   ? Status(StatusCode::ABORTED,
+                            "session " + session_->id() + " failed: " + session_->ToProto().error())
+                   : Status::OK;
+        return Next::kEnd;
+      case Hub::Subscriber::PopResult::kEmpty:
+        break;
+    }
+    return Next::kIdle;
   }
 
   void WriteNextLocked() {
@@ -171,17 +182,9 @@ class PoseWriter final : public HubStream<grpc::ServerWriteReactor<grpc::ByteBuf
   Next NextLocked(grpc::ByteBuffer* out, Status* end) override {
     Hub::Item item;
     uint64_t dropped = 0;
-    switch (sub_->Pop(&item, &dropped)) {
-      case Hub::Subscriber::PopResult::kItem:
-        *out = EncodePoseForSubscriber(encodings_->Get(item), dropped);
-        return Next::kWrite;
-      case Hub::Subscriber::PopResult::kEnd:
-        *end = EndStatus();
-        return Next::kEnd;
-      case Hub::Subscriber::PopResult::kEmpty:
-        break;
-    }
-    return Next::kIdle;
+    const Next next = PopLocked(&item, &dropped, end);
+    if (next == Next::kWrite) *out = EncodePoseForSubscriber(encodings_->Get(item), dropped);
+    return next;
   }
 
   const std::shared_ptr<PoseEncodings> encodings_;
@@ -323,19 +326,13 @@ class PushReactor final : public HubStream<grpc::ServerBidiReactor<v1::PushReque
     if (!sub_) return Next::kIdle;
     Hub::Item item;
     uint64_t dropped = 0;
-    switch (sub_->Pop(&item, &dropped)) {
-      case Hub::Subscriber::PopResult::kItem:
-        out->Clear();
-        *out->mutable_pose() = *item;
-        out->mutable_pose()->set_dropped_for_subscriber(dropped);
-        return Next::kWrite;
-      case Hub::Subscriber::PopResult::kEnd:
-        *end = Status::OK;
-        return Next::kEnd;
-      case Hub::Subscriber::PopResult::kEmpty:
-        break;
+    const Next next = PopLocked(&item, &dropped, end);
+    if (next == Next::kWrite) {
+      out->Clear();
+      *out->mutable_pose() = *item;
+      out->mutable_pose()->set_dropped_for_subscriber(dropped);
     }
-    return Next::kIdle;
+    return next;
   }
 
   const std::string peer_;

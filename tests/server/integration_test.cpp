@@ -179,6 +179,34 @@ TEST_F(ServerTest, PushedFramesComeBackAsPosesAndBadInputIsCountedNotFatal) {
   EXPECT_NE(list.out.find(id + " FINISHED"), std::string::npos) << list.out;
 }
 
+// An estimator that throws fails the session: the pose stream and the push
+// stream both end with ABORTED naming the error, after the poses made before.
+TEST_F(ServerTest, AFailedSessionEndsItsStreamsWithAborted) {
+  v1::StartSessionRequest req;
+  *req.mutable_live() = SmallCamera();
+  req.set_vo_method("fake-fail-at-3");
+  grpc::ClientContext ctx;
+  SetDeadline(&ctx);
+  v1::Session session;
+  ASSERT_TRUE(stub_->StartSession(&ctx, req, &session).ok());
+  PoseCollector poses(grpc::CreateChannel("127.0.0.1:" + std::to_string(port_), grpc::InsecureChannelCredentials()),
+                      session.id(), true);
+  WaitForSubscribers(session.id(), 1);
+  Pusher push(stub_.get(), session.id());
+  ASSERT_TRUE(push.ok());
+  for (int i = 0; i < 6; ++i) ASSERT_TRUE(push.Write(Gray8Frame((i + 1) * kFramePeriodNs)));
+  const grpc::Status push_end = push.Close();
+  EXPECT_EQ(push_end.error_code(), grpc::ABORTED) << push_end.error_message();
+  EXPECT_NE(push_end.error_message().find("fake estimator failed at frame 3"), std::string::npos)
+      << push_end.error_message();
+  ASSERT_TRUE(poses.WaitDone(30));
+  EXPECT_EQ(poses.status().error_code(), grpc::ABORTED) << poses.status().error_message();
+  EXPECT_NE(poses.status().error_message().find("session " + session.id() + " failed"), std::string::npos)
+      << poses.status().error_message();
+  EXPECT_EQ(poses.count(), 3u);
+  EXPECT_EQ(push.poses().size(), 3u);
+}
+
 TEST_F(ServerTest, ManySubscribersThatKeepUpLoseNothingAndAStalledOneIsBounded) {
   const std::string id = StartLiveSession();
   constexpr int kSubscribers = 20;

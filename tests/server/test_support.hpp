@@ -45,7 +45,10 @@ namespace v1 = locaid::v1;
 // it was given as "GPS used", so tests can see that OXTS reached it.
 class FakeEstimator : public FrameEstimator {
  public:
+  // fail_at >= 0: Process() throws on that frame (0-based), so the session fails.
+  explicit FakeEstimator(int fail_at = -1) : fail_at_(fail_at) {}
   Estimate Process(const vo::StereoFrame& frame, std::span<const kitti::OxtsSample> oxts) override {
+    if (frames_ == fail_at_) throw std::runtime_error("fake estimator failed at frame " + std::to_string(frames_));
     Estimate e;
     e.pose.t_ns = frame.t_ns;
     e.pose.T_enu_body.translation() = Eigen::Vector3d(static_cast<double>(frames_++), 0, 0);
@@ -71,14 +74,17 @@ class FakeEstimator : public FrameEstimator {
   bool origin(double*, double*, double*) const override { return false; }
 
  private:
+  int fail_at_ = -1;
   int frames_ = 0;
   int gps_used_ = 0;
   bool forced_ = false;
   std::vector<std::pair<int64_t, int64_t>> windows_;
 };
 
+// VO method "fake-fail-at-3" gives an estimator that throws on frame 3.
 inline EstimatorFactory FakeFactory() {
   return [](const EstimatorSetup& setup) -> std::unique_ptr<FrameEstimator> {
+    if (setup.vo_method == "fake-fail-at-3") return std::make_unique<FakeEstimator>(3);
     if (setup.vo_method != "default" && setup.vo_method != "thesis") {
       throw std::invalid_argument("unknown VO method '" + setup.vo_method + "'");
     }
