@@ -496,7 +496,7 @@ Status LocalizationService::AddSession(SessionOptions options, std::unique_ptr<S
   options.id = "s" + std::to_string(next_id_++);
   *id = options.id;
   auto session = std::make_shared<Session>(std::move(options), std::move(pipeline));
-  sessions_[*id] = Entry{session, live, false, std::make_shared<PoseEncodings>()};
+  sessions_[*id] = Entry{session, live, false};  // encodings: its default (a fresh cache)
   session->Start();
   return Status::OK;
 }

@@ -5,6 +5,7 @@
 // the images into a bounded queue; the main thread runs VO and the filter.
 #include "kitti/dataset.hpp"
 #include "kitti/oxts_pose.hpp"
+#include "kitti/parse_number.hpp"
 #include "server/pipeline/localizer.hpp"
 #include "server/pipeline/replay_metrics.hpp"
 #include "server/pipeline/scenario_yaml.hpp"
@@ -22,7 +23,6 @@
 #include <fstream>
 #include <map>
 #include <sstream>
-#include <cmath>
 #include <iomanip>
 #include <iostream>
 #include <mutex>
@@ -161,15 +161,12 @@ void ApplyEkfSetting(fusion::EkfConfig& c, const std::string& setting) {
     for (const auto& [k, v] : fields) known += (known.empty() ? "" : ", ") + k;
     throw std::runtime_error("--ekf " + setting + ": expected NAME=VALUE with NAME one of " + known);
   }
-  size_t used = 0;
   double value = 0;
-  try {
-    value = std::stod(setting.substr(eq + 1), &used);
-  } catch (const std::exception&) {
-    used = 0;
+  std::string why;
+  if (!kitti::ParseFiniteDouble(std::string_view(setting).substr(eq + 1), value, why)) {
+    throw std::runtime_error("--ekf " + setting + ": value must be a finite number >= 0 (it " + why + ")");
   }
-  if (used == 0 || used != setting.size() - eq - 1 || !std::isfinite(value) || value < 0)
-    throw std::runtime_error("--ekf " + setting + ": value must be a finite number >= 0");
+  if (value < 0) throw std::runtime_error("--ekf " + setting + ": value must be a finite number >= 0");
   *it->second = value;
 }
 
@@ -306,9 +303,10 @@ int main(int argc, char** argv) {
       for (const auto& f : r.gps_feeds) {
         g = f.p_enu_m;
         rej = rej || f.rejected;
-        g_gt.reset();
-        if (gt_enu)
-          if (auto gt = gt_at(f.fix.t_ns)) g_gt = gt->translation();
+      }
+      // Ground truth at the time of the fix the CSV shows (the last one fed).
+      if (gt_enu && !r.gps_feeds.empty()) {
+        if (auto gt = gt_at(r.gps_feeds.back().fix.t_ns)) g_gt = gt->translation();
       }
       gps_enu.push_back(g);
       gps_gt.push_back(g_gt);
