@@ -598,7 +598,7 @@ int main(int argc, char** argv) {
   } catch (const RecordError& e) {
     std::cerr << "error: " << e.what() << "\n";
     return 4;
-} catch (const std::exception& e) {
+  } catch (const std::exception& e) {
     std::cerr << "error: " << e.what() << "\n";
     return 2;
   }

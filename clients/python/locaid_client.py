@@ -87,9 +87,9 @@ class CsvRecorder:
         self.fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
         self.good = 0  # bytes of complete lines
         self.rows = 0
-        self._write(CSV_COLUMNS, header=True)
+        self.write(CSV_COLUMNS, header=True)
 
-    def _write(self, row, header=False):
+    def write(self, row, header=False):
         buf = io.StringIO()
         csv.writer(buf, lineterminator="\n").writerow(row)
         data = buf.getvalue().encode()
@@ -106,9 +106,6 @@ class CsvRecorder:
         self.good += len(data)
         if not header:
             self.rows += 1
-
-    def write(self, row):
-        self._write(row)
 
     def close(self):
         os.close(self.fd)
