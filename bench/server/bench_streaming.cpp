@@ -142,6 +142,17 @@ std::unique_ptr<v1::Localization::Stub> MakeStallStub(const std::string& target)
   return v1::Localization::NewStub(grpc::CreateCustomChannel(target, grpc::InsecureChannelCredentials(), stall_args));
 }
 
+// `n` subscribers that read `frames` poses each, spread over the stubs' connections.
+std::vector<std::unique_ptr<Subscriber>> MakeSubscribers(const std::vector<std::unique_ptr<v1::Localization::Stub>>& stubs,
+                                                         const std::string& session_id, int n, int frames) {
+  std::vector<std::unique_ptr<Subscriber>> subs;
+  for (int i = 0; i < n; ++i) {
+    subs.push_back(std::make_unique<Subscriber>(stubs[static_cast<size_t>(i) % stubs.size()].get(), session_id,
+                                                static_cast<uint32_t>(frames), false));
+  }
+  return subs;
+}
+
 // Result line of the subscribers (printed by the child, parsed by the parent).
 struct ClientResult {
   double p50_us = 0, p99_us = 0, max_us = 0, cpu_s = 0;
@@ -171,11 +182,7 @@ int RunClients(const std::string& target, const std::string& session_id, int sub
   auto stubs = MakeStubs(target, channels);
   auto stall_stub = MakeStallStub(target);
   const double cpu0 = CpuSeconds();
-  std::vector<std::unique_ptr<Subscriber>> subs;
-  for (int i = 0; i < subscribers; ++i) {
-    subs.push_back(std::make_unique<Subscriber>(stubs[static_cast<size_t>(i % channels)].get(), session_id,
-                                                static_cast<uint32_t>(frames), false));
-  }
+  std::vector<std::unique_ptr<Subscriber>> subs = MakeSubscribers(stubs, session_id, subscribers, frames);
   std::unique_ptr<Subscriber> stall;
   if (stalled) stall = std::make_unique<Subscriber>(stall_stub.get(), session_id, 64, true);
   if (stall) {
@@ -274,10 +281,7 @@ int main(int argc, char** argv) {
   std::unique_ptr<Subscriber> stall;
   Child child;
   if (in_process) {
-    for (int i = 0; i < subscribers; ++i) {
-      subs.push_back(std::make_unique<Subscriber>(stubs[static_cast<size_t>(i % channels)].get(), session.id(),
-                                                  static_cast<uint32_t>(frames), false));
-    }
+    subs = MakeSubscribers(stubs, session.id(), subscribers, frames);
     stall_stub = MakeStallStub(target);
     if (stalled) stall = std::make_unique<Subscriber>(stall_stub.get(), session.id(), 64, true);
   } else {
