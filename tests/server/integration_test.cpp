@@ -189,8 +189,7 @@ TEST_F(ServerTest, AFailedSessionEndsItsStreamsWithAborted) {
   SetDeadline(&ctx);
   v1::Session session;
   ASSERT_TRUE(stub_->StartSession(&ctx, req, &session).ok());
-  PoseCollector poses(grpc::CreateChannel("127.0.0.1:" + std::to_string(port_), grpc::InsecureChannelCredentials()),
-                      session.id(), true);
+  PoseCollector poses(MakeChannel(port_), session.id(), true);
   WaitForSubscribers(session.id(), 1);
   Pusher push(stub_.get(), session.id());
   ASSERT_TRUE(push.ok());
@@ -214,7 +213,7 @@ TEST_F(ServerTest, ManySubscribersThatKeepUpLoseNothingAndAStalledOneIsBounded) 
   std::vector<std::thread> readers;
   std::vector<std::vector<v1::PoseUpdate>> got(kSubscribers);
   std::vector<grpc::Status> status(kSubscribers);
-  auto channel = grpc::CreateChannel("127.0.0.1:" + std::to_string(port_), grpc::InsecureChannelCredentials());
+  auto channel = MakeChannel(port_);
   auto stub = v1::Localization::NewStub(channel);
   for (int s = 0; s < kSubscribers; ++s) {
     readers.emplace_back([&, s] {

@@ -136,11 +136,10 @@ inline CliResult RunCli(int port, const std::vector<std::string>& args, const st
   return RunShell(cmd);
 }
 
-inline std::unique_ptr<v1::Localization::Stub> MakeStub(int port, const std::string& token = {}) {
-  (void)token;
-  return v1::Localization::NewStub(
-      grpc::CreateChannel("127.0.0.1:" + std::to_string(port), grpc::InsecureChannelCredentials()));
+inline std::shared_ptr<grpc::Channel> MakeChannel(int port) {
+  return grpc::CreateChannel("127.0.0.1:" + std::to_string(port), grpc::InsecureChannelCredentials());
 }
+inline std::unique_ptr<v1::Localization::Stub> MakeStub(int port) { return v1::Localization::NewStub(MakeChannel(port)); }
 
 inline void SetDeadline(grpc::ClientContext* ctx, double seconds = 30) {
   ctx->set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(static_cast<int64_t>(seconds * 1000)));
