@@ -64,20 +64,6 @@ bool IsNumber(const std::string& s) {
   return end == s.c_str() + s.size();
 }
 
-v1::SessionStats GetStats(v1::Localization::Stub* stub, const std::string& id) {
-  v1::SessionStats stats;
-  const grpc::Status s = FetchStats(stub, id, &stats);
-  EXPECT_TRUE(s.ok()) << s.error_message();
-  return stats;
-}
-
-v1::Session GetSession(v1::Localization::Stub* stub, const std::string& id) {
-  v1::Session session;
-  const grpc::Status s = FetchSession(stub, id, &session);
-  EXPECT_TRUE(s.ok()) << s.error_message();
-  return session;
-}
-
 // Starts a KITTI session; "" (and a test failure) if refused.
 std::string StartKitti(v1::Localization::Stub* stub, const fs::path& drive, double rate, uint32_t history) {
   v1::StartSessionRequest req;
@@ -90,18 +76,6 @@ std::string StartKitti(v1::Localization::Stub* stub, const fs::path& drive, doub
   const grpc::Status s = stub->StartSession(&ctx, req, &resp);
   EXPECT_TRUE(s.ok()) << "StartSession " << drive << ": " << s.error_code() << " " << s.error_message();
   return s.ok() ? resp.id() : "";
-}
-
-// Waits (bounded) until `pred(stats)` holds; returns the last stats seen.
-template <typename Pred>
-v1::SessionStats WaitStats(v1::Localization::Stub* stub, const std::string& id, double timeout_s, Pred pred) {
-  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-  v1::SessionStats s = GetStats(stub, id);
-  while (!pred(s) && std::chrono::steady_clock::now() < until) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    s = GetStats(stub, id);
-  }
-  return s;
 }
 
 // Waits (bounded) until the session is no longer STARTING/RUNNING.

@@ -41,18 +41,13 @@ class ServerTest : public ::testing::Test {
     return resp.id();
   }
 
-  v1::SessionStats Stats(const std::string& id) {
-    v1::SessionStats stats;
-    EXPECT_TRUE(FetchStats(stub_.get(), id, &stats).ok());
-    return stats;
-  }
+  v1::SessionStats Stats(const std::string& id) { return GetStats(stub_.get(), id); }
 
   // Waits (bounded) until the session has `n` subscribers.
   void WaitForSubscribers(const std::string& id, uint32_t n) {
-    for (int i = 0; i < 500 && Stats(id).subscribers() < n; ++i) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    ASSERT_GE(Stats(id).subscribers(), n);
+    ASSERT_GE(WaitStats(stub_.get(), id, 5, [n](const v1::SessionStats& s) { return s.subscribers() >= n; })
+                  .subscribers(),
+              n);
   }
 
   std::unique_ptr<LocalizationServer> server_;

@@ -161,6 +161,32 @@ inline grpc::Status FetchSession(v1::Localization::Stub* stub, const std::string
   return stub->GetSession(&ctx, req, out);
 }
 
+// The same, with a test failure (not a status) when the call fails.
+inline v1::SessionStats GetStats(v1::Localization::Stub* stub, const std::string& id) {
+  v1::SessionStats stats;
+  const grpc::Status s = FetchStats(stub, id, &stats);
+  EXPECT_TRUE(s.ok()) << s.error_message();
+  return stats;
+}
+inline v1::Session GetSession(v1::Localization::Stub* stub, const std::string& id) {
+  v1::Session session;
+  const grpc::Status s = FetchSession(stub, id, &session);
+  EXPECT_TRUE(s.ok()) << s.error_message();
+  return session;
+}
+
+// Waits (bounded) until `pred(stats)` holds; returns the last stats seen.
+template <typename Pred>
+v1::SessionStats WaitStats(v1::Localization::Stub* stub, const std::string& id, double timeout_s, Pred pred) {
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  v1::SessionStats s = GetStats(stub, id);
+  while (!pred(s) && std::chrono::steady_clock::now() < until) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    s = GetStats(stub, id);
+  }
+  return s;
+}
+
 inline v1::LiveSource SmallCamera(int w = 32, int h = 24) {
   v1::LiveSource l;
   l.set_fx(30);
