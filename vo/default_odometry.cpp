@@ -9,6 +9,7 @@
 #include "vo/odometry_common.hpp"
 #include "vo/stereo_geometry.hpp"
 #include "vo/stereo_odometry.hpp"
+#include "vo/window_ba.hpp"
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/features2d.hpp>
@@ -18,15 +19,31 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <deque>
 #include <stdexcept>
+#include <unordered_map>
 
 namespace locaid::vo {
 namespace {
 
 struct Feature {
   cv::Point2f uv;           // in the keyframe left image
-  Eigen::Vector3d p_ref;    // in the keyframe cam0 frame (from stereo)
+  float u_right = 0;        // its stereo match in the keyframe right image
+  Eigen::Vector3d p_ref;    // in the keyframe cam0 frame (stereo, or the window's estimate)
   int age = 0;              // keyframes it has survived
+  int64_t id = -1;          // landmark id in the window
+};
+
+// A point of the sliding window: its position and its observations, each in
+// the keyframe with that sequence number.
+struct Landmark {
+  struct Observation {
+    int64_t keyframe = 0;
+    Eigen::Vector2d uv_left;
+    double u_right = 0;
+  };
+  Eigen::Vector3d p_w = Eigen::Vector3d::Zero();
+  std::vector<Observation> observations;
 };
 
 double Median(std::vector<double> v) {
@@ -62,6 +79,7 @@ class DefaultOdometry final : public StereoOdometry {
     has_ref_ = false;
     ref_features_.clear();
     ref_pyramid_.clear();
+    ClearWindow();
   }
 
  private:
@@ -70,7 +88,21 @@ class DefaultOdometry final : public StereoOdometry {
     std::vector<cv::Mat> left_pyr, right_pyr;
   };
 
-  void MakeKeyframe(const Images& im, std::vector<Feature> kept, StageTimer* timer = nullptr);
+  // The current frame (at T_w_c) becomes the keyframe: kept features plus new
+  // corners, which become window landmarks when the window is on.
+  void MakeKeyframe(const Images& im, std::vector<Feature> kept, const Eigen::Isometry3d& T_w_c,
+                    StageTimer* timer = nullptr);
+  bool WindowOn() const { return cfg_.window_keyframes >= 2; }
+  void ClearWindow() {
+    window_.clear();
+    landmarks_.clear();
+  }
+  // Appends a keyframe at T_w_c, dropping the oldest beyond the window size.
+  void PushWindowKeyframe(const Eigen::Isometry3d& T_w_c);
+  // Adds the kept features' observations in a new keyframe at T_w_c, solves the
+  // window and returns the refined pose of that keyframe; outliers leave `kept`,
+  // and the others take the window's point estimate.
+  Eigen::Isometry3d SolveWindowWith(std::vector<Feature>& kept, const Eigen::Isometry3d& T_w_c);
   std::vector<cv::Point2f> DetectInBuckets(const cv::Mat& left, const cv::Mat* left_half,
                                            const std::vector<Feature>& kept) const;
   // Row search (SAD) for a first disparity, then KLT sub-pixel; -1 when none.
@@ -84,7 +116,19 @@ class DefaultOdometry final : public StereoOdometry {
   bool has_ref_ = false;
   std::vector<cv::Mat> ref_pyramid_;
   std::vector<Feature> ref_features_;
-  Eigen::Isometry3d T_ref_prev_ = Eigen::Isometry3d::Identity();
+  // Poses in the odometry frame (first frame = origin): the keyframe's and
+  // the last reported one's; T_prev_curr is reported between the latter and
+  // the current pose, so window corrections of past keyframes are carried on.
+  Eigen::Isometry3d T_w_ref_ = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_w_out_ = Eigen::Isometry3d::Identity();
+  struct WindowKeyframe {
+    int64_t seq = 0;
+    Eigen::Isometry3d T_w_c = Eigen::Isometry3d::Identity();
+  };
+  std::deque<WindowKeyframe> window_;
+  std::unordered_map<int64_t, Landmark> landmarks_;
+  int64_t next_keyframe_seq_ = 0;
+  int64_t next_landmark_id_ = 0;
   Eigen::Isometry3d velocity_ = Eigen::Isometry3d::Identity();  // last T_prev_curr
   int64_t velocity_dt_ns_ = 0;
   int64_t prev_t_ns_ = 0;
@@ -187,7 +231,7 @@ std::vector<float> DefaultOdometry::StereoDisparities(const Images& im,
 }
 
 void DefaultOdometry::MakeKeyframe(const Images& im, std::vector<Feature> kept,
-                                   StageTimer* timer) {
+                                   const Eigen::Isometry3d& T_w_c, StageTimer* timer) {
   // Bucketing with ageing: keep the oldest features of each cell.
   std::stable_sort(kept.begin(), kept.end(),
                    [](const Feature& a, const Feature& b) { return a.age > b.age; });
@@ -211,13 +255,97 @@ void DefaultOdometry::MakeKeyframe(const Images& im, std::vector<Feature> kept,
     if (disparity[i] <= 0) continue;
     Feature f;
     f.uv = added[i];
-    f.p_ref = TriangulateStereo(cam_, added[i].x, added[i].y, added[i].x - disparity[i]);
+    f.u_right = added[i].x - disparity[i];
+    f.p_ref = TriangulateStereo(cam_, added[i].x, added[i].y, f.u_right);
+    f.id = next_landmark_id_++;
+    if (WindowOn() && !window_.empty()) {
+      Landmark& lm = landmarks_[f.id];
+      lm.p_w = T_w_c * f.p_ref;
+      lm.observations.push_back({window_.back().seq, {f.uv.x, f.uv.y}, f.u_right});
+    }
     features.push_back(f);
   }
   ref_features_ = std::move(features);
   ref_pyramid_ = im.left_pyr;
-  T_ref_prev_ = Eigen::Isometry3d::Identity();
+  T_w_ref_ = T_w_c;
   has_ref_ = true;
+}
+
+void DefaultOdometry::PushWindowKeyframe(const Eigen::Isometry3d& T_w_c) {
+  window_.push_back({next_keyframe_seq_++, T_w_c});
+  if (static_cast<int>(window_.size()) <= cfg_.window_keyframes) return;
+  window_.pop_front();
+  const int64_t first = window_.front().seq;
+  for (auto it = landmarks_.begin(); it != landmarks_.end();) {
+    auto& obs = it->second.observations;
+    obs.erase(std::remove_if(obs.begin(), obs.end(),
+                             [first](const Landmark::Observation& o) { return o.keyframe < first; }),
+              obs.end());
+    it = obs.empty() ? landmarks_.erase(it) : std::next(it);
+  }
+}
+
+Eigen::Isometry3d DefaultOdometry::SolveWindowWith(std::vector<Feature>& kept,
+                                                   const Eigen::Isometry3d& T_w_c) {
+  PushWindowKeyframe(T_w_c);
+  const int64_t seq = window_.back().seq;
+  for (const Feature& f : kept) {
+    const auto it = landmarks_.find(f.id);
+    if (it == landmarks_.end()) continue;  // its first keyframe left the window: not tracked on
+    it->second.observations.push_back({seq, {f.uv.x, f.uv.y}, f.u_right});
+  }
+  WindowProblem problem;
+  const int64_t first = window_.front().seq;
+  for (const WindowKeyframe& k : window_) problem.T_w_c.push_back(k.T_w_c);
+  std::vector<int64_t> ids;
+  ids.reserve(landmarks_.size());
+  for (const auto& [id, lm] : landmarks_) {
+    const int point = static_cast<int>(problem.p_w.size());
+    problem.p_w.push_back(lm.p_w);
+    ids.push_back(id);
+    for (const Landmark::Observation& o : lm.observations) {
+      WindowObservation w;
+      w.frame = static_cast<int>(o.keyframe - first);
+      w.point = point;
+      w.uv_left = o.uv_left;
+      w.u_right = o.u_right;
+      w.has_right = true;
+      problem.observations.push_back(w);
+    }
+  }
+  WindowOptions options;
+  options.iterations = cfg_.window_iterations;
+  options.huber_px = cfg_.huber_px;
+  options.outlier_px = cfg_.outlier_px;
+  const WindowResult result = SolveWindow(problem, cam_, options);
+  if (!result.ok) return T_w_c;
+  // Write back; an outlier observation is dropped, and a point whose newest
+  // observation is an outlier is no longer tracked.
+  for (size_t k = 0; k < window_.size(); ++k) window_[k].T_w_c = problem.T_w_c[k];
+  size_t i = 0;
+  std::unordered_map<int64_t, char> newest_outlier;
+  for (size_t point = 0; point < ids.size(); ++point) {
+    Landmark& lm = landmarks_[ids[point]];
+    lm.p_w = problem.p_w[point];
+    std::vector<Landmark::Observation> good;
+    for (const Landmark::Observation& o : lm.observations) {
+      if (!result.outlier[i]) good.push_back(o);
+      else if (o.keyframe == seq) newest_outlier[ids[point]] = 1;
+      ++i;
+    }
+    lm.observations = std::move(good);
+  }
+  const Eigen::Isometry3d T_w_curr = window_.back().T_w_c;
+  const Eigen::Isometry3d T_curr_w = T_w_curr.inverse();
+  std::vector<Feature> inliers;
+  for (Feature& f : kept) {
+    const auto it = landmarks_.find(f.id);
+    if (it == landmarks_.end() || newest_outlier.count(f.id)) continue;
+    if (it->second.observations.size() >= 2) f.p_ref = T_curr_w * it->second.p_w;
+    inliers.push_back(f);
+  }
+  kept = std::move(inliers);
+  return T_w_curr;
 }
 
 RelativeMotion DefaultOdometry::Fail(RelativeMotion out, const Images& im) {
@@ -227,7 +355,9 @@ RelativeMotion DefaultOdometry::Fail(RelativeMotion out, const Images& im) {
   out = NoMotion(t_ns, Status::kLost);
   out.timings = timings;
   StageTimer timer(out.timings, cfg_.timing_clock);
-  MakeKeyframe(im, {});
+  ClearWindow();
+  if (WindowOn()) PushWindowKeyframe(T_w_out_);
+  MakeKeyframe(im, {}, T_w_out_);
   velocity_ = Eigen::Isometry3d::Identity();
   velocity_dt_ns_ = 0;
   prev_t_ns_ = t_ns;
@@ -251,7 +381,10 @@ RelativeMotion DefaultOdometry::Track(const StereoFrame& frame) {
   timer.Stop("pyramid");
 
   if (!has_ref_) {
-    MakeKeyframe(im, {});
+    ClearWindow();
+    T_w_out_ = Eigen::Isometry3d::Identity();
+    if (WindowOn()) PushWindowKeyframe(T_w_out_);
+    MakeKeyframe(im, {}, T_w_out_);
     prev_t_ns_ = frame.t_ns;
     timer.Stop("keyframe");
     out.status = ref_features_.size() >= static_cast<size_t>(cfg_.min_inliers_degraded)
@@ -267,7 +400,8 @@ RelativeMotion DefaultOdometry::Track(const StereoFrame& frame) {
   double scale = 1.0;
   if (velocity_dt_ns_ > 0 && frame.t_ns > prev_t_ns_)
     scale = std::clamp(static_cast<double>(frame.t_ns - prev_t_ns_) / velocity_dt_ns_, 0.0, 5.0);
-  const Eigen::Isometry3d T_ref_pred = T_ref_prev_ * ScaleMotion(velocity_, scale);
+  const Eigen::Isometry3d T_ref_prev = T_w_ref_.inverse() * T_w_out_;
+  const Eigen::Isometry3d T_ref_pred = T_ref_prev * ScaleMotion(velocity_, scale);
   const Eigen::Isometry3d T_pred_ref = T_ref_pred.inverse();
   std::vector<cv::Point2f> ref_uv, curr_uv;
   std::vector<float> pred_disp;
@@ -339,7 +473,7 @@ RelativeMotion DefaultOdometry::Track(const StereoFrame& frame) {
       obs[j].has_reverse = true;
       obs[j].p_curr = TriangulateStereo(cam_, tracked[j].x, tracked[j].y, obs[j].u_right);
       obs[j].uv_ref_left = {f.uv.x, f.uv.y};
-      obs[j].u_ref_right = f.uv.x - cam_.fx * cam_.baseline_m / f.p_ref.z();
+      obs[j].u_ref_right = f.u_right;
     }
     object.emplace_back(static_cast<float>(f.p_ref.x()), static_cast<float>(f.p_ref.y()),
                         static_cast<float>(f.p_ref.z()));
@@ -386,7 +520,8 @@ RelativeMotion DefaultOdometry::Track(const StereoFrame& frame) {
     if (disparity[j] > 0) {
       Feature f = ref_features_[idx[j]];
       f.uv = tracked[j];
-      f.p_ref = TriangulateStereo(cam_, tracked[j].x, tracked[j].y, tracked[j].x - disparity[j]);
+      f.u_right = tracked[j].x - disparity[j];
+      f.p_ref = TriangulateStereo(cam_, tracked[j].x, tracked[j].y, f.u_right);
       kept.push_back(f);
     }
   }
@@ -396,7 +531,20 @@ RelativeMotion DefaultOdometry::Track(const StereoFrame& frame) {
   if (median_flow < cfg_.standstill_flow_px && T_ref_curr.translation().norm() < 3 * t_sigma)
     T_ref_curr = Eigen::Isometry3d::Identity();
 
-  out.T_prev_curr = T_ref_prev_.inverse() * T_ref_curr;
+  // 5. Keyframe: moved enough (or losing features) -> this frame becomes the
+  // reference, after the window refined it.
+  Eigen::Isometry3d T_w_curr = T_w_ref_ * T_ref_curr;
+  const bool few = kept.size() < ref_features_.size() / 2;
+  if (median_flow > cfg_.keyframe_flow_px || few) {
+    if (WindowOn()) {
+      T_w_curr = SolveWindowWith(kept, T_w_curr);
+      timer.Stop("window");
+    }
+    MakeKeyframe(im, std::move(kept), T_w_curr, &timer);
+  }
+
+  out.T_prev_curr = T_w_out_.inverse() * T_w_curr;
+  T_w_out_ = T_w_curr;
   out.covariance = refined.covariance;
   out.inliers = refined.inliers;
   out.status = refined.inliers >= cfg_.min_inliers_ok ? Status::kOk : Status::kDegraded;
@@ -405,14 +553,6 @@ RelativeMotion DefaultOdometry::Track(const StereoFrame& frame) {
     velocity_dt_ns_ = frame.t_ns - prev_t_ns_;
   }
   prev_t_ns_ = frame.t_ns;
-
-  // 5. Keyframe: moved enough (or losing features) -> this frame becomes the reference.
-  const bool few = kept.size() < ref_features_.size() / 2;
-  if (median_flow > cfg_.keyframe_flow_px || few) {
-    MakeKeyframe(im, std::move(kept), &timer);
-  } else {
-    T_ref_prev_ = T_ref_curr;
-  }
   timer.Stop("keyframe");
   out.total_ms = SumTimings(out.timings);
   return out;

@@ -30,7 +30,15 @@ DriveRun RunOnDataset(const kitti::StereoDataset& dataset, const DriveRunConfig&
                       const DriveProgress& progress) {
   DriveRun run;
   run.method = config.method;
-  const auto vo = MakeStereoOdometry(config.method, dataset.camera(), config.clock);
+  std::unique_ptr<StereoOdometry> vo;
+  if (config.method == "default" && config.window_keyframes >= 0) {
+    DefaultConfig dc;
+    dc.timing_clock = config.clock;
+    dc.window_keyframes = config.window_keyframes;
+    vo = MakeDefaultOdometry(dataset.camera(), dc);
+  } else {
+    vo = MakeStereoOdometry(config.method, dataset.camera(), config.clock);
+  }
   size_t n = dataset.size();
   if (config.max_frames > 0) n = std::min(n, config.max_frames);
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();

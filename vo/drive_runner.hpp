@@ -20,6 +20,9 @@ struct DriveRunConfig {
   std::string method = "default";
   size_t max_frames = 0;  // 0: all frames
   TimingClock clock = TimingClock::kWall;  // of the per-stage timings
+  // "default" only: the sliding-window size (DefaultConfig::window_keyframes);
+  // -1 keeps the method's default.
+  int window_keyframes = -1;
 };
 
 struct FrameResult {

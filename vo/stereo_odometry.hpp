@@ -81,6 +81,14 @@ struct DefaultConfig {
   // Gauss-Newton also reprojects the current frame's stereo points into the
   // keyframe's two images (errors of both triangulations enter symmetrically).
   bool symmetric_residuals = true;
+  // Sliding window: the last window_keyframes keyframes' poses and the points
+  // they track are refined together (stereo bundle adjustment, the oldest pose
+  // held) each time a keyframe is added; < 2 turns it off. Off by default: on
+  // the KLT tracks it is less accurate than the two-frame estimate (chained
+  // tracks drift on the ground; docs/benchmarks.md, "Sliding-window bundle
+  // adjustment").
+  int window_keyframes = 0;
+  int window_iterations = 4;         // Levenberg-Marquardt steps per keyframe
   int min_inliers_ok = 40;           // fewer -> DEGRADED
   int min_inliers_degraded = 12;     // fewer -> LOST (re-initialise)
   // Keyframes / standstill: a new keyframe is taken when the median feature

@@ -96,6 +96,11 @@ int main(int argc, char** argv) {
   bool cpu_time = false;
   app.add_flag("--cpu-time", cpu_time,
                "per-stage timings on the thread CPU clock instead of wall time");
+  int window_keyframes = -1;
+  app.add_option("--window-keyframes", window_keyframes,
+                 "default method: sliding bundle-adjustment window in keyframes (0: off; "
+                 "unset: the method's default)")
+      ->check(CLI::Range(0, 50));
   CLI11_PARSE(app, argc, argv);
   cv::setNumThreads(1);
   try {
@@ -108,6 +113,7 @@ int main(int argc, char** argv) {
       config.method = m;
       config.max_frames = max_frames;
       config.clock = cpu_time ? vo::TimingClock::kThreadCpu : vo::TimingClock::kWall;
+      config.window_keyframes = window_keyframes;
       const vo::DriveRun run = vo::RunOnDataset(*dataset, config);
       // Frames with ground truth (raw drives: OXTS may start after frame 0);
       // both trajectories re-anchored at the first of them.
@@ -138,6 +144,7 @@ int main(int argc, char** argv) {
       const vo::TimingSummary s = vo::Summarize(run);
       nlohmann::json j;
       j["method"] = m;
+      if (m == "default" && window_keyframes >= 0) j["window_keyframes"] = window_keyframes;
       j["drive"] = drive;
       j["frames"] = s.frames;
       j["evaluated_frames"] = gt.size();

@@ -71,10 +71,23 @@ class SyntheticDrive {
   }
 };
 
+// The methods, plus the default one with its (optional) sliding window on.
+constexpr const char* kDefaultWithWindow = "default_window5";
+std::vector<std::string> TestedVariants() {
+  std::vector<std::string> v = StereoOdometryMethods();
+  v.push_back(kDefaultWithWindow);
+  return v;
+}
+
 class StereoOdometryTest : public ::testing::TestWithParam<std::string> {
  protected:
   const AccuracyTolerance tol = ToleranceFor(GetParam());
   std::unique_ptr<StereoOdometry> Make() {
+    if (GetParam() == kDefaultWithWindow) {
+      DefaultConfig config;
+      config.window_keyframes = 5;
+      return MakeDefaultOdometry(SyntheticDrive::Get().camera, config);
+    }
     return MakeStereoOdometry(GetParam(), SyntheticDrive::Get().camera);
   }
 };
@@ -172,7 +185,7 @@ TEST_P(StereoOdometryTest, DegenerateFramesNeverNaNAndTrackingRecovers) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Methods, StereoOdometryTest,
-                         ::testing::ValuesIn(StereoOdometryMethods()),
+                         ::testing::ValuesIn(TestedVariants()),
                          [](const auto& info) { return info.param; });
 
 TEST(DefaultOdometry, MissingFrameIsBridgedByTheNextMotion) {

@@ -39,6 +39,11 @@ int main(int argc, char** argv) {
   bool cpu_time = false;
   app.add_flag("--cpu-time", cpu_time,
                "per-stage timings on the thread CPU clock instead of wall time");
+  int window_keyframes = -1;
+  app.add_option("--window-keyframes", window_keyframes,
+                 "default method: sliding bundle-adjustment window in keyframes (0: off; "
+                 "unset: the method's default)")
+      ->check(CLI::Range(0, 50));
   CLI11_PARSE(app, argc, argv);
 
   cv::setNumThreads(1);
@@ -48,6 +53,7 @@ int main(int argc, char** argv) {
     config.method = method;
     config.max_frames = max_frames;
     config.clock = cpu_time ? vo::TimingClock::kThreadCpu : vo::TimingClock::kWall;
+    config.window_keyframes = window_keyframes;
     const vo::DriveRun run = vo::RunOnDataset(
         *dataset, config, [](const vo::FrameResult& f, size_t total) {
           if (f.missing) {
