@@ -102,6 +102,10 @@ int main(int argc, char** argv) {
                  "unset: the method's default)")
       ->check(CLI::Range(0, 50));
   CLI11_PARSE(app, argc, argv);
+  if (window_keyframes >= 0 && method == "thesis") {
+    std::cerr << "vo_bench: --window-keyframes applies to the default method only\n";
+    return 2;
+  }
   cv::setNumThreads(1);
   try {
     const auto dataset = kitti::OpenDataset(drive);

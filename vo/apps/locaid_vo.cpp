@@ -45,6 +45,11 @@ int main(int argc, char** argv) {
                  "unset: the method's default)")
       ->check(CLI::Range(0, 50));
   CLI11_PARSE(app, argc, argv);
+  if (window_keyframes >= 0 && method != "default") {
+    std::cerr << "locaid-vo: --window-keyframes applies to --method default only (got --method "
+              << method << ")\n";
+    return 2;
+  }
 
   cv::setNumThreads(1);
   try {
