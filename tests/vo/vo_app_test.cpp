@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <cstdlib>
 #include <filesystem>
@@ -40,7 +41,8 @@ class VoAppTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     if (!fs::exists(kBinDir / "locaid-vo") || !fs::exists(kBinDir / "locaid-synth")) return;
-    root_ = fs::path(::testing::TempDir()) / "vo_app_test";
+    // One folder per process: CTest runs the tests of this suite in parallel.
+    root_ = fs::path(::testing::TempDir()) / ("vo_app_test_" + std::to_string(getpid()));
     fs::remove_all(root_);
     fs::create_directories(root_);
     const std::string cmd = Quote((kBinDir / "locaid-synth").string()) + " -q --out " +
