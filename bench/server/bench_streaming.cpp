@@ -13,11 +13,11 @@
 // EKF output) to client receipt wall time (p50/p99/max), loss, session frame
 // rate, server RSS and the CPU time of the server and of the client process
 // per published pose.
+#include "bench/server/spawn_self.hpp"
 #include "server/service.hpp"
 
 #include <CLI/CLI.hpp>
 
-#include <spawn.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -29,8 +29,6 @@
 #include <iostream>
 #include <sstream>
 #include <thread>
-
-extern char** environ;
 
 namespace v1 = locaid::v1;
 using namespace locaid::server;
@@ -199,44 +197,6 @@ int RunClients(const std::string& target, const std::string& session_id, int sub
   return 0;
 }
 
-// The child process: this program with --client-of; its stdin/stdout are
-// pipes (stdin closed by the parent when the push is done).
-struct Child {
-  pid_t pid = -1;
-  int to_child = -1, from_child = -1;
-};
-
-Child SpawnClients(const std::vector<std::string>& args) {
-  int in_pipe[2], out_pipe[2];
-  if (pipe(in_pipe) != 0 || pipe(out_pipe) != 0) throw std::runtime_error("pipe failed");
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_adddup2(&fa, in_pipe[0], 0);
-  posix_spawn_file_actions_adddup2(&fa, out_pipe[1], 1);
-  posix_spawn_file_actions_addclose(&fa, in_pipe[1]);
-  posix_spawn_file_actions_addclose(&fa, out_pipe[0]);
-  std::vector<char*> argv;
-  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-  argv.push_back(nullptr);
-  Child c;
-  if (posix_spawn(&c.pid, "/proc/self/exe", &fa, nullptr, argv.data(), environ) != 0) {
-    throw std::runtime_error("posix_spawn /proc/self/exe failed");
-  }
-  posix_spawn_file_actions_destroy(&fa);
-  close(in_pipe[0]);
-  close(out_pipe[1]);
-  c.to_child = in_pipe[1];
-  c.from_child = out_pipe[0];
-  return c;
-}
-
-std::string ReadAll(int fd) {
-  std::string out;
-  char buf[4096];
-  for (ssize_t n; (n = read(fd, buf, sizeof buf)) > 0;) out.append(buf, static_cast<size_t>(n));
-  return out;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -279,7 +239,7 @@ int main(int argc, char** argv) {
   std::vector<std::unique_ptr<Subscriber>> subs;
   std::unique_ptr<v1::Localization::Stub> stall_stub;
   std::unique_ptr<Subscriber> stall;
-  Child child;
+  locaid::bench::Child child;
   if (in_process) {
     subs = MakeSubscribers(stubs, session.id(), subscribers, frames);
     stall_stub = MakeStallStub(target);
@@ -289,7 +249,7 @@ int main(int argc, char** argv) {
                                      "--subscribers", std::to_string(subscribers), "--frames", std::to_string(frames),
                                      "--channels", std::to_string(channels)};
     if (stalled) args.push_back("--stalled");
-    child = SpawnClients(args);
+    child = locaid::bench::SpawnSelf(args);
   }
   bool attached = false;
   for (int i = 0; i < 3000 && !attached; ++i) {  // wait until all are attached
@@ -344,7 +304,7 @@ int main(int argc, char** argv) {
     r = Summarize(subs, frames, 0);
   } else {
     close(child.to_child);  // the child cancels its stalled subscriber
-    const std::string out = ReadAll(child.from_child);
+    const std::string out = locaid::bench::ReadAll(child.from_child);
     close(child.from_child);
     int status = 0;
     waitpid(child.pid, &status, 0);
