@@ -201,10 +201,21 @@ fi
 cli=(locaid --server 127.0.0.1:50051)
 [[ $mode == chroot ]] && cli=(locaid --server 127.0.0.1:$PORT)
 
+# The server's output so far (on failure): the chroot run writes it to a
+# file; a container's is in podman (the file would be an older run's).
+server_log_now() {
+  if [[ $mode == chroot ]]; then
+    cat "$STATE/server.log" 2>/dev/null
+  else
+    echo "container $NAME: $(podman inspect --format '{{.State.Status}} exit={{.State.ExitCode}}' "$NAME" 2>&1)"
+    podman logs "$NAME" 2>&1 | tail -n 40
+  fi
+}
+
 # 1. health
 t0=$(date +%s)
 until h=$(in_image "${cli[@]}" health 2>&1) && [[ $h == SERVING ]]; do
-  (($(date +%s) - t0 < 60)) || { cat "$STATE/server.log" 2>/dev/null; fail "not SERVING after 60 s: $h"; }
+  (($(date +%s) - t0 < 60)) || { server_log_now; fail "not SERVING after 60 s: $h"; }
   sleep 1
 done
 note "health: SERVING after $(($(date +%s) - t0)) s (locaid health)"
