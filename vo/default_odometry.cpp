@@ -18,8 +18,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <deque>
+#include <limits>
 #include <stdexcept>
 #include <unordered_map>
 
