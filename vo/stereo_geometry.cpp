@@ -39,19 +39,6 @@ Eigen::Vector3d TriangulateStereo(const kitti::StereoCamera& camera, double u_le
   return {(u_left - camera.cx) * z / camera.fx, (v_left - camera.cy) * z / camera.fy, z};
 }
 
-namespace {
-
-struct Linearization {
-  Matrix6d H = Matrix6d::Zero();
-  Vector6d b = Vector6d::Zero();
-  double weighted_sq = 0;
-  int rows = 0;
-  int inliers = 0;
-};
-
-// Residuals (predicted - measured) of a point q (camera frame) observed at
-// uv_left and, when has_right, at u_right; dproj = d residual / d q. Returns the
-// row count (0: behind the camera).
 int ProjectRows(const kitti::StereoCamera& cam, const Eigen::Vector3d& q,
                 const Eigen::Vector2d& uv_left, double u_right, bool has_right,
                 double min_depth_m, Eigen::Ref<Eigen::Vector3d> r, Eigen::Matrix3d& dproj) {
@@ -65,6 +52,16 @@ int ProjectRows(const kitti::StereoCamera& cam, const Eigen::Vector3d& q,
   r(2) = cam.fx * (q.x() - cam.baseline_m) * iz + cam.cx - u_right;
   return has_right ? 3 : 2;
 }
+
+namespace {
+
+struct Linearization {
+  Matrix6d H = Matrix6d::Zero();
+  Vector6d b = Vector6d::Zero();
+  double weighted_sq = 0;
+  int rows = 0;
+  int inliers = 0;
+};
 
 using Rows = Eigen::Matrix<double, 6, 1>;
 using RowsJ = Eigen::Matrix<double, 6, 6>;

@@ -33,6 +33,15 @@ Matrix6d LargeCovariance();
 Eigen::Vector3d TriangulateStereo(const kitti::StereoCamera& camera, double u_left, double v_left,
                                   double u_right);
 
+// Stereo reprojection rows of a point q (camera frame) observed at uv_left
+// and, when has_right, at u_right in the right image: r = predicted - measured
+// (u, v, u_right) and dproj = d r / d q. All three rows are filled; the
+// return value is how many count (2 without has_right), 0 when q is not
+// deeper than min_depth_m.
+int ProjectRows(const kitti::StereoCamera& cam, const Eigen::Vector3d& q,
+                const Eigen::Vector2d& uv_left, double u_right, bool has_right,
+                double min_depth_m, Eigen::Ref<Eigen::Vector3d> r, Eigen::Matrix3d& dproj);
+
 // One correspondence: a point known in the reference frame (from stereo there)
 // observed in the current left image and, when has_right, in the current right
 // image (only u_right is used: rectified rows coincide).

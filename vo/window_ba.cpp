@@ -28,17 +28,12 @@ Linearised Linearise(const WindowObservation& o, const Eigen::Isometry3d& T_c_w,
                      double min_depth_m) {
   Linearised l;
   l.p_c = T_c_w * p_w;
-  const double x = l.p_c.x(), y = l.p_c.y(), z = l.p_c.z();
-  if (!(z > min_depth_m) || !l.p_c.allFinite()) return l;
-  const double iz = 1.0 / z, iz2 = iz * iz;
-  l.r(0) = cam.fx * x * iz + cam.cx - o.uv_left.x();
-  l.r(1) = cam.fy * y * iz + cam.cy - o.uv_left.y();
-  l.J_pc.row(0) << cam.fx * iz, 0, -cam.fx * x * iz2;
-  l.J_pc.row(1) << 0, cam.fy * iz, -cam.fy * y * iz2;
-  if (o.has_right) {
-    const double xr = x - cam.baseline_m;
-    l.r(2) = cam.fx * xr * iz + cam.cx - o.u_right;
-    l.J_pc.row(2) << cam.fx * iz, 0, -cam.fx * xr * iz2;
+  if (!l.p_c.allFinite()) return l;
+  const int rows = ProjectRows(cam, l.p_c, o.uv_left, o.u_right, o.has_right, min_depth_m, l.r, l.J_pc);
+  if (rows == 0) return l;
+  if (rows == 2) {  // left only: the u_right row does not count
+    l.r(2) = 0;
+    l.J_pc.row(2).setZero();
   }
   l.valid = true;
   return l;
@@ -73,11 +68,11 @@ class Solver {
       if (f < 0) f = o.frame;
       else if (f != o.frame) multi[static_cast<size_t>(o.point)] = 1;
     }
-    point_slot_.assign(problem.p_w.size(), -1);
+    std::vector<int> point_slot(problem.p_w.size(), -1);  // point -> slot, -1 when unused
     for (size_t i = 0; i < problem.observations.size(); ++i) {
       const WindowObservation& o = problem.observations[i];
       if (!multi[static_cast<size_t>(o.point)]) continue;
-      int& slot = point_slot_[static_cast<size_t>(o.point)];
+      int& slot = point_slot[static_cast<size_t>(o.point)];
       if (slot < 0) {
         slot = static_cast<int>(point_obs_.size());
         point_obs_.emplace_back();
@@ -188,7 +183,6 @@ class Solver {
   const kitti::StereoCamera& cam_;
   const WindowOptions& opt_;
   int fixed_ = 0, n_poses_ = 0, used_observations_ = 0;
-  std::vector<int> point_slot_;                 // point -> slot, -1 when unused
   std::vector<int> points_;                     // slot -> point
   std::vector<std::vector<int>> point_obs_;     // slot -> observation indices
   Eigen::MatrixXd H_pp_;
