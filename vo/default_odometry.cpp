@@ -92,6 +92,13 @@ class DefaultOdometry final : public StereoOdometry {
   // corners, which become window landmarks when the window is on.
   void MakeKeyframe(const Images& im, std::vector<Feature> kept, const Eigen::Isometry3d& T_w_c,
                     StageTimer* timer = nullptr);
+  // A keyframe with fresh features only, at the last reported pose, as the
+  // window's first keyframe (first frame, or after losing track).
+  void Restart(const Images& im) {
+    ClearWindow();
+    if (WindowOn()) PushWindowKeyframe(T_w_out_);
+    MakeKeyframe(im, {}, T_w_out_);
+  }
   bool WindowOn() const { return cfg_.window_keyframes >= 2; }
   void ClearWindow() {
     window_.clear();
@@ -355,9 +362,7 @@ RelativeMotion DefaultOdometry::Fail(RelativeMotion out, const Images& im) {
   out = NoMotion(t_ns, Status::kLost);
   out.timings = timings;
   StageTimer timer(out.timings, cfg_.timing_clock);
-  ClearWindow();
-  if (WindowOn()) PushWindowKeyframe(T_w_out_);
-  MakeKeyframe(im, {}, T_w_out_);
+  Restart(im);
   velocity_ = Eigen::Isometry3d::Identity();
   velocity_dt_ns_ = 0;
   prev_t_ns_ = t_ns;
@@ -381,10 +386,8 @@ RelativeMotion DefaultOdometry::Track(const StereoFrame& frame) {
   timer.Stop("pyramid");
 
   if (!has_ref_) {
-    ClearWindow();
     T_w_out_ = Eigen::Isometry3d::Identity();
-    if (WindowOn()) PushWindowKeyframe(T_w_out_);
-    MakeKeyframe(im, {}, T_w_out_);
+    Restart(im);
     prev_t_ns_ = frame.t_ns;
     timer.Stop("keyframe");
     out.status = ref_features_.size() >= static_cast<size_t>(cfg_.min_inliers_degraded)

@@ -30,15 +30,9 @@ DriveRun RunOnDataset(const kitti::StereoDataset& dataset, const DriveRunConfig&
                       const DriveProgress& progress) {
   DriveRun run;
   run.method = config.method;
-  std::unique_ptr<StereoOdometry> vo;
-  if (config.method == "default" && config.window_keyframes >= 0) {
-    DefaultConfig dc;
-    dc.timing_clock = config.clock;
-    dc.window_keyframes = config.window_keyframes;
-    vo = MakeDefaultOdometry(dataset.camera(), dc);
-  } else {
-    vo = MakeStereoOdometry(config.method, dataset.camera(), config.clock);
-  }
+  DefaultConfig default_config;
+  if (config.window_keyframes >= 0) default_config.window_keyframes = config.window_keyframes;
+  const auto vo = MakeStereoOdometry(config.method, dataset.camera(), config.clock, default_config);
   size_t n = dataset.size();
   if (config.max_frames > 0) n = std::min(n, config.max_frames);
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();

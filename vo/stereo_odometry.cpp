@@ -88,8 +88,15 @@ double SumTimings(const StageTimings& timings) {
 std::unique_ptr<StereoOdometry> MakeStereoOdometry(const std::string& method,
                                                    const kitti::StereoCamera& camera,
                                                    TimingClock clock) {
+  return MakeStereoOdometry(method, camera, clock, DefaultConfig{});
+}
+
+std::unique_ptr<StereoOdometry> MakeStereoOdometry(const std::string& method,
+                                                   const kitti::StereoCamera& camera,
+                                                   TimingClock clock,
+                                                   const DefaultConfig& default_config) {
   if (method == "default") {
-    DefaultConfig config;
+    DefaultConfig config = default_config;
     config.timing_clock = clock;
     return MakeDefaultOdometry(camera, config);
   }

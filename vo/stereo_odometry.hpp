@@ -123,6 +123,12 @@ struct ThesisConfig {
 std::unique_ptr<StereoOdometry> MakeStereoOdometry(const std::string& method,
                                                    const kitti::StereoCamera& camera,
                                                    TimingClock clock = TimingClock::kWall);
+// The same, with the settings of the "default" method (its timing_clock is
+// replaced by `clock`; ignored for other methods).
+std::unique_ptr<StereoOdometry> MakeStereoOdometry(const std::string& method,
+                                                   const kitti::StereoCamera& camera,
+                                                   TimingClock clock,
+                                                   const DefaultConfig& default_config);
 std::unique_ptr<StereoOdometry> MakeDefaultOdometry(const kitti::StereoCamera& camera,
                                                     const DefaultConfig& config = {});
 std::unique_ptr<StereoOdometry> MakeThesisOdometry(const kitti::StereoCamera& camera,
