@@ -16,6 +16,7 @@
 // Printed: delay from publish to receipt (p50/p99/max) over all messages
 // after the first 20 of each stream (warm-up), and how many arrived.
 #include "bench/server/spawn_self.hpp"
+#include "bench/server/subscriber.hpp"
 #include "locaid/v1/localization.grpc.pb.h"
 
 #include <CLI/CLI.hpp>
@@ -52,37 +53,6 @@ int64_t UnixNowNs() {
 
 // ------------------------------------------------------------ subscribers --
 
-class Reader : public grpc::ClientReadReactor<v1::PoseUpdate> {
- public:
-  explicit Reader(v1::Localization::Stub* stub) {
-    stub->async()->StreamPoses(&ctx_, &req_, this);
-    StartRead(&msg_);
-    StartCall();
-  }
-  void OnReadDone(bool ok) override {
-    if (!ok) return;
-    delays_us.push_back(static_cast<float>((UnixNowNs() - msg_.published_unix_ns()) * 1e-3));
-    StartRead(&msg_);
-  }
-  void OnDone(const grpc::Status&) override {
-    std::lock_guard lock(mu_);
-    done_ = true;
-    cv_.notify_all();
-  }
-  void Wait() {
-    std::unique_lock lock(mu_);
-    cv_.wait(lock, [this] { return done_; });
-  }
-  std::vector<float> delays_us;
-
- private:
-  grpc::ClientContext ctx_;
-  v1::StreamPosesRequest req_;
-  v1::PoseUpdate msg_;
-  std::mutex mu_;
-  std::condition_variable cv_;
-  bool done_ = false;
-};
 
 int RunClients(const std::string& target, int subscribers) {
   std::vector<std::unique_ptr<v1::Localization::Stub>> stubs;
@@ -92,13 +62,13 @@ int RunClients(const std::string& target, int subscribers) {
     stubs.push_back(v1::Localization::NewStub(
         grpc::CreateCustomChannel(target, grpc::InsecureChannelCredentials(), args)));
   }
-  std::vector<std::unique_ptr<Reader>> readers;
-  for (int i = 0; i < subscribers; ++i) readers.push_back(std::make_unique<Reader>(stubs[static_cast<size_t>(i % kConnections)].get()));
+  std::vector<std::unique_ptr<locaid::bench::Subscriber>> readers;
+  for (int i = 0; i < subscribers; ++i) readers.push_back(std::make_unique<locaid::bench::Subscriber>(stubs[static_cast<size_t>(i % kConnections)].get(), "", 0, false));
   std::vector<float> all;
   for (auto& r : readers) {
     r->Wait();
-    if (r->delays_us.size() > kWarmupMessages)
-      all.insert(all.end(), r->delays_us.begin() + kWarmupMessages, r->delays_us.end());
+    if (r->delays_us_.size() > kWarmupMessages)
+      all.insert(all.end(), r->delays_us_.begin() + kWarmupMessages, r->delays_us_.end());
   }
   if (all.empty()) {
     std::printf("result 0 0 0 0\n");

@@ -14,6 +14,7 @@
 // rate, server RSS and the CPU time of the server and of the client process
 // per published pose.
 #include "bench/server/spawn_self.hpp"
+#include "bench/server/subscriber.hpp"
 #include "server/service.hpp"
 
 #include <CLI/CLI.hpp>
@@ -55,8 +56,6 @@ class ConstantEstimator : public FrameEstimator {
   int n_ = 0;
 };
 
-int64_t NowNs() { return UnixNowNs(); }
-
 long RssKb() {
   std::ifstream in("/proc/self/status");
   std::string key;
@@ -70,45 +69,6 @@ long RssKb() {
   }
   return -1;
 }
-
-class Subscriber : public grpc::ClientReadReactor<v1::PoseUpdate> {
- public:
-  Subscriber(v1::Localization::Stub* stub, const std::string& id, uint32_t queue, bool stalled) : stalled_(stalled) {
-    req_.set_session_id(id);
-    req_.set_queue_size(queue);
-    stub->async()->StreamPoses(&ctx_, &req_, this);
-    if (!stalled_) StartRead(&msg_);
-    StartCall();
-  }
-  void OnReadDone(bool ok) override {
-    if (!ok) return;
-    delays_us_.push_back(static_cast<float>((NowNs() - msg_.published_unix_ns()) * 1e-3));
-    ++received_;
-    last_dropped_ = msg_.dropped_for_subscriber();
-    StartRead(&msg_);
-  }
-  void OnDone(const grpc::Status&) override {
-    std::lock_guard lock(mu_);
-    done_ = true;
-    cv_.notify_all();
-  }
-  void Cancel() { ctx_.TryCancel(); }
-  void Wait() {
-    std::unique_lock lock(mu_);
-    cv_.wait(lock, [this] { return done_; });
-  }
-  std::vector<float> delays_us_;
-  uint64_t received_ = 0, last_dropped_ = 0;
-
- private:
-  bool stalled_;
-  grpc::ClientContext ctx_;
-  v1::StreamPosesRequest req_;
-  v1::PoseUpdate msg_;
-  std::mutex mu_;
-  std::condition_variable cv_;
-  bool done_ = false;
-};
 
 double Percentile(std::vector<float> v, double q) {
   if (v.empty()) return 0;
@@ -141,11 +101,11 @@ std::unique_ptr<v1::Localization::Stub> MakeStallStub(const std::string& target)
 }
 
 // `n` subscribers that read `frames` poses each, spread over the stubs' connections.
-std::vector<std::unique_ptr<Subscriber>> MakeSubscribers(const std::vector<std::unique_ptr<v1::Localization::Stub>>& stubs,
+std::vector<std::unique_ptr<locaid::bench::Subscriber>> MakeSubscribers(const std::vector<std::unique_ptr<v1::Localization::Stub>>& stubs,
                                                          const std::string& session_id, int n, int frames) {
-  std::vector<std::unique_ptr<Subscriber>> subs;
+  std::vector<std::unique_ptr<locaid::bench::Subscriber>> subs;
   for (int i = 0; i < n; ++i) {
-    subs.push_back(std::make_unique<Subscriber>(stubs[static_cast<size_t>(i) % stubs.size()].get(), session_id,
+    subs.push_back(std::make_unique<locaid::bench::Subscriber>(stubs[static_cast<size_t>(i) % stubs.size()].get(), session_id,
                                                 static_cast<uint32_t>(frames), false));
   }
   return subs;
@@ -157,7 +117,7 @@ struct ClientResult {
   uint64_t received = 0, lost = 0;
 };
 
-ClientResult Summarize(const std::vector<std::unique_ptr<Subscriber>>& subs, int frames, double cpu_s) {
+ClientResult Summarize(const std::vector<std::unique_ptr<locaid::bench::Subscriber>>& subs, int frames, double cpu_s) {
   std::vector<float> all;
   ClientResult r;
   for (const auto& s : subs) {
@@ -180,9 +140,9 @@ int RunClients(const std::string& target, const std::string& session_id, int sub
   auto stubs = MakeStubs(target, channels);
   auto stall_stub = MakeStallStub(target);
   const double cpu0 = CpuSeconds();
-  std::vector<std::unique_ptr<Subscriber>> subs = MakeSubscribers(stubs, session_id, subscribers, frames);
-  std::unique_ptr<Subscriber> stall;
-  if (stalled) stall = std::make_unique<Subscriber>(stall_stub.get(), session_id, 64, true);
+  std::vector<std::unique_ptr<locaid::bench::Subscriber>> subs = MakeSubscribers(stubs, session_id, subscribers, frames);
+  std::unique_ptr<locaid::bench::Subscriber> stall;
+  if (stalled) stall = std::make_unique<locaid::bench::Subscriber>(stall_stub.get(), session_id, 64, true);
   if (stall) {
     std::string line;
     while (std::getline(std::cin, line)) {}
@@ -236,14 +196,14 @@ int main(int argc, char** argv) {
     if (!s.ok()) { std::cerr << s.error_message() << "\n"; return 1; }
   }
   const long rss_start = RssKb();
-  std::vector<std::unique_ptr<Subscriber>> subs;
+  std::vector<std::unique_ptr<locaid::bench::Subscriber>> subs;
   std::unique_ptr<v1::Localization::Stub> stall_stub;
-  std::unique_ptr<Subscriber> stall;
+  std::unique_ptr<locaid::bench::Subscriber> stall;
   locaid::bench::Child child;
   if (in_process) {
     subs = MakeSubscribers(stubs, session.id(), subscribers, frames);
     stall_stub = MakeStallStub(target);
-    if (stalled) stall = std::make_unique<Subscriber>(stall_stub.get(), session.id(), 64, true);
+    if (stalled) stall = std::make_unique<locaid::bench::Subscriber>(stall_stub.get(), session.id(), 64, true);
   } else {
     std::vector<std::string> args = {"locaid-bench-streaming", "--client-of", target, "--client-session", session.id(),
                                      "--subscribers", std::to_string(subscribers), "--frames", std::to_string(frames),
