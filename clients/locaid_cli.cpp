@@ -50,6 +50,38 @@ std::string ReadFile(const std::string& path) {
   return std::string(std::istreambuf_iterator<char>(in), {});
 }
 
+// Checks a --server address; returns "" when usable, else the reason.
+// Accepted: host:port (host a name, IPv4 or [IPv6], port 1-65535),
+// unix:PATH (absolute or relative) and unix:///ABS/PATH, and gRPC target
+// URIs with an explicit scheme (dns:, ipv4:, ipv6:, unix-abstract:) as is.
+std::string CheckServerAddress(const std::string& a) {
+  if (a.rfind("unix:", 0) == 0) {
+    std::string path = a.substr(5);
+    if (path.rfind("//", 0) == 0) {
+      path = path.substr(2);
+      if (path.empty() || path[0] != '/') return "unix://PATH needs an absolute path (unix:///abs/path)";
+    }
+    if (path.empty()) return "unix: needs a socket path (unix:/abs/path or unix:relative/path)";
+    if (path.size() > 107) return "the socket path is " + std::to_string(path.size()) + " bytes, must be < 108";
+    return "";
+  }
+  for (const char* scheme : {"dns:", "ipv4:", "ipv6:", "unix-abstract:"}) {
+    if (a.rfind(scheme, 0) == 0) return "";
+  }
+  const auto colon = a.rfind(':');
+  if (colon == std::string::npos) return "expected host:port or unix:PATH";
+  const std::string host = a.substr(0, colon), port = a.substr(colon + 1);
+  if (host.empty()) return "the host before ':' is empty";
+  if (host.find(':') != std::string::npos && !(host.front() == '[' && host.back() == ']')) {
+    return "an IPv6 host must be in brackets ([::1]:50051)";
+  }
+  if (port.empty() || port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos ||
+      std::stoi(port) < 1 || std::stoi(port) > 65535) {
+    return "port '" + port + "' is not a number in [1, 65535]";
+  }
+  return "";
+}
+
 std::shared_ptr<grpc::Channel> MakeChannel(const Common& c) {
   grpc::ChannelArguments args;
   args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, 30000);
@@ -329,7 +361,9 @@ int main(int argc, char** argv) {
   Common c;
   CLI::App app{"locaid: client of locaid-server"};
   app.require_subcommand(1);
-  app.add_option("--server", c.server, "host:port")->capture_default_str();
+  app.add_option("--server", c.server,
+                 "host:port, or unix:PATH for the server's --listen-unix socket (unix:/abs/path, unix:rel/path)")
+      ->capture_default_str();
   app.add_option("--token", c.token, "bearer token");
   app.add_option("--tls-ca", c.tls_ca, "PEM file of the CA (or self-signed cert) to trust; enables TLS");
   app.add_option("--timeout-s", c.timeout_s, "deadline of unary calls, seconds")->capture_default_str();
@@ -406,6 +440,10 @@ int main(int argc, char** argv) {
   stats->add_option("id", session_id)->required();
 
   CLI11_PARSE(app, argc, argv);
+  if (const std::string why = CheckServerAddress(c.server); !why.empty()) {
+    std::cerr << "error: --server '" << c.server << "': " << why << "\n";
+    return 2;
+  }
   // A file size limit (RLIMIT_FSIZE) must show up as EFBIG from write(2),
   // handled like a full disk, not kill the recorder.
   std::signal(SIGXFSZ, SIG_IGN);

@@ -85,6 +85,30 @@ int ParseListenPort(const std::string& listen) {
   return static_cast<int>(x);
 }
 
+void CheckListenUnixPath(const std::string& path) {
+  const std::string quoted = "'" + path + "'";
+  if (path.empty()) throw ConfigError("listen_unix: path is empty (leave the setting out to listen on TCP only)");
+  if (path.find('\0') != std::string::npos) throw ConfigError("listen_unix: path contains a NUL byte");
+  if (path.rfind("unix:", 0) == 0) {
+    throw ConfigError("listen_unix: give the socket path without the 'unix:' prefix, got " + quoted);
+  }
+  if (path.size() > kMaxUnixPathBytes) {
+    throw ConfigError("listen_unix: path " + quoted + " is " + std::to_string(path.size()) +
+                      " bytes, a Unix-domain socket path must be shorter than 108 bytes (sun_path)");
+  }
+  if (path.back() == '/') throw ConfigError("listen_unix: path " + quoted + " ends in '/', expected a file name");
+  const std::filesystem::path parent = std::filesystem::path(path).parent_path();
+  const std::filesystem::path dir = parent.empty() ? std::filesystem::path(".") : parent;
+  std::error_code ec;
+  const auto status = std::filesystem::status(dir, ec);
+  if (!std::filesystem::exists(status)) {
+    throw ConfigError("listen_unix: directory '" + dir.string() + "' of " + quoted + " does not exist");
+  }
+  if (!std::filesystem::is_directory(status)) {
+    throw ConfigError("listen_unix: '" + dir.string() + "' (parent of " + quoted + ") is not a directory");
+  }
+}
+
 void ApplyYamlConfig(const std::filesystem::path& file, ServerConfig* c) {
   YAML::Node root;
   try {
@@ -114,6 +138,12 @@ void ApplyYamlConfig(const std::filesystem::path& file, ServerConfig* c) {
   };
   const std::map<std::string, Setter> setters = {
       {"listen", str(&c->listen)},
+      // An empty value is an error here (not "TCP only"): leave the key out for that.
+      {"listen_unix",
+       [c](const YAML::Node& n) {
+         c->listen_unix = n.as<std::string>();
+         if (c->listen_unix.empty()) throw ConfigError("empty path (leave the key out to listen on TCP only)");
+       }},
       {"tls_cert_file", str(&c->tls_cert_file)},
       {"tls_key_file", str(&c->tls_key_file)},
       {"token", str(&c->token)},
@@ -155,6 +185,7 @@ void ApplyYamlConfig(const std::filesystem::path& file, ServerConfig* c) {
 
 void ValidateConfig(ServerConfig* c) {
   ParseListenPort(c->listen);
+  if (!c->listen_unix.empty()) CheckListenUnixPath(c->listen_unix);
   if (c->tls_cert_file.empty() != c->tls_key_file.empty()) {
     throw ConfigError("tls_cert_file and tls_key_file must be given together");
   }

@@ -17,6 +17,12 @@ class ConfigError : public std::runtime_error {
 
 struct ServerConfig {
   std::string listen = "127.0.0.1:50051";  // host:port; port 0 picks a free one
+  // Optional second listener on a Unix-domain socket at this path (absolute or
+  // relative to the working directory, without "unix:"); empty = TCP only.
+  // Same credentials and token as `listen`. The socket file is made 0660
+  // after bind and removed on clean shutdown; a stale socket file left by a
+  // crashed server is replaced, anything else at the path is refused.
+  std::string listen_unix;
   std::string tls_cert_file;               // PEM; TLS when cert and key are set
   std::string tls_key_file;
   std::string token;                       // bearer token; empty = no auth
@@ -53,5 +59,12 @@ double ParseRealField(const std::string& field, const std::string& text);
 // Port of a "host:port" listen address; ConfigError naming `listen`, the
 // port text and the reason (not a number, out of [0, 65535]).
 int ParseListenPort(const std::string& listen);
+// Checks a `listen_unix` path without touching it: non-empty, no "unix:"
+// prefix, no NUL byte, shorter than the 108-byte sun_path (so at most 107
+// bytes), not ending in '/', and its parent directory exists. ConfigError
+// "listen_unix: ..." naming the path and the reason.
+void CheckListenUnixPath(const std::string& path);
+// The most bytes a `listen_unix` path may have (sizeof(sockaddr_un::sun_path) - 1).
+inline constexpr size_t kMaxUnixPathBytes = 107;
 
 }  // namespace locaid::server

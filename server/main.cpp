@@ -39,6 +39,9 @@ int main(int argc, char** argv) {
   app.add_option("--config", config_file, "YAML file with any of the settings below (flags override it)")
       ->check(CLI::ExistingFile);
   app.add_option("--listen", cli.listen, "host:port to listen on (port 0: pick one)")->capture_default_str();
+  app.add_option("--listen-unix", cli.listen_unix,
+                 "also listen on a Unix-domain socket at this path (same TLS/token; file mode 0660; a stale "
+                 "socket file is replaced, removed on clean shutdown); clients use unix:PATH");
   app.add_option("--tls-cert", cli.tls_cert_file, "PEM certificate chain (TLS when given with --tls-key)");
   app.add_option("--tls-key", cli.tls_key_file, "PEM private key");
   app.add_option("--token", cli.token, "require 'authorization: Bearer TOKEN' on every call");
@@ -65,6 +68,8 @@ int main(int argc, char** argv) {
       if (app.count(flag) > 0) config.*member = cli.*member;
     };
     take("--listen", &ServerConfig::listen);
+    take("--listen-unix", &ServerConfig::listen_unix);
+    if (app.count("--listen-unix") > 0) locaid::server::CheckListenUnixPath(config.listen_unix);  // rejects ""
     take("--tls-cert", &ServerConfig::tls_cert_file);
     take("--tls-key", &ServerConfig::tls_key_file);
     take("--token", &ServerConfig::token);
@@ -90,7 +95,10 @@ int main(int argc, char** argv) {
   try {
     locaid::server::LocalizationServer server(config);
     std::cout << "locaid-server listening on " << config.listen.substr(0, config.listen.rfind(':')) << ":"
-              << server.port() << (config.tls_cert_file.empty() ? "" : " (TLS)")
+              << server.port()
+              << (config.listen_unix.empty() ? "" : " and " + server.unix_target() + " (mode 0660)")
+              << (server.replaced_stale_socket() ? " (replaced a stale socket file)" : "")
+              << (config.tls_cert_file.empty() ? "" : " (TLS)")
               << (config.token.empty() ? "" : " (token)") << std::endl;
     const int sig = WaitForSignal();
     std::cout << "locaid-server: signal " << sig << ", shutting down" << std::endl;

@@ -10,9 +10,17 @@
 #include <grpcpp/health_check_service_interface.h>
 #include <grpcpp/support/proto_buffer_reader.h>
 
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/un.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 
@@ -812,6 +820,40 @@ void LocalizationService::JoinSessions() {
 
 // --------------------------------------------------------------- server --
 
+UnixPathState InspectUnixSocketPath(const std::string& path) {
+  const std::string where = "listen_unix '" + path + "': ";
+  struct stat st {};
+  if (::lstat(path.c_str(), &st) != 0) {
+    if (errno == ENOENT) return UnixPathState::kAbsent;
+    throw std::runtime_error(where + "cannot examine the path: " + std::strerror(errno));
+  }
+  if (!S_ISSOCK(st.st_mode)) {
+    const char* kind = S_ISREG(st.st_mode)   ? "a regular file"
+                       : S_ISDIR(st.st_mode) ? "a directory"
+                       : S_ISLNK(st.st_mode) ? "a symbolic link"
+                                             : "not a socket";
+    throw std::runtime_error(where + "exists and is " + kind + ", not a socket; not replacing it");
+  }
+  // A socket file: stale when connecting is refused. Non-blocking, so a live
+  // server with a full accept backlog answers EAGAIN instead of blocking us.
+  const int fd = ::socket(AF_UNIX, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+  if (fd < 0) throw std::runtime_error(where + "socket(): " + std::strerror(errno));
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  std::memcpy(addr.sun_path, path.c_str(), std::min(path.size(), sizeof(addr.sun_path) - 1));
+  const int rc = ::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr));
+  const int err = rc == 0 ? 0 : errno;
+  ::close(fd);
+  if (err == ECONNREFUSED) return UnixPathState::kStaleSocket;
+  if (err == ENOENT) return UnixPathState::kAbsent;  // removed meanwhile
+  if (err == 0 || err == EAGAIN || err == EINPROGRESS) {
+    throw std::runtime_error(where + "another process is listening on this socket (another locaid-server?); "
+                             "stop it or choose another path");
+  }
+  throw std::runtime_error(where + "cannot tell whether the existing socket is in use: connect(): " +
+                           std::strerror(err));
+}
+
 LocalizationServer::LocalizationServer(ServerConfig config, EstimatorFactory estimator_factory)
     : config_(std::move(config)) {
   ValidateConfig(&config_);
@@ -832,6 +874,21 @@ LocalizationServer::LocalizationServer(ServerConfig config, EstimatorFactory est
     creds = grpc::InsecureServerCredentials();
   }
   builder.AddListeningPort(config_.listen, creds, &port_);
+  int unix_port = 0;  // gRPC sets 1 once the socket is bound
+  if (!config_.listen_unix.empty()) {
+    // gRPC 1.51 itself unlinks a socket file before bind (any socket, even a
+    // live one) and refuses (EADDRINUSE) anything else; the inspection above
+    // it makes "live socket" and "not a socket" clear errors, and removes a
+    // stale socket here so the behaviour does not depend on gRPC's.
+    if (InspectUnixSocketPath(config_.listen_unix) == UnixPathState::kStaleSocket) {
+      if (::unlink(config_.listen_unix.c_str()) != 0 && errno != ENOENT) {
+        throw std::runtime_error("listen_unix '" + config_.listen_unix +
+                                 "': cannot remove the stale socket file: " + std::strerror(errno));
+      }
+      replaced_stale_socket_ = true;
+    }
+    builder.AddListeningPort("unix:" + config_.listen_unix, creds, &unix_port);
+  }
   builder.RegisterService(service_.get());
   builder.SetMaxReceiveMessageSize(static_cast<int>(config_.max_receive_mb * 1024 * 1024));
   builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, static_cast<int>(config_.keepalive_time_s * 1000));
@@ -840,7 +897,26 @@ LocalizationServer::LocalizationServer(ServerConfig config, EstimatorFactory est
   builder.AddChannelArgument(GRPC_ARG_HTTP2_MAX_PINGS_WITHOUT_DATA, 0);
   builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 5000);
   server_ = builder.BuildAndStart();
-  if (!server_ || port_ == 0) throw std::runtime_error("listen " + config_.listen + ": cannot bind");
+  if (!server_ || port_ == 0) {
+    if (port_ != 0 && !config_.listen_unix.empty() && unix_port == 0) {
+      throw std::runtime_error("listen_unix '" + config_.listen_unix +
+                               "': cannot bind (the directory is not writable, or see gRPC's message above)");
+    }
+    throw std::runtime_error("listen " + config_.listen + ": cannot bind");
+  }
+  if (!config_.listen_unix.empty()) {
+    // Owner and group may connect (connecting needs write permission on the
+    // socket file); until this chmod the file has 0777 & ~umask.
+    struct stat st {};
+    if (::chmod(config_.listen_unix.c_str(), 0660) != 0 || ::stat(config_.listen_unix.c_str(), &st) != 0) {
+      const std::string reason = std::strerror(errno);
+      server_->Shutdown(std::chrono::system_clock::now());
+      throw std::runtime_error("listen_unix '" + config_.listen_unix + "': cannot make the socket file 0660: " +
+                               reason);
+    }
+    unix_dev_ = static_cast<uint64_t>(st.st_dev);
+    unix_ino_ = static_cast<uint64_t>(st.st_ino);
+  }
   server_->GetHealthCheckService()->SetServingStatus(true);
   if (!config_.port_file.empty()) {
     std::ofstream(config_.port_file) << port_ << "\n";
@@ -866,12 +942,26 @@ void LocalizationServer::Shutdown() {
     server_->Shutdown(streams_done ? std::chrono::system_clock::now()
                                    : std::chrono::system_clock::now() + std::chrono::milliseconds(100));
     const double grpc_ms = ms();
+    RemoveOwnSocketFile();
     service_->JoinSessions();
     if (config_.log_shutdown) {
       std::fprintf(stderr, "locaid-server: shutdown: rpcs done after %.0f ms, sessions joined after %.0f ms\n",
                    grpc_ms, ms());
     }
   });
+}
+
+void LocalizationServer::RemoveOwnSocketFile() const {
+  // gRPC 1.51 unlinks the socket file in Shutdown already; this covers a
+  // gRPC that does not, and leaves alone a file someone else created since.
+  if (config_.listen_unix.empty()) return;
+  struct stat st {};
+  if (::lstat(config_.listen_unix.c_str(), &st) != 0 || !S_ISSOCK(st.st_mode)) return;
+  if (static_cast<uint64_t>(st.st_dev) != unix_dev_ || static_cast<uint64_t>(st.st_ino) != unix_ino_) return;
+  if (::unlink(config_.listen_unix.c_str()) != 0 && errno != ENOENT) {
+    std::fprintf(stderr, "locaid-server: cannot remove the socket file '%s': %s\n", config_.listen_unix.c_str(),
+                 std::strerror(errno));
+  }
 }
 
 void LocalizationServer::Wait() { server_->Wait(); }

@@ -7,6 +7,10 @@ put that folder on PYTHONPATH (or pass --stubs DIR):
   PYTHONPATH=build/python /usr/bin/python3 clients/python/locaid_client.py \
       --server 127.0.0.1:50051 subscribe s1 --from-start --csv poses.csv
 
+--server takes host:port or, for a server started with --listen-unix PATH,
+unix:PATH (unix:/abs/path, unix:relative/path or unix:///abs/path); the
+target goes to grpc.insecure_channel / grpc.secure_channel as is.
+
 The CSV has the same columns as `locaid subscribe --format csv`
 (CSV_COLUMNS below), which clients/plot_outage.py reads.
 """
@@ -162,7 +166,8 @@ def stats(args, pb2, pb2_grpc):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--server", default="127.0.0.1:50051")
+    ap.add_argument("--server", default="127.0.0.1:50051",
+                    help="host:port, or unix:PATH for the server's --listen-unix socket (default %(default)s)")
     ap.add_argument("--token", default=os.environ.get("LOCAID_TOKEN", ""))
     ap.add_argument("--tls-ca", default="")
     ap.add_argument("--stubs", default="", help="folder with the generated locaid/v1/*_pb2.py")

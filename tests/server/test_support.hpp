@@ -136,6 +136,15 @@ inline CliResult RunCli(int port, const std::vector<std::string>& args, const st
   return RunShell(cmd);
 }
 
+// The real CLI against any --server target (host:port or unix:PATH).
+inline CliResult RunCliAt(const std::string& target, const std::vector<std::string>& args,
+                          const std::vector<std::string>& pre = {}) {
+  std::string cmd = ShellQuote(std::string(LOCAID_BIN_DIR) + "/locaid") + " --server " + ShellQuote(target);
+  for (const auto& a : pre) cmd.append(" ").append(ShellQuote(a));
+  for (const auto& a : args) cmd.append(" ").append(ShellQuote(a));
+  return RunShell(cmd);
+}
+
 inline std::shared_ptr<grpc::Channel> MakeChannel(int port) {
   return grpc::CreateChannel("127.0.0.1:" + std::to_string(port), grpc::InsecureChannelCredentials());
 }
