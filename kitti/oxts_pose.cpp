@@ -44,18 +44,44 @@ std::optional<Eigen::Isometry3d> InterpolatePose(const std::vector<TimedPose>& p
   return InterpolatePose(a->T_world_cam, b->T_world_cam, alpha);
 }
 
-OxtsGroundTruth ComputeOxtsGroundTruth(const std::vector<OxtsSample>& oxts,
-                                       const std::vector<int64_t>& frame_t_ns,
-                                       const Eigen::Isometry3d& T_cam0_imu, double max_gap_s) {
-  OxtsGroundTruth gt;
-  gt.T_world_cam.assign(frame_t_ns.size(), std::nullopt);
-  if (oxts.empty()) return gt;
+namespace {
+
+void RequireSortedByTime(const std::vector<OxtsSample>& oxts) {
   for (size_t k = 1; k < oxts.size(); ++k) {
     if (oxts[k].t_ns < oxts[k - 1].t_ns) {
       throw Error("OXTS samples not sorted by time: record " + std::to_string(oxts[k].index) +
                   " is before record " + std::to_string(oxts[k - 1].index));
     }
   }
+}
+
+}  // namespace
+
+std::vector<OxtsSample> IntegrateOxtsVelocity(const std::vector<OxtsSample>& oxts) {
+  RequireSortedByTime(oxts);
+  std::vector<OxtsSample> out = oxts;
+  if (oxts.empty()) return out;
+  const OxtsRecord& o = oxts.front().record;
+  const GeographicLib::LocalCartesian enu(o.lat_deg, o.lon_deg, o.alt_m);
+  Eigen::Vector3d p_enu = Eigen::Vector3d::Zero();
+  for (size_t k = 1; k < oxts.size(); ++k) {
+    const OxtsRecord& a = oxts[k - 1].record;
+    const OxtsRecord& b = oxts[k].record;
+    const double dt_s = static_cast<double>(oxts[k].t_ns - oxts[k - 1].t_ns) * 1e-9;
+    p_enu += 0.5 * dt_s * Eigen::Vector3d(a.ve_mps + b.ve_mps, a.vn_mps + b.vn_mps, a.vu_mps + b.vu_mps);
+    OxtsRecord& r = out[k].record;
+    enu.Reverse(p_enu.x(), p_enu.y(), p_enu.z(), r.lat_deg, r.lon_deg, r.alt_m);
+  }
+  return out;
+}
+
+OxtsGroundTruth ComputeOxtsGroundTruth(const std::vector<OxtsSample>& oxts,
+                                       const std::vector<int64_t>& frame_t_ns,
+                                       const Eigen::Isometry3d& T_cam0_imu, double max_gap_s) {
+  OxtsGroundTruth gt;
+  gt.T_world_cam.assign(frame_t_ns.size(), std::nullopt);
+  if (oxts.empty()) return gt;
+  RequireSortedByTime(oxts);
   const OxtsRecord& o = oxts.front().record;
   gt.origin_lat_deg = o.lat_deg;
   gt.origin_lon_deg = o.lon_deg;

@@ -54,4 +54,14 @@ OxtsGroundTruth ComputeOxtsGroundTruth(const std::vector<OxtsSample>& oxts,
                                        const Eigen::Isometry3d& T_cam0_imu,
                                        double max_gap_s = 0.5);
 
+// The same records with lat/lon/alt replaced by the first record's position
+// plus the time integral (trapezoid) of the OXTS velocity (ve, vn, vu), taken
+// in the first record's local east-north-up frame; attitude, velocity and the
+// other fields unchanged. A reference whose position is as smooth as the
+// unit's velocity: on drives where the receiver is not in RTK-fixed mode the
+// position solution can step by decimetres that no velocity explains (see
+// docs/benchmarks.md). Drift grows with time, so it is meant for segments of
+// tens of seconds. `oxts` must be sorted by time (throws kitti::Error).
+std::vector<OxtsSample> IntegrateOxtsVelocity(const std::vector<OxtsSample>& oxts);
+
 }  // namespace locaid::kitti

@@ -16,6 +16,8 @@
 //   vo_bench --drive DIR [--method NAME|all] [--lengths 25 50 75 100] [--max-frames N]
 #include "kitti/dataset.hpp"
 #include "kitti/eval/devkit.hpp"
+#include "kitti/oxts_pose.hpp"
+#include "kitti/pose_io.hpp"
 #include "vo/drive_runner.hpp"
 #include "vo/stereo_odometry.hpp"
 
@@ -27,6 +29,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <optional>
 
 namespace {
 
@@ -81,6 +84,33 @@ Slant MotionSlant(const std::vector<Eigen::Isometry3d>& poses) {
   return s;
 }
 
+// Ground truth per frame: the dataset's, or (raw drives, "oxts-velocity")
+// OXTS with positions from its integrated velocity.
+std::vector<std::optional<Eigen::Isometry3d>> ReferencePoses(const locaid::kitti::StereoDataset& dataset,
+                                                              const std::string& reference) {
+  std::vector<std::optional<Eigen::Isometry3d>> out(dataset.size());
+  if (reference == "oxts") {
+    for (size_t i = 0; i < dataset.size(); ++i) out[i] = dataset.ground_truth(i);
+    return out;
+  }
+  if (dataset.oxts().empty())
+    throw std::runtime_error("--reference " + reference + " needs a raw drive with OXTS records");
+  std::vector<int64_t> t_ns(dataset.size());
+  for (size_t i = 0; i < dataset.size(); ++i) t_ns[i] = dataset.time_ns(i);
+  return locaid::kitti::ComputeOxtsGroundTruth(locaid::kitti::IntegrateOxtsVelocity(dataset.oxts()), t_ns,
+                                               dataset.T_cam0_imu())
+      .T_world_cam;
+}
+
+// Median of the OXTS records' own position accuracy field (raw drives).
+std::optional<double> MedianOxtsPositionAccuracy(const locaid::kitti::StereoDataset& dataset) {
+  std::vector<double> acc;
+  for (const auto& s : dataset.oxts()) acc.push_back(s.record.pos_accuracy_m);
+  if (acc.empty()) return std::nullopt;
+  std::nth_element(acc.begin(), acc.begin() + static_cast<long>(acc.size() / 2), acc.end());
+  return acc[acc.size() / 2];
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -101,6 +131,17 @@ int main(int argc, char** argv) {
                  "default method: sliding bundle-adjustment window in keyframes (0: off; "
                  "unset: the method's default)")
       ->check(CLI::Range(0, 50));
+  std::string reference = "oxts";
+  app.add_option("--reference", reference,
+                 "raw drives: ground truth from the OXTS position solution (oxts, the devkit's) or from "
+                 "the integral of the OXTS velocity (oxts-velocity, a diagnostic of the position "
+                 "solution's steps)")
+      ->check(CLI::IsMember({"oxts", "oxts-velocity"}))
+      ->capture_default_str();
+  std::string out_poses;
+  app.add_option("--out-poses", out_poses,
+                 "write the evaluated frames as KITTI pose files PREFIX_gt.txt and PREFIX_<method>.txt "
+                 "(both anchored at the first frame with ground truth)");
   CLI11_PARSE(app, argc, argv);
   if (window_keyframes >= 0 && method == "thesis") {
     std::cerr << "vo_bench: --window-keyframes applies to the default method only\n";
@@ -109,6 +150,7 @@ int main(int argc, char** argv) {
   cv::setNumThreads(1);
   try {
     const auto dataset = kitti::OpenDataset(drive);
+    const std::vector<std::optional<Eigen::Isometry3d>> reference_poses = ReferencePoses(*dataset, reference);
     std::vector<std::string> methods = vo::StereoOdometryMethods();
     if (method != "all") methods = {method};
     nlohmann::json out = nlohmann::json::array();
@@ -124,7 +166,7 @@ int main(int argc, char** argv) {
       const std::vector<Eigen::Isometry3d> all_est = vo::PosesPerFrame(run);
       std::vector<Eigen::Isometry3d> gt, est;
       for (size_t i = 0; i < all_est.size(); ++i) {
-        const auto g = dataset->ground_truth(i);
+        const auto& g = reference_poses[i];
         if (!g) {
           if (!gt.empty()) break;  // keep one contiguous stretch
           continue;
@@ -138,6 +180,10 @@ int main(int argc, char** argv) {
         gt[i] = gt0_inv * gt[i];
         est[i] = est0_inv * est[i];
       }
+      if (!out_poses.empty()) {
+        kitti::WriteKittiPoses(out_poses + "_gt.txt", gt);
+        kitti::WriteKittiPoses(out_poses + "_" + m + ".txt", est);
+      }
       kitti::eval::DevkitConfig dc;
       dc.lengths_m = lengths;
       const kitti::eval::DevkitResult r = kitti::eval::EvaluateDevkit(gt, est, dc);
@@ -150,6 +196,8 @@ int main(int argc, char** argv) {
       j["method"] = m;
       if (m == "default" && window_keyframes >= 0) j["window_keyframes"] = window_keyframes;
       j["drive"] = drive;
+      j["reference"] = reference;
+      if (const auto acc = MedianOxtsPositionAccuracy(*dataset)) j["oxts_pos_accuracy_median_m"] = *acc;
       j["frames"] = s.frames;
       j["evaluated_frames"] = gt.size();
       j["missing_frames"] = s.missing_frames;
