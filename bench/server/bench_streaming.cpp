@@ -9,6 +9,10 @@
 // threads as in production (the machine's cores are still shared); with
 // --in-process they run in the server's process.
 //
+// With --unix the server also listens on a Unix-domain socket (a fresh
+// folder under the temp directory) and the subscribers connect through it;
+// the session setup, the push stream and the stats calls stay on TCP.
+//
 // Prints per-run: delay from hub publish (published_unix_ns, stamped after the
 // EKF output) to client receipt wall time (p50/p99/max), loss, session frame
 // rate, server RSS and the CPU time of the server and of the client process
@@ -25,6 +29,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <filesystem>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -162,7 +167,7 @@ int RunClients(const std::string& target, const std::string& session_id, int sub
 int main(int argc, char** argv) {
   int subscribers = 100, frames = 600, channels = 4;
   double rate_hz = 100;
-  bool stalled = false, in_process = false;
+  bool stalled = false, in_process = false, unix_socket = false;
   std::string client_of, client_session;
   CLI::App app{"locaid streaming benchmark"};
   app.add_option("--subscribers", subscribers)->capture_default_str();
@@ -171,6 +176,8 @@ int main(int argc, char** argv) {
   app.add_option("--channels", channels, "client connections shared by the subscribers")->capture_default_str();
   app.add_flag("--stalled", stalled, "add one subscriber that never reads");
   app.add_flag("--in-process", in_process, "run the subscribers in the server's process (default: a child process)");
+  app.add_flag("--unix", unix_socket,
+               "subscribers connect over a Unix-domain socket (server listens on both; push and stats stay on TCP)");
   app.add_option("--client-of", client_of, "internal: run only the subscribers against this server address");
   app.add_option("--client-session", client_session, "internal: session id for --client-of");
   CLI11_PARSE(app, argc, argv);
@@ -180,9 +187,29 @@ int main(int argc, char** argv) {
   ServerConfig config;
   config.listen = "127.0.0.1:0";
   config.max_subscribers_per_session = 100000;
+  const std::filesystem::path socket_dir =
+      std::filesystem::temp_directory_path() / ("locaid-bench-uds-" + std::to_string(getpid()));
+  struct RemoveDirAtExit {  // declared before the server, so removed after it has shut down
+    std::filesystem::path dir;
+    ~RemoveDirAtExit() {
+      std::error_code ec;
+      if (!dir.empty()) std::filesystem::remove_all(dir, ec);
+    }
+  } socket_dir_guard;
+  if (unix_socket) {
+    std::filesystem::remove_all(socket_dir);
+    std::filesystem::create_directories(socket_dir);
+    socket_dir_guard.dir = socket_dir;
+    config.listen_unix = (socket_dir / "locaid.sock").string();
+  }
   LocalizationServer server(config, [](const EstimatorSetup&) { return std::make_unique<ConstantEstimator>(); });
   const std::string target = "127.0.0.1:" + std::to_string(server.port());
-  auto stubs = MakeStubs(target, in_process ? channels : 1);
+  const std::string sub_target = unix_socket ? server.unix_target() : target;
+  // In-process TCP subscribers share the control stub's connection (channel 0), as before --unix existed.
+  auto stubs = MakeStubs(target, in_process && !unix_socket ? channels : 1);
+  std::vector<std::unique_ptr<v1::Localization::Stub>> unix_stubs;
+  if (in_process && unix_socket) unix_stubs = MakeStubs(sub_target, channels);
+  const auto& sub_stubs = unix_socket ? unix_stubs : stubs;
 
   // Session.
   v1::StartSessionRequest start;
@@ -201,11 +228,11 @@ int main(int argc, char** argv) {
   std::unique_ptr<locaid::bench::Subscriber> stall;
   locaid::bench::Child child;
   if (in_process) {
-    subs = MakeSubscribers(stubs, session.id(), subscribers, frames);
-    stall_stub = MakeStallStub(target);
+    subs = MakeSubscribers(sub_stubs, session.id(), subscribers, frames);
+    stall_stub = MakeStallStub(sub_target);
     if (stalled) stall = std::make_unique<locaid::bench::Subscriber>(stall_stub.get(), session.id(), 64, true);
   } else {
-    std::vector<std::string> args = {"locaid-bench-streaming", "--client-of", target, "--client-session", session.id(),
+    std::vector<std::string> args = {"locaid-bench-streaming", "--client-of", sub_target, "--client-session", session.id(),
                                      "--subscribers", std::to_string(subscribers), "--frames", std::to_string(frames),
                                      "--channels", std::to_string(channels)};
     if (stalled) args.push_back("--stalled");
@@ -281,8 +308,9 @@ int main(int argc, char** argv) {
   uint64_t stalled_dropped = 0;
   for (const auto& sub : st.subscriber()) stalled_dropped = std::max<uint64_t>(stalled_dropped, sub.dropped());
   const double published = std::max<double>(1, static_cast<double>(st.frames_processed()));
-  std::printf("subscribers=%d stalled=%d frames=%d rate_hz=%.0f channels=%d clients=%s\n", subscribers,
-              stalled ? 1 : 0, frames, rate_hz, channels, in_process ? "in-process" : "child-process");
+  std::printf("subscribers=%d stalled=%d frames=%d rate_hz=%.0f channels=%d clients=%s transport=%s\n", subscribers,
+              stalled ? 1 : 0, frames, rate_hz, channels, in_process ? "in-process" : "child-process",
+              unix_socket ? "unix" : "tcp");
   std::printf("delay_us p50=%.0f p99=%.0f max=%.0f  received=%llu lost=%llu  stalled_dropped=%llu\n", r.p50_us,
               r.p99_us, r.max_us, static_cast<unsigned long long>(r.received),
               static_cast<unsigned long long>(r.lost), static_cast<unsigned long long>(stalled_dropped));
