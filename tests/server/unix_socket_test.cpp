@@ -233,7 +233,7 @@ TEST_F(UnixSocketTest, ASocketInUseIsRefusedAndLeftAlone) {
   EXPECT_EQ(RunCliAt(target_, {"health"}).out, "SERVING\n");  // the first one still serves it
 }
 
-TEST_F(UnixSocketTest, ARegularFileOrDirectoryAtThePathIsRefusedAndKept) {
+TEST_F(UnixSocketTest, ARegularFileDirectoryOrSymlinkAtThePathIsRefusedAndKept) {
   std::ofstream(sock_) << "keep me\n";
   std::string e = StartErrorOf(Config());
   EXPECT_NE(e.find("listen_unix '" + sock_.string() + "': exists and is a regular file, not a socket"),
@@ -246,6 +246,12 @@ TEST_F(UnixSocketTest, ARegularFileOrDirectoryAtThePathIsRefusedAndKept) {
   e = StartErrorOf(Config());
   EXPECT_NE(e.find("exists and is a directory"), std::string::npos) << e;
   EXPECT_TRUE(std::filesystem::is_directory(sock_ / "inside"));
+
+  std::filesystem::remove_all(sock_);
+  std::filesystem::create_symlink(dir_ / "elsewhere.sock", sock_);
+  e = StartErrorOf(Config());
+  EXPECT_NE(e.find("exists and is a symbolic link"), std::string::npos) << e;
+  EXPECT_TRUE(std::filesystem::is_symlink(std::filesystem::symlink_status(sock_)));
 }
 
 TEST_F(UnixSocketTest, RelativePathIsBoundInTheWorkingDirectoryAndRemovedOnShutdown) {
