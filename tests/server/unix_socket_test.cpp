@@ -14,10 +14,25 @@
 namespace locaid::server::testing {
 namespace {
 
-// A folder of this test process (ctest runs every test in its own process,
-// two at a time) under /tmp, short enough for sun_path.
+// The folder of this test process (ctest runs every test in its own process,
+// two at a time) under /tmp, short enough for sun_path; removed when the
+// process's tests are done.
+std::filesystem::path ProcessDir() {
+  return std::filesystem::temp_directory_path() / ("locaid-uds-" + std::to_string(::getpid()));
+}
+
+class RemoveProcessDir : public ::testing::Environment {
+ public:
+  void TearDown() override {
+    std::error_code ec;
+    std::filesystem::remove_all(ProcessDir(), ec);
+  }
+};
+[[maybe_unused]] ::testing::Environment* const kRemoveProcessDir =
+    ::testing::AddGlobalTestEnvironment(new RemoveProcessDir);
+
 std::filesystem::path UdsDir(const std::string& name) {
-  const auto dir = std::filesystem::temp_directory_path() / ("locaid-uds-" + std::to_string(::getpid())) / name;
+  const auto dir = ProcessDir() / name;
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   return dir;
