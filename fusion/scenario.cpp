@@ -119,6 +119,11 @@ void GpsScenario::ScheduleOutage(int64_t start_ns, int64_t end_ns) {
   runtime_outages_.emplace_back(start_ns, end_ns);
 }
 
+int64_t FixSlot(int64_t t_since_start_ns, double rate_hz) {
+  const double periods = static_cast<double>(t_since_start_ns) / kNsPerS * rate_hz;
+  return static_cast<int64_t>(std::floor(periods + 0.5));
+}
+
 std::optional<GpsFix> GpsScenario::Apply(int64_t t_ns, double lat, double lon, double alt) {
   if (!drive_start_ns_) SetDriveStart(t_ns);
   if (!bias_initialized_) {
@@ -137,11 +142,10 @@ std::optional<GpsFix> GpsScenario::Apply(int64_t t_ns, double lat, double lon, d
       for (int i = 0; i < 3; ++i) bias_enu_m_[i] = phi * bias_enu_m_[i] + q * n01(rng_);
     }
   }
-  const int64_t period_ns = static_cast<int64_t>(std::llround(kNsPerS / scenario_.gps_rate_hz));
-  // Due when one period has passed (with 5 % slack for jittery clocks).
-  if (last_fix_ns_ && t_ns - *last_fix_ns_ < period_ns - period_ns / 20) return std::nullopt;
+  const int64_t slot = FixSlot(t_ns - *drive_start_ns_, scenario_.gps_rate_hz);
+  if (last_fix_slot_ && slot <= *last_fix_slot_) return std::nullopt;
   if (InOutage(t_ns)) return std::nullopt;
-  last_fix_ns_ = t_ns;
+  last_fix_slot_ = slot;
 
   std::normal_distribution<double> n01;
   std::uniform_real_distribution<double> u01(0.0, 1.0);

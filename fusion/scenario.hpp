@@ -68,6 +68,11 @@ Scenario BuiltinScenario(const std::string& name);
 // the drive) are placed with this; others are returned unchanged.
 Scenario PlaceOutagesForDrive(Scenario scenario, double drive_duration_s);
 
+// Decimation slot of a sample t_since_start_ns after the drive start: the
+// nearest whole number of GPS periods (slot k covers [k - 1/2, k + 1/2)
+// periods). GpsScenario emits at most one fix per slot.
+int64_t FixSlot(int64_t t_since_start_ns, double rate_hz);
+
 // Degrades OXTS fixes into GpsFix: decimation to gps_rate_hz, white noise,
 // bias, multipath jumps, scheduled and run-time outages. Seeded, repeatable.
 class GpsScenario {
@@ -94,7 +99,11 @@ class GpsScenario {
   Scenario scenario_;
   std::mt19937_64 rng_;
   std::optional<int64_t> drive_start_ns_;
-  std::optional<int64_t> last_fix_ns_;
+  // Decimation: the time since the drive start is cut into gps_rate_hz slots
+  // centred on multiples of the period; the first sample in each slot gives
+  // the fix. Locked to that grid, so sample-time jitter of up to half a period
+  // neither drops a fix nor adds one.
+  std::optional<int64_t> last_fix_slot_;
   int64_t last_bias_ns_ = 0;
   Eigen::Vector3d bias_enu_m_ = Eigen::Vector3d::Zero();
   Eigen::Vector2d jump_en_m_ = Eigen::Vector2d::Zero();

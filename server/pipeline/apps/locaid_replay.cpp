@@ -152,6 +152,8 @@ void ApplyEkfSetting(fusion::EkfConfig& c, const std::string& setting) {
       {"gps_gate_probability", &c.gps_gate_probability},
       {"init_cov_inflation", &c.init_cov_inflation},
       {"no_imu_lost_sigma_mps", &c.no_imu_lost_sigma_mps},
+      {"degraded_hold_s", &c.degraded_hold_s},
+      {"vo_only_after_periods", &c.vo_only_after_periods},
   };
   const auto eq = setting.find('=');
   const std::string name = setting.substr(0, eq);
