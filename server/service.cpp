@@ -906,16 +906,15 @@ LocalizationServer::LocalizationServer(ServerConfig config, EstimatorFactory est
   }
   if (!config_.listen_unix.empty()) {
     // Owner and group may connect (connecting needs write permission on the
-    // socket file); until this chmod the file has 0777 & ~umask.
-    struct stat st {};
-    if (::chmod(config_.listen_unix.c_str(), 0660) != 0 || ::stat(config_.listen_unix.c_str(), &st) != 0) {
+    // socket file); until this chmod the file has 0777 & ~umask. gRPC
+    // removes the file again when the server shuts down (UnixSocketTest
+    // checks it).
+    if (::chmod(config_.listen_unix.c_str(), 0660) != 0) {
       const std::string reason = std::strerror(errno);
       server_->Shutdown(std::chrono::system_clock::now());
       throw std::runtime_error("listen_unix '" + config_.listen_unix + "': cannot make the socket file 0660: " +
                                reason);
     }
-    unix_dev_ = static_cast<uint64_t>(st.st_dev);
-    unix_ino_ = static_cast<uint64_t>(st.st_ino);
   }
   server_->GetHealthCheckService()->SetServingStatus(true);
   if (!config_.port_file.empty()) {
@@ -942,26 +941,12 @@ void LocalizationServer::Shutdown() {
     server_->Shutdown(streams_done ? std::chrono::system_clock::now()
                                    : std::chrono::system_clock::now() + std::chrono::milliseconds(100));
     const double grpc_ms = ms();
-    RemoveOwnSocketFile();
     service_->JoinSessions();
     if (config_.log_shutdown) {
       std::fprintf(stderr, "locaid-server: shutdown: rpcs done after %.0f ms, sessions joined after %.0f ms\n",
                    grpc_ms, ms());
     }
   });
-}
-
-void LocalizationServer::RemoveOwnSocketFile() const {
-  // gRPC 1.51 unlinks the socket file in Shutdown already; this covers a
-  // gRPC that does not, and leaves alone a file someone else created since.
-  if (config_.listen_unix.empty()) return;
-  struct stat st {};
-  if (::lstat(config_.listen_unix.c_str(), &st) != 0 || !S_ISSOCK(st.st_mode)) return;
-  if (static_cast<uint64_t>(st.st_dev) != unix_dev_ || static_cast<uint64_t>(st.st_ino) != unix_ino_) return;
-  if (::unlink(config_.listen_unix.c_str()) != 0 && errno != ENOENT) {
-    std::fprintf(stderr, "locaid-server: cannot remove the socket file '%s': %s\n", config_.listen_unix.c_str(),
-                 std::strerror(errno));
-  }
 }
 
 void LocalizationServer::Wait() { server_->Wait(); }

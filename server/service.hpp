@@ -185,11 +185,7 @@ class LocalizationServer {
   std::unique_ptr<grpc::Server> server_;
   int port_ = 0;
   bool replaced_stale_socket_ = false;
-  // Device and inode of the socket file this server bound, so shutdown
-  // removes that file and never one another process created since.
-  uint64_t unix_dev_ = 0, unix_ino_ = 0;
   std::once_flag shutdown_once_;
-  void RemoveOwnSocketFile() const;
 };
 
 }  // namespace locaid::server

@@ -129,13 +129,6 @@ inline CliResult RunShell(const std::string& command) {
   return r;
 }
 
-inline CliResult RunCli(int port, const std::vector<std::string>& args, const std::vector<std::string>& pre = {}) {
-  std::string cmd = ShellQuote(std::string(LOCAID_BIN_DIR) + "/locaid") + " --server 127.0.0.1:" + std::to_string(port);
-  for (const auto& a : pre) cmd.append(" ").append(ShellQuote(a));
-  for (const auto& a : args) cmd.append(" ").append(ShellQuote(a));
-  return RunShell(cmd);
-}
-
 // The real CLI against any --server target (host:port or unix:PATH).
 inline CliResult RunCliAt(const std::string& target, const std::vector<std::string>& args,
                           const std::vector<std::string>& pre = {}) {
@@ -143,6 +136,10 @@ inline CliResult RunCliAt(const std::string& target, const std::vector<std::stri
   for (const auto& a : pre) cmd.append(" ").append(ShellQuote(a));
   for (const auto& a : args) cmd.append(" ").append(ShellQuote(a));
   return RunShell(cmd);
+}
+
+inline CliResult RunCli(int port, const std::vector<std::string>& args, const std::vector<std::string>& pre = {}) {
+  return RunCliAt("127.0.0.1:" + std::to_string(port), args, pre);
 }
 
 inline std::shared_ptr<grpc::Channel> MakeChannel(int port) {
