@@ -31,6 +31,7 @@
 #include <string>
 
 #include <fcntl.h>
+#include <sys/un.h>
 #include <unistd.h>
 
 namespace v1 = locaid::v1;
@@ -62,7 +63,10 @@ std::string CheckServerAddress(const std::string& a) {
       if (path.empty() || path[0] != '/') return "unix://PATH needs an absolute path (unix:///abs/path)";
     }
     if (path.empty()) return "unix: needs a socket path (unix:/abs/path or unix:relative/path)";
-    if (path.size() > 107) return "the socket path is " + std::to_string(path.size()) + " bytes, must be < 108";
+    constexpr size_t kSunPathBytes = sizeof(sockaddr_un{}.sun_path);
+    if (path.size() >= kSunPathBytes) {
+      return "the socket path is " + std::to_string(path.size()) + " bytes, must be < " + std::to_string(kSunPathBytes);
+    }
     return "";
   }
   for (const char* scheme : {"dns:", "ipv4:", "ipv6:", "unix-abstract:"}) {
