@@ -94,7 +94,8 @@ void CheckListenUnixPath(const std::string& path) {
   }
   if (path.size() > kMaxUnixPathBytes) {
     throw ConfigError("listen_unix: path " + quoted + " is " + std::to_string(path.size()) +
-                      " bytes, a Unix-domain socket path must be shorter than 108 bytes (sun_path)");
+                      " bytes, a Unix-domain socket path must be shorter than " +
+                      std::to_string(kMaxUnixPathBytes + 1) + " bytes (sun_path)");
   }
   if (path.back() == '/') throw ConfigError("listen_unix: path " + quoted + " ends in '/', expected a file name");
   const std::filesystem::path parent = std::filesystem::path(path).parent_path();

@@ -2,6 +2,8 @@
 // validated once in ValidateConfig with messages naming the field.
 #pragma once
 
+#include <sys/un.h>
+
 #include <cstddef>
 #include <filesystem>
 #include <stdexcept>
@@ -65,6 +67,6 @@ int ParseListenPort(const std::string& listen);
 // "listen_unix: ..." naming the path and the reason.
 void CheckListenUnixPath(const std::string& path);
 // The most bytes a `listen_unix` path may have (sizeof(sockaddr_un::sun_path) - 1).
-inline constexpr size_t kMaxUnixPathBytes = 107;
+inline constexpr size_t kMaxUnixPathBytes = sizeof(sockaddr_un{}.sun_path) - 1;
 
 }  // namespace locaid::server
