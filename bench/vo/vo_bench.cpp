@@ -18,6 +18,7 @@
 #include "kitti/eval/devkit.hpp"
 #include "kitti/oxts_pose.hpp"
 #include "kitti/pose_io.hpp"
+#include "kitti/raw_drive.hpp"
 #include "vo/drive_runner.hpp"
 #include "vo/stereo_odometry.hpp"
 
@@ -97,8 +98,9 @@ std::vector<std::optional<Eigen::Isometry3d>> ReferencePoses(const locaid::kitti
     throw std::runtime_error("--reference " + reference + " needs a raw drive with OXTS records");
   std::vector<int64_t> t_ns(dataset.size());
   for (size_t i = 0; i < dataset.size(); ++i) t_ns[i] = dataset.time_ns(i);
+  // Same gap limit as the dataset's own ground truth (OpenDataset's defaults).
   return locaid::kitti::ComputeOxtsGroundTruth(locaid::kitti::IntegrateOxtsVelocity(dataset.oxts()), t_ns,
-                                               dataset.T_cam0_imu())
+                                               dataset.T_cam0_imu(), locaid::kitti::RawDriveOptions{}.max_gt_gap_s)
       .T_world_cam;
 }
 
@@ -151,6 +153,7 @@ int main(int argc, char** argv) {
   try {
     const auto dataset = kitti::OpenDataset(drive);
     const std::vector<std::optional<Eigen::Isometry3d>> reference_poses = ReferencePoses(*dataset, reference);
+    const std::optional<double> oxts_pos_accuracy_m = MedianOxtsPositionAccuracy(*dataset);
     std::vector<std::string> methods = vo::StereoOdometryMethods();
     if (method != "all") methods = {method};
     nlohmann::json out = nlohmann::json::array();
@@ -197,7 +200,7 @@ int main(int argc, char** argv) {
       if (m == "default" && window_keyframes >= 0) j["window_keyframes"] = window_keyframes;
       j["drive"] = drive;
       j["reference"] = reference;
-      if (const auto acc = MedianOxtsPositionAccuracy(*dataset)) j["oxts_pos_accuracy_median_m"] = *acc;
+      if (oxts_pos_accuracy_m) j["oxts_pos_accuracy_median_m"] = *oxts_pos_accuracy_m;
       j["frames"] = s.frames;
       j["evaluated_frames"] = gt.size();
       j["missing_frames"] = s.missing_frames;
