@@ -1,7 +1,9 @@
 // locaid-synth: render a synthetic KITTI raw *sync* drive (stereo + OXTS +
 // calibration + ground truth) with locaid's own software renderer.
 //
-//   locaid-synth --out DIR [--frames N | --length-m M] [--seed S] [--width W --height H] [--quiet]
+//   locaid-synth --out DIR [--frames N | --length-m M] [--seed S] [--width W --height H]
+//                [--speed-min V --speed-max V] [--radius-min R --radius-max R]
+//                [--rate-hz HZ] [--quiet]
 #include "kitti/synth/synth.hpp"
 
 #include <CLI/CLI.hpp>
@@ -21,7 +23,7 @@ int main(int argc, char** argv) {
   CLI::App app{"Render a synthetic KITTI raw sync drive (stereo PNGs, OXTS, calib, ground truth)."};
   app.add_option("--out", out, "date folder to write (created; the drive goes into DIR/<date>_drive_NNNN_sync)")
       ->required();
-  app.add_option("--frames", cfg.frames, "number of stereo frames at 10 Hz")->check(CLI::Range(2, 1000000));
+  app.add_option("--frames", cfg.frames, "number of stereo frames")->check(CLI::Range(2, 1000000));
   app.add_option("--length-m", cfg.length_m, "drive this distance instead of --frames (metres)")
       ->check(CLI::Range(1.0, 100000.0));
   app.add_option("--seed", cfg.seed, "random seed (same seed -> identical files)");
@@ -31,6 +33,12 @@ int main(int argc, char** argv) {
   app.add_option("--drive", cfg.drive_number, "drive number")->check(CLI::Range(0, 9999));
   app.add_option("--noise", cfg.noise_sigma_dn, "sensor noise sigma (grey levels)")->check(CLI::Range(0.0, 50.0));
   app.add_option("--png-level", cfg.png_compression, "PNG zlib level 0..9, -1 = fast (SUB filter, level 1, RLE)")->check(CLI::Range(-1, 9));
+  app.add_option("--rate-hz", cfg.frame_rate_hz, "camera and OXTS rate (Hz; KITTI: 10)")->check(CLI::Range(1.0, 100.0));
+  app.add_option("--speed-min", cfg.speed_min_mps, "lowest planned speed (m/s; wins over the curve limit)")
+      ->check(CLI::Range(1.0, 60.0));
+  app.add_option("--speed-max", cfg.speed_max_mps, "highest planned speed (m/s)")->check(CLI::Range(1.0, 60.0));
+  app.add_option("--radius-min", cfg.curve_radius_min_m, "sharpest curve radius (m)")->check(CLI::Range(10.0, 10000.0));
+  app.add_option("--radius-max", cfg.curve_radius_max_m, "widest curve radius (m)")->check(CLI::Range(10.0, 10000.0));
   app.add_flag("--quiet,-q", quiet, "no progress output");
   CLI11_PARSE(app, argc, argv);
 

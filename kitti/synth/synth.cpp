@@ -231,12 +231,23 @@ SynthSummary GenerateDrive(const SynthConfig& cfg, const std::filesystem::path& 
   if (!std::regex_match(cfg.date, std::regex("[0-9]{4}_[0-9]{2}_[0-9]{2}")))
     throw Error("synth: date '" + cfg.date + "' is not YYYY_MM_DD");
   if (cfg.png_compression < -1 || cfg.png_compression > 9) throw Error("synth: png_compression must be -1..9");
+  if (!(cfg.speed_min_mps >= 1 && cfg.speed_min_mps <= cfg.speed_max_mps && cfg.speed_max_mps <= 60))
+    throw Error("synth: speed range " + std::to_string(cfg.speed_min_mps) + ".." + std::to_string(cfg.speed_max_mps) +
+                " m/s is not 1 <= min <= max <= 60");
+  if (!(cfg.curve_radius_min_m >= 10 && cfg.curve_radius_min_m <= cfg.curve_radius_max_m &&
+        cfg.curve_radius_max_m <= 10000))
+    throw Error("synth: curve radius range " + std::to_string(cfg.curve_radius_min_m) + ".." +
+                std::to_string(cfg.curve_radius_max_m) + " m is not 10 <= min <= max <= 10000");
 
   const SynthCalib calib = MakeSynthCalib(cfg.width, cfg.height);
   const double dt = 1.0 / cfg.frame_rate_hz;
   const double lead_s = 1.0;  // the car is already moving 1 s before the first image
   RouteConfig rc;
   rc.seed = cfg.seed;
+  rc.v_min_mps = cfg.speed_min_mps;
+  rc.v_max_mps = cfg.speed_max_mps;
+  rc.min_radius_m = cfg.curve_radius_min_m;
+  rc.max_radius_m = cfg.curve_radius_max_m;
   const double duration_bound = cfg.length_m > 0 ? cfg.length_m / rc.v_min_mps + 5 : (cfg.frames - 1) * dt + 1;
   rc.length_m = (cfg.length_m > 0 ? cfg.length_m : rc.v_max_mps * duration_bound) + rc.v_max_mps * lead_s + 330;
   const Route route(rc);

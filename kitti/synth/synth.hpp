@@ -37,6 +37,13 @@ struct SynthConfig {
   double noise_sigma_dn = 1.2;       // sensor noise
   double oxts_time_offset_max_s = 0.004;  // |t_oxts - t_image| <= this (sync data are not exact)
   double frame_jitter_max_s = 0.0015;     // image timestamp jitter around 1/rate
+  // Route shape: the planned speed stays within [speed_min, speed_max] (m/s;
+  // the minimum wins over the curve limit), and curve radii are drawn
+  // log-uniformly from [radius_min, radius_max] (m). The defaults are a town
+  // and country-road drive (18-72 km/h); e.g. 20-30 m/s with 300-1500 m radii
+  // is a motorway.
+  double speed_min_mps = 5, speed_max_mps = 20;
+  double curve_radius_min_m = 35, curve_radius_max_m = 220;
   int png_compression = -1;          // -1: fast (SUB filter, zlib level 1, RLE); 0..9: zlib level, adaptive filters
 };
 

@@ -350,6 +350,65 @@ TEST(SynthErrorsTest, BadConfigAndUnwritableFolderThrowClearly) {
   fs::remove(file);
 }
 
+TEST(SynthErrorsTest, BadSpeedOrCurveRangeIsRefusedWithTheRange) {
+  synth::SynthConfig cfg;
+  cfg.frames = 3;
+  cfg.width = 320;
+  cfg.height = 96;
+  auto message = [&]() -> std::string {
+    try {
+      synth::GenerateDrive(cfg, fs::path(::testing::TempDir()) / "locaid_synth_bad_range");
+    } catch (const locaid::kitti::Error& e) {
+      return e.what();
+    }
+    return "";
+  };
+  cfg.speed_min_mps = 25;
+  cfg.speed_max_mps = 20;
+  EXPECT_NE(message().find("speed range 25"), std::string::npos) << message();
+  cfg.speed_min_mps = 5;
+  cfg.speed_max_mps = std::nan("");
+  EXPECT_NE(message().find("speed range"), std::string::npos) << message();
+  cfg.speed_max_mps = 20;
+  cfg.curve_radius_min_m = 5;
+  EXPECT_NE(message().find("curve radius range 5"), std::string::npos) << message();
+  cfg.curve_radius_min_m = 500;
+  cfg.curve_radius_max_m = 400;
+  EXPECT_NE(message().find("curve radius range 500"), std::string::npos) << message();
+  fs::remove_all(fs::path(::testing::TempDir()) / "locaid_synth_bad_range");
+}
+
+// A motorway drive (20-30 m/s, wide curves) at 20 Hz: the speeds stay in the
+// range, and the frames and OXTS records come at the asked rate.
+TEST(SynthMotionTest, MotorwaySpeedAndFrameRateAreHonoured) {
+  const fs::path base = fs::path(::testing::TempDir()) / ("locaid_synth_motorway_" + std::to_string(::getpid()));
+  fs::remove_all(base);
+  synth::SynthConfig cfg;
+  cfg.seed = 4;
+  cfg.frames = 60;
+  cfg.width = 160;
+  cfg.height = 48;
+  cfg.frame_rate_hz = 20;
+  cfg.speed_min_mps = 20;
+  cfg.speed_max_mps = 30;
+  cfg.curve_radius_min_m = 300;
+  cfg.curve_radius_max_m = 1500;
+  const synth::SynthSummary s = synth::GenerateDrive(cfg, base);
+  EXPECT_EQ(s.frames, 60);
+  EXPECT_NEAR(s.duration_s, 59 / 20.0, 0.01);
+  EXPECT_GE(s.min_speed_mps, 19.9);
+  EXPECT_LE(s.max_speed_mps, 30.1);
+  EXPECT_GT(s.distance_m / s.duration_s, 19.9);
+  const auto stamps = Lines(s.drive_dir / "image_00" / "timestamps.txt");
+  ASSERT_EQ(stamps.size(), 60u);
+  const auto seconds = [](const std::string& line) { return std::stod(line.substr(line.rfind(':') + 1)); };
+  double gap = seconds(stamps[10]) - seconds(stamps[9]);
+  if (gap < 0) gap += 60;
+  EXPECT_NEAR(gap, 0.05, 0.004);
+  EXPECT_EQ(Lines(s.drive_dir / "oxts" / "timestamps.txt").size(), 60u);
+  fs::remove_all(base);
+}
+
 // Stereo geometry: a textured scene point seen in the left image is found in
 // the right image on the same row at disparity f*b/Z.
 TEST(SynthRendererTest, StereoDisparityMatchesDepth) {
