@@ -32,6 +32,30 @@ Renderer::Renderer(const Intrinsics& K, const std::vector<MipTexture>* textures)
 namespace {
 constexpr int kMaxVerts = 8;
 struct V3 { double x, y, z; };
+
+// One mip level as the span loops sample it.
+struct MipLevel {
+  const uint8_t* texels;
+  int lw, mask_x, mask_y;  // log2 of the row length; wrap masks
+};
+
+MipLevel LevelOf(const MipTexture& tex, int level) {
+  const int lw = tex.log2_w - level, lh = tex.log2_h - level;
+  return {tex.levels[level].data(), lw, (1 << std::max(lw, 0)) - 1, (1 << std::max(lh, 0)) - 1};
+}
+
+// Bilinear texel lookup, wrapping. (iu, iv): texel position x 256, already
+// shifted by -128 (texel centres) and +2^28 (kept positive); returns grey x 65536.
+inline int Bilinear(const MipLevel& m, int iu, int iv) {
+  const int tx0 = (iu >> 8) & m.mask_x, ty0 = (iv >> 8) & m.mask_y;
+  const int tx1 = (tx0 + 1) & m.mask_x, ty1 = (ty0 + 1) & m.mask_y;
+  const int fx = iu & 255, fy = iv & 255;
+  const uint8_t* r0 = m.texels + (static_cast<size_t>(ty0) << m.lw);
+  const uint8_t* r1 = m.texels + (static_cast<size_t>(ty1) << m.lw);
+  const int top = r0[tx0] * 256 + (r0[tx1] - r0[tx0]) * fx;
+  const int bot = r1[tx0] * 256 + (r1[tx1] - r1[tx0]) * fx;
+  return top * 256 + (bot - top) * fy;
+}
 }  // namespace
 
 void Renderer::Render(const std::vector<const Poly*>& polys, const Eigen::Isometry3d& T_world_cam,
@@ -168,12 +192,15 @@ void Renderer::DrawPoly(const Poly& poly, const Eigen::Matrix3d& R_cw, const Eig
       const double dudx = zm * (Uc[0] - um * Wc[0]), dudy = zm * (Uc[1] - um * Wc[1]);
       const double dvdx = zm * (Vc[0] - vm * Wc[0]), dvdy = zm * (Vc[1] - vm * Wc[1]);
       const double rho2 = std::max(dudx * dudx + dvdx * dvdx, dudy * dudy + dvdy * dvdy);
+      if (anisotropic) {
+        AnisotropicSpan(tex, Uc, Vc, Wc, dudx * dudx + dvdx * dvdx, dudy * dudy + dvdy * dvdy, c0, c1, y, kshade,
+                        zrow, crow);
+        continue;
+      }
       // round(log2(rho)) = floor(log2(2 rho^2) / 2)
       int level = rho2 > 1 ? std::ilogb(2 * rho2) / 2 : 0;
       level = std::min(level, max_level);
-      const uint8_t* texels = tex.levels[level].data();
-      const int lw = tex.log2_w - level, lh = tex.log2_h - level;
-      const int mask_x = (1 << std::max(lw, 0)) - 1, mask_y = (1 << std::max(lh, 0)) - 1;
+      const MipLevel mip = LevelOf(tex, level);
       const float scale = 256.0f / static_cast<float>(1 << level);
       float w = static_cast<float>(Wc[0] * c0 + Wc[1] * y + Wc[2]);
       float uz = static_cast<float>((Uc[0] * c0 + Uc[1] * y + Uc[2]) * scale);
@@ -185,18 +212,46 @@ void Renderer::DrawPoly(const Poly& poly, const Eigen::Matrix3d& R_cw, const Eig
         const float z = 1.0f / w;
         const int iu = static_cast<int>(uz * z) - 128 + (1 << 28);
         const int iv = static_cast<int>(vz * z) - 128 + (1 << 28);
-        const int tx0 = (iu >> 8) & mask_x, ty0 = (iv >> 8) & mask_y;
-        const int tx1 = (tx0 + 1) & mask_x, ty1 = (ty0 + 1) & mask_y;
-        const int fx = iu & 255, fy = iv & 255;
-        const uint8_t* r0 = texels + (static_cast<size_t>(ty0) << lw);
-        const uint8_t* r1 = texels + (static_cast<size_t>(ty1) << lw);
-        const int top = r0[tx0] * 256 + (r0[tx1] - r0[tx0]) * fx;
-        const int bot = r1[tx0] * 256 + (r1[tx1] - r1[tx0]) * fx;
-        const int val = top * 256 + (bot - top) * fy;
-        crow[x] = static_cast<float>(val) * kshade;
+        crow[x] = static_cast<float>(Bilinear(mip, iu, iv)) * kshade;
         zrow[x] = w;
       }
     }
+  }
+}
+
+// Anisotropic variant of the span loop. The footprint of a pixel in the
+// texture is long along one screen axis (for the road ahead: the rows, which
+// cover metres of depth) and short along the other. The isotropic loop picks
+// the mip level of the long axis and so blurs the road sideways as much as in
+// depth; here the level follows the short axis, and n bilinear samples spread
+// along the long axis (n = the axis ratio, at most kMaxAnisotropy) average it.
+void Renderer::AnisotropicSpan(const MipTexture& tex, const double* Uc, const double* Vc, const double* Wc,
+                               double foot_x2, double foot_y2, int c0, int c1, int y, float kshade, float* zrow,
+                               float* crow) const {
+  constexpr int kMaxAnisotropy = 16;
+  const int max_level = static_cast<int>(tex.levels.size()) - 1;
+  const bool long_y = foot_y2 >= foot_x2;
+  const double long_axis = std::sqrt(std::max(foot_x2, foot_y2));
+  const double short_axis = std::sqrt(std::max(1e-12, std::min(foot_x2, foot_y2)));
+  const int n = std::clamp(static_cast<int>(std::ceil(long_axis / short_axis)), 1, kMaxAnisotropy);
+  const double per_sample = long_axis / n;
+  const int level = per_sample > 1 ? std::min(static_cast<int>(std::lround(std::log2(per_sample))), max_level) : 0;
+      const MipLevel mip = LevelOf(tex, level);
+  const double scale = 256.0 / static_cast<double>(1 << level);
+  for (int x = c0; x < c1; ++x) {
+    const double w_center = Wc[0] * x + Wc[1] * y + Wc[2];
+    if (!(static_cast<float>(w_center) > zrow[x])) continue;
+    int64_t acc = 0;
+    for (int k = 0; k < n; ++k) {
+      const double d = (k + 0.5) / n - 0.5;  // sample offset along the long axis, pixels
+      const double xs = long_y ? x : x + d, ys = long_y ? y + d : y;
+      const double inv_w = 1.0 / (Wc[0] * xs + Wc[1] * ys + Wc[2]);
+      const int iu = static_cast<int>((Uc[0] * xs + Uc[1] * ys + Uc[2]) * inv_w * scale) - 128 + (1 << 28);
+      const int iv = static_cast<int>((Vc[0] * xs + Vc[1] * ys + Vc[2]) * inv_w * scale) - 128 + (1 << 28);
+      acc += Bilinear(mip, iu, iv);
+    }
+    crow[x] = static_cast<float>(static_cast<double>(acc) / n) * kshade;
+    zrow[x] = static_cast<float>(w_center);
   }
 }
 

@@ -1,6 +1,6 @@
 // Software renderer of the synthetic world: z-buffered scanline rasterizer of
 // convex planar polygons with perspective-correct, mip-mapped, bilinearly
-// filtered grayscale textures; then sky, haze, optics blur, vignetting,
+// (optionally anisotropically) filtered grayscale textures; then sky, haze, optics blur, vignetting,
 // exposure gain and sensor noise. Single-threaded, no virtual calls per pixel.
 #pragma once
 
@@ -55,12 +55,20 @@ class Renderer {
   const std::vector<float>& inverse_depth() const { return inv_z_; }
 
   double near_m = 0.3;
+  // Texture filtering. false: one mip level per 32-pixel span, chosen by the
+  // longest axis of the pixel's texture footprint (fast; ground seen at a
+  // grazing angle is blurred sideways as much as in depth). true: the level
+  // follows the shortest axis and several samples average the longest one, as
+  // a real lens sees the road (2-4x the rendering time).
+  bool anisotropic = false;
   double fog_start_m = 45, fog_end_m = 185;  // haze: none before start, full at end
   float haze_dn = 175, sky_zenith_dn = 140;
 
  private:
   void DrawPoly(const Poly& poly, const Eigen::Matrix3d& R_cw, const Eigen::Vector3d& t_cw);
   void PostProcess(const Eigen::Matrix3d& R_cw, const Photometry& ph, cv::Mat& out);
+  void AnisotropicSpan(const MipTexture& tex, const double* Uc, const double* Vc, const double* Wc, double foot_x2,
+                       double foot_y2, int c0, int c1, int y, float kshade, float* zrow, float* crow) const;
 
   Intrinsics K_;
   const std::vector<MipTexture>* tex_;

@@ -306,6 +306,7 @@ SynthSummary GenerateDrive(const SynthConfig& cfg, const std::filesystem::path& 
   sum.static_polygons = world.num_static_polys();
   Intrinsics K{calib.stereo.fx, calib.stereo.fy, calib.stereo.cx, calib.stereo.cy, cfg.width, cfg.height};
   Renderer renderer(K, &textures);
+  renderer.anisotropic = cfg.anisotropic_filtering;
   const GeographicLib::LocalCartesian enu(cfg.origin_lat_deg, cfg.origin_lon_deg, cfg.origin_alt_m);
   const Eigen::Isometry3d T_imu_cam0 = calib.T_cam0_imu.inverse();
   Eigen::Isometry3d T_cam0_cam1 = Eigen::Isometry3d::Identity();

@@ -44,6 +44,10 @@ struct SynthConfig {
   // is a motorway.
   double speed_min_mps = 5, speed_max_mps = 20;
   double curve_radius_min_m = 35, curve_radius_max_m = 220;
+  // Anisotropic texture filtering (Renderer::anisotropic): the road stays
+  // sharp sideways into the distance. Off by default, so drives rendered by
+  // earlier versions keep their bytes.
+  bool anisotropic_filtering = false;
   int png_compression = -1;          // -1: fast (SUB filter, zlib level 1, RLE); 0..9: zlib level, adaptive filters
 };
 
