@@ -244,8 +244,14 @@ void Renderer::AnisotropicSpan(const MipTexture& tex, const double* Uc, const do
     int64_t acc = 0;
     for (int k = 0; k < n; ++k) {
       const double d = (k + 0.5) / n - 0.5;  // sample offset along the long axis, pixels
-      const double xs = long_y ? x : x + d, ys = long_y ? y + d : y;
-      const double inv_w = 1.0 / (Wc[0] * xs + Wc[1] * ys + Wc[2]);
+      double xs = long_y ? x : x + d, ys = long_y ? y + d : y;
+      double w_sample = Wc[0] * xs + Wc[1] * ys + Wc[2];
+      if (!(w_sample > 0)) {  // beyond the plane's horizon (sub-pixel next to it): use the centre
+        xs = x;
+        ys = y;
+        w_sample = w_center;
+      }
+      const double inv_w = 1.0 / w_sample;
       const int iu = static_cast<int>((Uc[0] * xs + Uc[1] * ys + Uc[2]) * inv_w * scale) - 128 + (1 << 28);
       const int iv = static_cast<int>((Vc[0] * xs + Vc[1] * ys + Vc[2]) * inv_w * scale) - 128 + (1 << 28);
       acc += Bilinear(mip, iu, iv);
