@@ -40,7 +40,7 @@ int main(int argc, char** argv) {
   app.add_option("--radius-min", cfg.curve_radius_min_m, "sharpest curve radius (m)")->check(CLI::Range(10.0, 10000.0));
   app.add_option("--radius-max", cfg.curve_radius_max_m, "widest curve radius (m)")->check(CLI::Range(10.0, 10000.0));
   app.add_flag("--anisotropic", cfg.anisotropic_filtering,
-               "anisotropic texture filtering: the road stays sharp sideways into the distance (2-4x slower; "
+               "anisotropic texture filtering: the road stays sharp sideways into the distance (about 2x slower; "
                "other bytes than without)");
   app.add_flag("--quiet,-q", quiet, "no progress output");
   CLI11_PARSE(app, argc, argv);

@@ -59,7 +59,7 @@ class Renderer {
   // longest axis of the pixel's texture footprint (fast; ground seen at a
   // grazing angle is blurred sideways as much as in depth). true: the level
   // follows the shortest axis and several samples average the longest one, as
-  // a real lens sees the road (2-4x the rendering time).
+  // a real lens sees the road (about 2x the rendering time).
   bool anisotropic = false;
   double fog_start_m = 45, fog_end_m = 185;  // haze: none before start, full at end
   float haze_dn = 175, sky_zenith_dn = 140;

@@ -23,6 +23,13 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
+// "25..30" for error messages (%g: no trailing zeros).
+std::string Range(double lo, double hi) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%g..%g", lo, hi);
+  return buf;
+}
+
 // KITTI calibration numbers: "%e" (6 decimals), like the real files.
 std::string E(double x) {
   char buf[32];
@@ -232,12 +239,12 @@ SynthSummary GenerateDrive(const SynthConfig& cfg, const std::filesystem::path& 
     throw Error("synth: date '" + cfg.date + "' is not YYYY_MM_DD");
   if (cfg.png_compression < -1 || cfg.png_compression > 9) throw Error("synth: png_compression must be -1..9");
   if (!(cfg.speed_min_mps >= 1 && cfg.speed_min_mps <= cfg.speed_max_mps && cfg.speed_max_mps <= 60))
-    throw Error("synth: speed range " + std::to_string(cfg.speed_min_mps) + ".." + std::to_string(cfg.speed_max_mps) +
+    throw Error("synth: speed range " + Range(cfg.speed_min_mps, cfg.speed_max_mps) +
                 " m/s is not 1 <= min <= max <= 60");
   if (!(cfg.curve_radius_min_m >= 10 && cfg.curve_radius_min_m <= cfg.curve_radius_max_m &&
         cfg.curve_radius_max_m <= 10000))
-    throw Error("synth: curve radius range " + std::to_string(cfg.curve_radius_min_m) + ".." +
-                std::to_string(cfg.curve_radius_max_m) + " m is not 10 <= min <= max <= 10000");
+    throw Error("synth: curve radius range " + Range(cfg.curve_radius_min_m, cfg.curve_radius_max_m) +
+                " m is not 10 <= min <= max <= 10000");
 
   const SynthCalib calib = MakeSynthCalib(cfg.width, cfg.height);
   const double dt = 1.0 / cfg.frame_rate_hz;
