@@ -32,6 +32,7 @@ DriveRun RunOnDataset(const kitti::StereoDataset& dataset, const DriveRunConfig&
   run.method = config.method;
   DefaultConfig default_config;
   if (config.window_keyframes >= 0) default_config.window_keyframes = config.window_keyframes;
+  if (config.klt_guess_translation) default_config.klt_guess_translation = *config.klt_guess_translation;
   const auto vo = MakeStereoOdometry(config.method, dataset.camera(), config.clock, default_config);
   size_t n = dataset.size();
   if (config.max_frames > 0) n = std::min(n, config.max_frames);

@@ -12,6 +12,7 @@
 #include <functional>
 #include <map>
 #include <string>
+#include <optional>
 #include <vector>
 
 namespace locaid::vo {
@@ -23,6 +24,8 @@ struct DriveRunConfig {
   // "default" only: the sliding-window size (DefaultConfig::window_keyframes);
   // -1 keeps the method's default.
   int window_keyframes = -1;
+  // "default" only: DefaultConfig::klt_guess_translation; unset keeps the default.
+  std::optional<bool> klt_guess_translation;
 };
 
 struct FrameResult {

@@ -73,6 +73,12 @@ struct DefaultConfig {
   int stereo_search_half_patch = 2;  // SAD patch half size (pyramid level 1) for new corners
   double stereo_uniqueness = 1.1;    // second-best SAD must exceed best x this
   double max_forward_backward_px = 1.0;  // temporal KLT forward-backward check
+  // KLT start of each keyframe feature: its projection under the
+  // constant-velocity prediction (true), or under the predicted rotation only
+  // (false; the pyramid then finds the translation's flow). With the full
+  // prediction the previous frame's translation error feeds into the next
+  // (docs/benchmarks.md, "Motorway speed").
+  bool klt_guess_translation = true;
   // Motion.
   int ransac_iterations = 100;
   double ransac_threshold_px = 2.0;

@@ -133,6 +133,11 @@ int main(int argc, char** argv) {
                  "default method: sliding bundle-adjustment window in keyframes (0: off; "
                  "unset: the method's default)")
       ->check(CLI::Range(0, 50));
+  std::string klt_guess;
+  app.add_option("--klt-guess", klt_guess,
+                 "default method: KLT start from the full constant-velocity prediction (full, the default) "
+                 "or from its rotation only (rotation)")
+      ->check(CLI::IsMember({"full", "rotation"}));
   std::string reference = "oxts";
   app.add_option("--reference", reference,
                  "raw drives: ground truth from the OXTS position solution (oxts, the devkit's) or from "
@@ -149,6 +154,10 @@ int main(int argc, char** argv) {
     std::cerr << "vo_bench: --window-keyframes applies to the default method only\n";
     return 2;
   }
+  if (!klt_guess.empty() && method == "thesis") {
+    std::cerr << "vo_bench: --klt-guess applies to the default method only\n";
+    return 2;
+  }
   cv::setNumThreads(1);
   try {
     const auto dataset = kitti::OpenDataset(drive);
@@ -163,6 +172,7 @@ int main(int argc, char** argv) {
       config.max_frames = max_frames;
       config.clock = cpu_time ? vo::TimingClock::kThreadCpu : vo::TimingClock::kWall;
       config.window_keyframes = window_keyframes;
+      if (!klt_guess.empty()) config.klt_guess_translation = klt_guess == "full";
       const vo::DriveRun run = vo::RunOnDataset(*dataset, config);
       // Frames with ground truth (raw drives: OXTS may start after frame 0);
       // both trajectories re-anchored at the first of them.
@@ -198,6 +208,7 @@ int main(int argc, char** argv) {
       nlohmann::json j;
       j["method"] = m;
       if (m == "default" && window_keyframes >= 0) j["window_keyframes"] = window_keyframes;
+      if (m == "default" && !klt_guess.empty()) j["klt_guess"] = klt_guess;
       j["drive"] = drive;
       j["reference"] = reference;
       if (oxts_pos_accuracy_m) j["oxts_pos_accuracy_median_m"] = *oxts_pos_accuracy_m;

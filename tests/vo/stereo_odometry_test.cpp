@@ -73,9 +73,11 @@ class SyntheticDrive {
 
 // The methods, plus the default one with its (optional) sliding window on.
 constexpr const char* kDefaultWithWindow = "default_window5";
+constexpr const char* kDefaultRotationGuess = "default_rotation_guess";  // klt_guess_translation off
 std::vector<std::string> TestedVariants() {
   std::vector<std::string> v = StereoOdometryMethods();
   v.push_back(kDefaultWithWindow);
+  v.push_back(kDefaultRotationGuess);
   return v;
 }
 
@@ -83,9 +85,10 @@ class StereoOdometryTest : public ::testing::TestWithParam<std::string> {
  protected:
   const AccuracyTolerance tol = ToleranceFor(GetParam());
   std::unique_ptr<StereoOdometry> Make() {
-    if (GetParam() == kDefaultWithWindow) {
+    if (GetParam() == kDefaultWithWindow || GetParam() == kDefaultRotationGuess) {
       DefaultConfig config;
-      config.window_keyframes = 5;
+      if (GetParam() == kDefaultWithWindow) config.window_keyframes = 5;
+      if (GetParam() == kDefaultRotationGuess) config.klt_guess_translation = false;
       return MakeDefaultOdometry(SyntheticDrive::Get().camera, config);
     }
     return MakeStereoOdometry(GetParam(), SyntheticDrive::Get().camera);
