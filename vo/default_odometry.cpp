@@ -406,8 +406,6 @@ RelativeMotion DefaultOdometry::Track(const StereoFrame& frame) {
   const Eigen::Isometry3d T_ref_prev = T_w_ref_.inverse() * T_w_out_;
   const Eigen::Isometry3d T_ref_pred = T_ref_prev * ScaleMotion(velocity_, scale);
   const Eigen::Isometry3d T_pred_ref = T_ref_pred.inverse();
-  Eigen::Isometry3d T_guess_ref = T_pred_ref;
-  if (!cfg_.klt_guess_translation) T_guess_ref.translation().setZero();
   std::vector<cv::Point2f> ref_uv, curr_uv;
   std::vector<float> pred_disp;
   ref_uv.reserve(ref_features_.size());
@@ -417,7 +415,8 @@ RelativeMotion DefaultOdometry::Track(const StereoFrame& frame) {
     cv::Point2f guess = f.uv;
     float disp = -1;
     if (q.z() > 0.5) {
-      const Eigen::Vector3d g = cfg_.klt_guess_translation ? q : Eigen::Vector3d(T_guess_ref * f.p_ref);
+      // KLT start: the predicted point, or only the predicted rotation of it.
+      const Eigen::Vector3d g = cfg_.klt_guess_translation ? q : Eigen::Vector3d(T_pred_ref.linear() * f.p_ref);
       if (g.z() > 0.5) {
         const cv::Point2f proj(static_cast<float>(cam_.fx * g.x() / g.z() + cam_.cx),
                                static_cast<float>(cam_.fy * g.y() / g.z() + cam_.cy));

@@ -11,8 +11,8 @@
 #include <cstddef>
 #include <functional>
 #include <map>
-#include <string>
 #include <optional>
+#include <string>
 #include <vector>
 
 namespace locaid::vo {

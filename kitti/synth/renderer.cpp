@@ -191,12 +191,12 @@ void Renderer::DrawPoly(const Poly& poly, const Eigen::Matrix3d& R_cw, const Eig
       const double um = (Uc[0] * xm + Uc[1] * y + Uc[2]) * zm, vm = (Vc[0] * xm + Vc[1] * y + Vc[2]) * zm;
       const double dudx = zm * (Uc[0] - um * Wc[0]), dudy = zm * (Uc[1] - um * Wc[1]);
       const double dvdx = zm * (Vc[0] - vm * Wc[0]), dvdy = zm * (Vc[1] - vm * Wc[1]);
-      const double rho2 = std::max(dudx * dudx + dvdx * dvdx, dudy * dudy + dvdy * dvdy);
+      const double foot_x2 = dudx * dudx + dvdx * dvdx, foot_y2 = dudy * dudy + dvdy * dvdy;
       if (anisotropic) {
-        AnisotropicSpan(tex, Uc, Vc, Wc, dudx * dudx + dvdx * dvdx, dudy * dudy + dvdy * dvdy, c0, c1, y, kshade,
-                        zrow, crow);
+        AnisotropicSpan(tex, Uc, Vc, Wc, foot_x2, foot_y2, c0, c1, y, kshade, zrow, crow);
         continue;
       }
+      const double rho2 = std::max(foot_x2, foot_y2);
       // round(log2(rho)) = floor(log2(2 rho^2) / 2)
       int level = rho2 > 1 ? std::ilogb(2 * rho2) / 2 : 0;
       level = std::min(level, max_level);
@@ -236,7 +236,7 @@ void Renderer::AnisotropicSpan(const MipTexture& tex, const double* Uc, const do
   const int n = std::clamp(static_cast<int>(std::ceil(long_axis / short_axis)), 1, kMaxAnisotropy);
   const double per_sample = long_axis / n;
   const int level = per_sample > 1 ? std::min(static_cast<int>(std::lround(std::log2(per_sample))), max_level) : 0;
-      const MipLevel mip = LevelOf(tex, level);
+  const MipLevel mip = LevelOf(tex, level);
   const double scale = 256.0 / static_cast<double>(1 << level);
   for (int x = c0; x < c1; ++x) {
     const double w_center = Wc[0] * x + Wc[1] * y + Wc[2];

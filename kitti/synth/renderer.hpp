@@ -1,7 +1,7 @@
 // Software renderer of the synthetic world: z-buffered scanline rasterizer of
 // convex planar polygons with perspective-correct, mip-mapped, bilinearly
-// (optionally anisotropically) filtered grayscale textures; then sky, haze, optics blur, vignetting,
-// exposure gain and sensor noise. Single-threaded, no virtual calls per pixel.
+// (optionally anisotropically) filtered grayscale textures; then sky, haze,
+// optics blur, vignetting, exposure gain and sensor noise. Single-threaded, no virtual calls per pixel.
 #pragma once
 
 #include "kitti/synth/texture.hpp"

@@ -14,6 +14,7 @@
 // force, +g on z at rest). Same config (incl. seed) -> byte-identical files.
 #pragma once
 
+#include "kitti/synth/motion.hpp"
 #include "kitti/types.hpp"
 
 #include <Eigen/Geometry>
@@ -39,11 +40,11 @@ struct SynthConfig {
   double frame_jitter_max_s = 0.0015;     // image timestamp jitter around 1/rate
   // Route shape: the planned speed stays within [speed_min, speed_max] (m/s;
   // the minimum wins over the curve limit), and curve radii are drawn
-  // log-uniformly from [radius_min, radius_max] (m). The defaults are a town
-  // and country-road drive (18-72 km/h); e.g. 20-30 m/s with 300-1500 m radii
-  // is a motorway.
-  double speed_min_mps = 5, speed_max_mps = 20;
-  double curve_radius_min_m = 35, curve_radius_max_m = 220;
+  // log-uniformly from [radius_min, radius_max] (m). The defaults are
+  // RouteConfig's, a town and country-road drive (5-20 m/s, 35-220 m); e.g.
+  // 20-30 m/s with 300-1500 m radii is a motorway.
+  double speed_min_mps = RouteConfig{}.v_min_mps, speed_max_mps = RouteConfig{}.v_max_mps;
+  double curve_radius_min_m = RouteConfig{}.min_radius_m, curve_radius_max_m = RouteConfig{}.max_radius_m;
   // Anisotropic texture filtering (Renderer::anisotropic): the road stays
   // sharp sideways into the distance. Off by default, so drives rendered by
   // earlier versions keep their bytes.
