@@ -13,7 +13,20 @@
 // (max |slant - median|) of the ground truth next to the estimate's shows how
 // much vertical motion the reference has that the camera did not see.
 //
+// Two diagnostics of the reference itself (raw drives):
+//   --reference-floor scores the other OXTS trajectory (velocity integral when
+//     the reference is the position solution, and the other way round) against
+//     the reference, as if it were one more method: what an odometer as good
+//     as the OXTS unit's own velocity would get (JSON "reference_floor").
+//   --fit-boresight searches the constant rotation of the estimate's camera
+//     frame (yaw about camera y, pitch about camera x, 0.05 deg grid within
+//     +-1 deg) that minimises t_rel (JSON "boresight_fit"). A calibration
+//     error between the camera and the reference's frame (camera intrinsics,
+//     camera-IMU extrinsics) shows up as such a rotation. It is fitted on the
+//     evaluated frames themselves: a diagnostic, never a result.
+//
 //   vo_bench --drive DIR [--method NAME|all] [--lengths 25 50 75 100] [--max-frames N]
+//            [--reference oxts|oxts-velocity] [--reference-floor] [--fit-boresight]
 #include "kitti/dataset.hpp"
 #include "kitti/eval/devkit.hpp"
 #include "kitti/oxts_pose.hpp"
@@ -104,6 +117,65 @@ std::vector<std::optional<Eigen::Isometry3d>> ReferencePoses(const locaid::kitti
       .T_world_cam;
 }
 
+// Frames with ground truth (raw drives: OXTS may start after frame 0), both
+// trajectories re-anchored at the first of them; one contiguous stretch.
+void AnchoredPairs(const std::vector<std::optional<Eigen::Isometry3d>>& reference,
+                   const std::vector<Eigen::Isometry3d>& estimate, std::vector<Eigen::Isometry3d>* gt,
+                   std::vector<Eigen::Isometry3d>* est) {
+  gt->clear();
+  est->clear();
+  for (size_t i = 0; i < estimate.size() && i < reference.size(); ++i) {
+    const auto& g = reference[i];
+    if (!g) {
+      if (!gt->empty()) break;
+      continue;
+    }
+    gt->push_back(*g);
+    est->push_back(estimate[i]);
+  }
+  if (gt->empty()) return;
+  const Eigen::Isometry3d gt0_inv = gt->front().inverse(), est0_inv = est->front().inverse();
+  for (size_t i = 0; i < gt->size(); ++i) {
+    (*gt)[i] = gt0_inv * (*gt)[i];
+    (*est)[i] = est0_inv * (*est)[i];
+  }
+}
+
+struct BoresightFit {
+  double yaw_deg = 0, pitch_deg = 0, t_rel_pct = 0, r_rel_deg_per_100m = 0;
+};
+
+// Every pose conjugated by R (relative motions R d R^T): the estimate seen
+// from a camera frame rotated by R.
+std::vector<Eigen::Isometry3d> RotateFrame(const std::vector<Eigen::Isometry3d>& poses, const Eigen::Matrix3d& R) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = R;
+  std::vector<Eigen::Isometry3d> out;
+  out.reserve(poses.size());
+  for (const Eigen::Isometry3d& p : poses) out.push_back(T * p * T.inverse());
+  return out;
+}
+
+std::optional<BoresightFit> FitBoresight(const std::vector<Eigen::Isometry3d>& gt,
+                                         const std::vector<Eigen::Isometry3d>& est,
+                                         const locaid::kitti::eval::DevkitConfig& dc) {
+  std::optional<BoresightFit> best;
+  constexpr int kSteps = 20;  // +-1 deg in 0.05 deg steps
+  for (int iy = -kSteps; iy <= kSteps; ++iy) {
+    for (int ip = -kSteps; ip <= kSteps; ++ip) {
+      const double yaw = iy / 20.0, pitch = ip / 20.0;  // exact grid values in the JSON
+      const Eigen::Matrix3d R = (Eigen::AngleAxisd(yaw * M_PI / 180, Eigen::Vector3d::UnitY()) *
+                                 Eigen::AngleAxisd(pitch * M_PI / 180, Eigen::Vector3d::UnitX()))
+                                    .toRotationMatrix();
+      const auto r = locaid::kitti::eval::EvaluateDevkit(gt, RotateFrame(est, R), dc);
+      if (!r.t_err || !r.r_err_rad_per_m) return std::nullopt;
+      if (!best || *r.t_err * 100 < best->t_rel_pct)
+        best = BoresightFit{yaw, pitch, *r.t_err * 100, *r.r_err_rad_per_m * 180 / M_PI * 100};
+    }
+  }
+  return best;
+}
+
 // Median of the OXTS records' own position accuracy field (raw drives).
 std::optional<double> MedianOxtsPositionAccuracy(const locaid::kitti::StereoDataset& dataset) {
   std::vector<double> acc;
@@ -149,6 +221,13 @@ int main(int argc, char** argv) {
   app.add_option("--out-poses", out_poses,
                  "write the evaluated frames as KITTI pose files PREFIX_gt.txt and PREFIX_<method>.txt "
                  "(both anchored at the first frame with ground truth)");
+  bool reference_floor = false, fit_boresight = false;
+  app.add_flag("--reference-floor", reference_floor,
+               "raw drives: also score the other OXTS trajectory (velocity integral or position solution) "
+               "against the reference, as one more entry (method \"reference_floor\")");
+  app.add_flag("--fit-boresight", fit_boresight,
+               "per method: the constant camera-frame rotation (yaw, pitch within +-1 deg) that minimises "
+               "t_rel, fitted on the evaluated frames (a calibration diagnostic, not a result)");
   CLI11_PARSE(app, argc, argv);
   if (window_keyframes >= 0 && method == "thesis") {
     std::cerr << "vo_bench: --window-keyframes applies to the default method only\n";
@@ -161,6 +240,8 @@ int main(int argc, char** argv) {
   cv::setNumThreads(1);
   try {
     const auto dataset = kitti::OpenDataset(drive);
+    if (reference_floor && dataset->oxts().empty())
+      throw std::runtime_error("--reference-floor needs a raw drive with OXTS records");
     const std::vector<std::optional<Eigen::Isometry3d>> reference_poses = ReferencePoses(*dataset, reference);
     const std::optional<double> oxts_pos_accuracy_m = MedianOxtsPositionAccuracy(*dataset);
     std::vector<std::string> methods = vo::StereoOdometryMethods();
@@ -174,25 +255,9 @@ int main(int argc, char** argv) {
       config.window_keyframes = window_keyframes;
       if (!klt_guess.empty()) config.klt_guess_translation = klt_guess == "full";
       const vo::DriveRun run = vo::RunOnDataset(*dataset, config);
-      // Frames with ground truth (raw drives: OXTS may start after frame 0);
-      // both trajectories re-anchored at the first of them.
-      const std::vector<Eigen::Isometry3d> all_est = vo::PosesPerFrame(run);
       std::vector<Eigen::Isometry3d> gt, est;
-      for (size_t i = 0; i < all_est.size(); ++i) {
-        const auto& g = reference_poses[i];
-        if (!g) {
-          if (!gt.empty()) break;  // keep one contiguous stretch
-          continue;
-        }
-        gt.push_back(*g);
-        est.push_back(all_est[i]);
-      }
+      AnchoredPairs(reference_poses, vo::PosesPerFrame(run), &gt, &est);
       if (gt.size() < 2) throw std::runtime_error("no ground truth in " + drive);
-      const Eigen::Isometry3d gt0_inv = gt.front().inverse(), est0_inv = est.front().inverse();
-      for (size_t i = 0; i < gt.size(); ++i) {
-        gt[i] = gt0_inv * gt[i];
-        est[i] = est0_inv * est[i];
-      }
       if (!out_poses.empty()) {
         kitti::WriteKittiPoses(out_poses + "_gt.txt", gt);
         kitti::WriteKittiPoses(out_poses + "_" + m + ".txt", est);
@@ -237,6 +302,13 @@ int main(int argc, char** argv) {
       const Slant slant_gt = MotionSlant(gt), slant_est = MotionSlant(est);
       j["split"]["slant_10_frames_gt_deg"] = {{"median", slant_gt.median_deg}, {"max_dev", slant_gt.max_dev_deg}};
       j["split"]["slant_10_frames_est_deg"] = {{"median", slant_est.median_deg}, {"max_dev", slant_est.max_dev_deg}};
+      if (fit_boresight) {
+        if (const std::optional<BoresightFit> b = FitBoresight(gt, est, dc))
+          j["boresight_fit"] = {{"yaw_deg", b->yaw_deg},
+                                {"pitch_deg", b->pitch_deg},
+                                {"t_rel_pct", b->t_rel_pct},
+                                {"r_rel_deg_per_100m", b->r_rel_deg_per_100m}};
+      }
       j["final_error_m"] = final_err;
       j["final_error_pct"] = 100 * final_err / length;
       j["ms_per_frame_median"] = s.ms_per_frame_median;
@@ -248,6 +320,39 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "%s: t_rel %.3f %%, final %.3f %%, %.2f ms median (cpu %.2f)\n",
                    m.c_str(), r.t_err ? *r.t_err * 100 : -1.0, 100 * final_err / length,
                    s.ms_per_frame_median, s.cpu_ms_per_frame_median);
+      out.push_back(j);
+    }
+    if (reference_floor) {
+      const std::string other = reference == "oxts" ? "oxts-velocity" : "oxts";
+      const std::vector<std::optional<Eigen::Isometry3d>> other_poses = ReferencePoses(*dataset, other);
+      std::vector<std::optional<Eigen::Isometry3d>> ref_both(dataset->size());
+      std::vector<Eigen::Isometry3d> scored(dataset->size(), Eigen::Isometry3d::Identity());
+      for (size_t i = 0; i < dataset->size(); ++i) {
+        if (!reference_poses[i] || !other_poses[i]) continue;
+        ref_both[i] = reference_poses[i];
+        scored[i] = *other_poses[i];
+      }
+      std::vector<Eigen::Isometry3d> gt, est;
+      AnchoredPairs(ref_both, scored, &gt, &est);
+      if (gt.size() < 2) throw std::runtime_error("--reference-floor: no frame has both OXTS trajectories");
+      kitti::eval::DevkitConfig dc;
+      dc.lengths_m = lengths;
+      const kitti::eval::DevkitResult r = kitti::eval::EvaluateDevkit(gt, est, dc);
+      double length = 0;
+      for (size_t i = 1; i < gt.size(); ++i) length += (gt[i].translation() - gt[i - 1].translation()).norm();
+      nlohmann::json j;
+      j["method"] = "reference_floor";
+      j["scored"] = other;
+      j["reference"] = reference;
+      j["evaluated_frames"] = gt.size();
+      j["length_m"] = length;
+      j["segments"] = r.segments.size();
+      if (r.t_err) j["t_rel_pct"] = *r.t_err * 100;
+      for (const auto& pl : r.per_length)
+        if (pl.t_err) j["t_rel_pct_by_length"][std::to_string(static_cast<int>(pl.length_m))] = *pl.t_err * 100;
+      j["final_error_pct"] = 100 * (est.back().translation() - gt.back().translation()).norm() / length;
+      std::fprintf(stderr, "reference floor (%s against %s): t_rel %.3f %%\n", other.c_str(), reference.c_str(),
+                   r.t_err ? *r.t_err * 100 : -1.0);
       out.push_back(j);
     }
     std::cout << out.dump(2) << std::endl;
