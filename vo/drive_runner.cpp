@@ -38,7 +38,8 @@ DriveRun RunOnDataset(const kitti::StereoDataset& dataset, const DriveRunConfig&
   if (config.max_frames > 0) n = std::min(n, config.max_frames);
   Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
   bool started = false;
-  for (size_t i = 0; i < n; ++i) {
+  const size_t step = std::max<size_t>(config.frame_step, 1);
+  for (size_t i = 0; i < n; i += step) {
     FrameResult fr;
     fr.index = i;
     fr.t_ns = dataset.time_ns(i);

@@ -25,7 +25,9 @@ struct DriveRunConfig {
   // -1 keeps the method's default.
   int window_keyframes = -1;
   // "default" only: DefaultConfig::klt_guess_translation; unset keeps the default.
-  std::optional<bool> klt_guess_translation;
+  std::optional<bool> klt_guess_translation;  // Track frames 0, step, 2 step, ... only (a lower frame rate, so more motion
+  // between frames); 1 tracks every frame.
+  size_t frame_step = 1;
 };
 
 struct FrameResult {
@@ -41,7 +43,7 @@ struct FrameResult {
 
 struct DriveRun {
   std::string method;
-  std::vector<FrameResult> frames;  // one per frame index, in order
+  std::vector<FrameResult> frames;  // one per visited frame index (every frame_step-th), in order
 };
 
 using DriveProgress = std::function<void(const FrameResult& frame, size_t total)>;
@@ -49,7 +51,8 @@ using DriveProgress = std::function<void(const FrameResult& frame, size_t total)
 DriveRun RunOnDataset(const kitti::StereoDataset& dataset, const DriveRunConfig& config,
                       const DriveProgress& progress = {});
 
-// One pose per frame index; a missing frame gets the pose interpolated in time
+// One pose per entry of run.frames (every frame index when frame_step is 1);
+// a missing frame gets the pose interpolated in time
 // (along the relative motion that bridges it) between its tracked neighbours,
 // or the last pose when no tracked frame follows.
 std::vector<Eigen::Isometry3d> PosesPerFrame(const DriveRun& run);

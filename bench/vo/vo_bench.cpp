@@ -27,6 +27,7 @@
 //
 //   vo_bench --drive DIR [--method NAME|all] [--lengths 25 50 75 100] [--max-frames N]
 //            [--reference oxts|oxts-velocity] [--reference-floor] [--fit-boresight]
+//            [--frame-step N]
 #include "kitti/dataset.hpp"
 #include "kitti/eval/devkit.hpp"
 #include "kitti/oxts_pose.hpp"
@@ -221,6 +222,11 @@ int main(int argc, char** argv) {
   app.add_option("--out-poses", out_poses,
                  "write the evaluated frames as KITTI pose files PREFIX_gt.txt and PREFIX_<method>.txt "
                  "(both anchored at the first frame with ground truth)");
+  size_t frame_step = 1;
+  app.add_option("--frame-step", frame_step,
+                 "track frames 0, N, 2N, ... only (a lower frame rate); devkit segments then start every "
+                 "10 tracked frames")
+      ->check(CLI::Range(size_t{1}, size_t{100}));
   bool reference_floor = false, fit_boresight = false;
   app.add_flag("--reference-floor", reference_floor,
                "raw drives: also score the other OXTS trajectory (velocity integral or position solution) "
@@ -254,9 +260,12 @@ int main(int argc, char** argv) {
       config.clock = cpu_time ? vo::TimingClock::kThreadCpu : vo::TimingClock::kWall;
       config.window_keyframes = window_keyframes;
       if (!klt_guess.empty()) config.klt_guess_translation = klt_guess == "full";
+      config.frame_step = frame_step;
       const vo::DriveRun run = vo::RunOnDataset(*dataset, config);
+      std::vector<std::optional<Eigen::Isometry3d>> reference_visited;  // one per run.frames entry
+      for (const vo::FrameResult& f : run.frames) reference_visited.push_back(reference_poses[f.index]);
       std::vector<Eigen::Isometry3d> gt, est;
-      AnchoredPairs(reference_poses, vo::PosesPerFrame(run), &gt, &est);
+      AnchoredPairs(reference_visited, vo::PosesPerFrame(run), &gt, &est);
       if (gt.size() < 2) throw std::runtime_error("no ground truth in " + drive);
       if (!out_poses.empty()) {
         kitti::WriteKittiPoses(out_poses + "_gt.txt", gt);
@@ -274,6 +283,7 @@ int main(int argc, char** argv) {
       j["method"] = m;
       if (m == "default" && window_keyframes >= 0) j["window_keyframes"] = window_keyframes;
       if (m == "default" && !klt_guess.empty()) j["klt_guess"] = klt_guess;
+      if (frame_step > 1) j["frame_step"] = frame_step;
       j["drive"] = drive;
       j["reference"] = reference;
       if (oxts_pos_accuracy_m) j["oxts_pos_accuracy_median_m"] = *oxts_pos_accuracy_m;
@@ -325,12 +335,15 @@ int main(int argc, char** argv) {
     if (reference_floor) {
       const std::string other = reference == "oxts" ? "oxts-velocity" : "oxts";
       const std::vector<std::optional<Eigen::Isometry3d>> other_poses = ReferencePoses(*dataset, other);
-      std::vector<std::optional<Eigen::Isometry3d>> ref_both(dataset->size());
-      std::vector<Eigen::Isometry3d> scored(dataset->size(), Eigen::Isometry3d::Identity());
-      for (size_t i = 0; i < dataset->size(); ++i) {
-        if (!reference_poses[i] || !other_poses[i]) continue;
-        ref_both[i] = reference_poses[i];
-        scored[i] = *other_poses[i];
+      // The same frames the methods were evaluated on (every frame_step-th).
+      std::vector<std::optional<Eigen::Isometry3d>> ref_both;
+      std::vector<Eigen::Isometry3d> scored;
+      size_t n = dataset->size();
+      if (max_frames > 0) n = std::min(n, max_frames);
+      for (size_t i = 0; i < n; i += frame_step) {
+        const bool both = reference_poses[i] && other_poses[i];
+        ref_both.push_back(both ? reference_poses[i] : std::nullopt);
+        scored.push_back(both ? *other_poses[i] : Eigen::Isometry3d::Identity());
       }
       std::vector<Eigen::Isometry3d> gt, est;
       AnchoredPairs(ref_both, scored, &gt, &est);

@@ -1,17 +1,20 @@
 // build/bin/locaid-vo as a program: a short rendered drive with and without
-// the sliding window, and option errors.
+// the sliding window, at a lower frame rate, and option errors.
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <array>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 namespace {
 
@@ -143,6 +146,54 @@ TEST_F(VoAppTest, MotorwaySpeedDriveIsTrackedWithoutFailedFrames) {
   const double err = std::hypot(est[0] - gt[0], est[1] - gt[1], est[2] - gt[2]);
   std::cout << "[ vo app   ] motorway: end error " << err << " m over " << distance << " m\n";
   EXPECT_LT(err / distance, kMotorwayEndErrorFracTol) << "end error " << err << " m over " << distance << " m";
+}
+
+// --frame-step 3: frames 0, 3, 6, 9 only (a 3.3 Hz camera), each pose at its
+// own frame's time and on the ground truth of that frame.
+TEST_F(VoAppTest, FrameStepTracksEveryNthFrameAtItsOwnTime) {
+  constexpr int kStep = 3;
+  std::vector<std::array<double, 4>> gt;  // t, x, y, z per frame
+  {
+    std::ifstream in(drive_ / "ground_truth_cam0.tum");
+    for (std::string line; std::getline(in, line);) {
+      if (line.empty() || line[0] == '#') continue;
+      std::istringstream ss(line);
+      std::array<double, 4> row{};
+      ss >> row[0] >> row[1] >> row[2] >> row[3];
+      gt.push_back(row);
+    }
+  }
+  ASSERT_EQ(gt.size(), static_cast<size_t>(kFrames));
+  const fs::path tum = root_ / "step.tum";
+  const Result r = Run("--drive " + Quote(drive_.string()) + " --out-tum " + Quote(tum.string()) +
+                       " --json --frame-step " + std::to_string(kStep));
+  ASSERT_EQ(r.status, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  const int visited = (kFrames + kStep - 1) / kStep;
+  EXPECT_EQ(j.at("frames").get<int>(), visited);
+  EXPECT_EQ(j.at("frame_step").get<int>(), kStep);
+  EXPECT_EQ(j.at("failed_frames").get<int>(), 0);
+  std::ifstream in(tum);
+  int k = 0;
+  for (std::string line; std::getline(in, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream ss(line);
+    double t = 0, x = 0, y = 0, z = 0;
+    ss >> t >> x >> y >> z;
+    ASSERT_LT(k * kStep, kFrames);
+    const auto& g = gt[static_cast<size_t>(k * kStep)];
+    EXPECT_NEAR(t, g[0], 1e-6) << "pose " << k;
+    // The estimate starts at the identity like the ground truth file; both
+    // are in the first frame's camera axes.
+    const double travelled = std::hypot(g[1], g[2], g[3]);
+    EXPECT_LT(std::hypot(x - g[1], y - g[2], z - g[3]), 0.02 + kEndErrorFracTol * travelled) << "pose " << k;
+    ++k;
+  }
+  EXPECT_EQ(k, visited);
+  const Result zero = Run("--drive " + Quote(drive_.string()) + " --out-tum " + Quote(tum.string()) +
+                          " --frame-step 0");
+  EXPECT_NE(zero.status, 0);
+  EXPECT_NE(zero.err.find("--frame-step"), std::string::npos) << zero.err;
 }
 
 TEST_F(VoAppTest, WindowOptionIsRejectedForTheBaselineAndOutOfRange) {

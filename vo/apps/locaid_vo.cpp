@@ -31,7 +31,7 @@ int main(int argc, char** argv) {
   bool json = false;
   app.add_option("--drive", drive, "raw drive folder or odometry sequence folder")->required();
   app.add_option("--out-tum", out_tum, "TUM pose file to write")->required();
-  app.add_option("--out-kitti", out_kitti, "KITTI pose file to write (one line per frame)");
+  app.add_option("--out-kitti", out_kitti, "KITTI pose file to write (one line per tracked frame index)");
   app.add_option("--method", method, "VO method: default | thesis")
       ->check(CLI::IsMember(vo::StereoOdometryMethods()));
   app.add_option("--max-frames", max_frames, "process at most N frames (0: all)");
@@ -44,6 +44,10 @@ int main(int argc, char** argv) {
                  "default method: sliding bundle-adjustment window in keyframes (0: off; "
                  "unset: the method's default)")
       ->check(CLI::Range(0, 50));
+  size_t frame_step = 1;
+  app.add_option("--frame-step", frame_step,
+                 "track frames 0, N, 2N, ... only (a lower frame rate: more motion between frames)")
+      ->check(CLI::Range(size_t{1}, size_t{100}));
   CLI11_PARSE(app, argc, argv);
   if (window_keyframes >= 0 && method != "default") {
     std::cerr << "locaid-vo: --window-keyframes applies to --method default only (got --method "
@@ -59,6 +63,7 @@ int main(int argc, char** argv) {
     config.max_frames = max_frames;
     config.clock = cpu_time ? vo::TimingClock::kThreadCpu : vo::TimingClock::kWall;
     config.window_keyframes = window_keyframes;
+    config.frame_step = frame_step;
     const vo::DriveRun run = vo::RunOnDataset(
         *dataset, config, [](const vo::FrameResult& f, size_t total) {
           if (f.missing) {
@@ -84,6 +89,7 @@ int main(int argc, char** argv) {
       nlohmann::json j;
       j["drive"] = drive;
       j["method"] = method;
+      j["frame_step"] = frame_step;
       j["frames"] = s.frames;
       j["failed_frames"] = s.lost_frames;
       j["degraded_frames"] = s.degraded_frames;
