@@ -164,7 +164,7 @@ std::optional<BoresightFit> FitBoresight(const std::vector<Eigen::Isometry3d>& g
   constexpr int kSteps = 20;  // +-1 deg in 0.05 deg steps
   for (int iy = -kSteps; iy <= kSteps; ++iy) {
     for (int ip = -kSteps; ip <= kSteps; ++ip) {
-      const double yaw = iy / 20.0, pitch = ip / 20.0;  // exact grid values in the JSON
+      const double yaw = static_cast<double>(iy) / kSteps, pitch = static_cast<double>(ip) / kSteps;
       const Eigen::Matrix3d R = (Eigen::AngleAxisd(yaw * M_PI / 180, Eigen::Vector3d::UnitY()) *
                                  Eigen::AngleAxisd(pitch * M_PI / 180, Eigen::Vector3d::UnitX()))
                                     .toRotationMatrix();
