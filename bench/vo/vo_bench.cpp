@@ -177,6 +177,26 @@ std::optional<BoresightFit> FitBoresight(const std::vector<Eigen::Isometry3d>& g
   return best;
 }
 
+// Drift of `est` against `gt` (anchored pairs, devkit result `r`): path
+// length, devkit t_rel / r_rel overall and per length, final error.
+nlohmann::json DriftJson(const std::vector<Eigen::Isometry3d>& gt, const std::vector<Eigen::Isometry3d>& est,
+                         const locaid::kitti::eval::DevkitResult& r) {
+  double length = 0;
+  for (size_t i = 1; i < gt.size(); ++i) length += (gt[i].translation() - gt[i - 1].translation()).norm();
+  const double final_err = (est.back().translation() - gt.back().translation()).norm();
+  nlohmann::json j;
+  j["evaluated_frames"] = gt.size();
+  j["length_m"] = length;
+  j["segments"] = r.segments.size();
+  if (r.t_err) j["t_rel_pct"] = *r.t_err * 100;
+  if (r.r_err_rad_per_m) j["r_rel_deg_per_100m"] = *r.r_err_rad_per_m * 180 / M_PI * 100;
+  for (const auto& pl : r.per_length)
+    if (pl.t_err) j["t_rel_pct_by_length"][std::to_string(static_cast<int>(pl.length_m))] = *pl.t_err * 100;
+  j["final_error_m"] = final_err;
+  j["final_error_pct"] = 100 * final_err / length;
+  return j;
+}
+
 // Median of the OXTS records' own position accuracy field (raw drives).
 std::optional<double> MedianOxtsPositionAccuracy(const locaid::kitti::StereoDataset& dataset) {
   std::vector<double> acc;
@@ -274,12 +294,8 @@ int main(int argc, char** argv) {
       kitti::eval::DevkitConfig dc;
       dc.lengths_m = lengths;
       const kitti::eval::DevkitResult r = kitti::eval::EvaluateDevkit(gt, est, dc);
-      double length = 0;
-      for (size_t i = 1; i < gt.size(); ++i)
-        length += (gt[i].translation() - gt[i - 1].translation()).norm();
-      const double final_err = (est.back().translation() - gt.back().translation()).norm();
       const vo::TimingSummary s = vo::Summarize(run);
-      nlohmann::json j;
+      nlohmann::json j = DriftJson(gt, est, r);
       j["method"] = m;
       if (m == "default" && window_keyframes >= 0) j["window_keyframes"] = window_keyframes;
       if (m == "default" && !klt_guess.empty()) j["klt_guess"] = klt_guess;
@@ -288,17 +304,9 @@ int main(int argc, char** argv) {
       j["reference"] = reference;
       if (oxts_pos_accuracy_m) j["oxts_pos_accuracy_median_m"] = *oxts_pos_accuracy_m;
       j["frames"] = s.frames;
-      j["evaluated_frames"] = gt.size();
       j["missing_frames"] = s.missing_frames;
       j["failed_frames"] = s.lost_frames;
       j["degraded_frames"] = s.degraded_frames;
-      j["length_m"] = length;
-      j["segments"] = r.segments.size();
-      if (r.t_err) j["t_rel_pct"] = *r.t_err * 100;
-      if (r.r_err_rad_per_m) j["r_rel_deg_per_100m"] = *r.r_err_rad_per_m * 180 / M_PI * 100;
-      for (const auto& pl : r.per_length)
-        if (pl.t_err)
-          j["t_rel_pct_by_length"][std::to_string(static_cast<int>(pl.length_m))] = *pl.t_err * 100;
       const SplitError split = SplitSegmentErrors(gt, est, r.segments);
       j["split"]["t_rel_horizontal_pct"] = split.horizontal * 100;
       j["split"]["t_rel_vertical_pct"] = split.vertical * 100;
@@ -319,8 +327,6 @@ int main(int argc, char** argv) {
                                 {"t_rel_pct", b->t_rel_pct},
                                 {"r_rel_deg_per_100m", b->r_rel_deg_per_100m}};
       }
-      j["final_error_m"] = final_err;
-      j["final_error_pct"] = 100 * final_err / length;
       j["ms_per_frame_median"] = s.ms_per_frame_median;
       j["ms_per_frame_p95"] = s.ms_per_frame_p95;
       j["cpu_ms_per_frame_median"] = s.cpu_ms_per_frame_median;
@@ -328,7 +334,7 @@ int main(int argc, char** argv) {
       j["stage_median_ms"] = s.stage_median_ms;
       j["stage_clock"] = cpu_time ? "thread_cpu" : "wall";
       std::fprintf(stderr, "%s: t_rel %.3f %%, final %.3f %%, %.2f ms median (cpu %.2f)\n",
-                   m.c_str(), r.t_err ? *r.t_err * 100 : -1.0, 100 * final_err / length,
+                   m.c_str(), r.t_err ? *r.t_err * 100 : -1.0, j["final_error_pct"].get<double>(),
                    s.ms_per_frame_median, s.cpu_ms_per_frame_median);
       out.push_back(j);
     }
@@ -351,19 +357,10 @@ int main(int argc, char** argv) {
       kitti::eval::DevkitConfig dc;
       dc.lengths_m = lengths;
       const kitti::eval::DevkitResult r = kitti::eval::EvaluateDevkit(gt, est, dc);
-      double length = 0;
-      for (size_t i = 1; i < gt.size(); ++i) length += (gt[i].translation() - gt[i - 1].translation()).norm();
-      nlohmann::json j;
+      nlohmann::json j = DriftJson(gt, est, r);
       j["method"] = "reference_floor";
       j["scored"] = other;
       j["reference"] = reference;
-      j["evaluated_frames"] = gt.size();
-      j["length_m"] = length;
-      j["segments"] = r.segments.size();
-      if (r.t_err) j["t_rel_pct"] = *r.t_err * 100;
-      for (const auto& pl : r.per_length)
-        if (pl.t_err) j["t_rel_pct_by_length"][std::to_string(static_cast<int>(pl.length_m))] = *pl.t_err * 100;
-      j["final_error_pct"] = 100 * (est.back().translation() - gt.back().translation()).norm() / length;
       std::fprintf(stderr, "reference floor (%s against %s): t_rel %.3f %%\n", other.c_str(), reference.c_str(),
                    r.t_err ? *r.t_err * 100 : -1.0);
       out.push_back(j);
