@@ -25,7 +25,8 @@ struct DriveRunConfig {
   // -1 keeps the method's default.
   int window_keyframes = -1;
   // "default" only: DefaultConfig::klt_guess_translation; unset keeps the default.
-  std::optional<bool> klt_guess_translation;  // Track frames 0, step, 2 step, ... only (a lower frame rate, so more motion
+  std::optional<bool> klt_guess_translation;
+  // Track frames 0, step, 2 step, ... only (a lower frame rate, so more motion
   // between frames); 1 tracks every frame.
   size_t frame_step = 1;
 };
