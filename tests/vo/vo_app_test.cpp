@@ -1,13 +1,13 @@
 // build/bin/locaid-vo as a program: a short rendered drive with and without
 // the sliding window, at a lower frame rate, and option errors.
+#include "kitti/pose_io.hpp"
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <array>
-#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -27,6 +27,19 @@ constexpr int kFrames = 12;
 constexpr double kEndErrorFracTol = 0.01;  // both runs measured ~0.1 %
 
 std::string Quote(const std::string& s) { return "'" + s + "'"; }
+
+// The drive folder locaid-synth wrote under `out` (empty if none).
+fs::path DriveIn(const fs::path& out) {
+  fs::path drive;
+  for (const auto& e : fs::directory_iterator(out))
+    if (e.is_directory()) drive = e.path();
+  return drive;
+}
+
+// Distance between two TUM poses' positions.
+double Gap(const locaid::kitti::StampedPose& a, const locaid::kitti::StampedPose& b) {
+  return (a.T_world_cam.translation() - b.T_world_cam.translation()).norm();
+}
 
 std::string Slurp(const fs::path& p) {
   std::ifstream in(p);
@@ -52,8 +65,7 @@ class VoAppTest : public ::testing::Test {
                             Quote((root_ / "synth").string()) + " --frames " + std::to_string(kFrames) +
                             " --seed 3 >/dev/null 2>&1";
     if (std::system(cmd.c_str()) != 0) return;
-    for (const auto& e : fs::directory_iterator(root_ / "synth"))
-      if (e.is_directory()) drive_ = e.path();
+    drive_ = DriveIn(root_ / "synth");
   }
   static void TearDownTestSuite() { fs::remove_all(root_); }
 
@@ -74,28 +86,13 @@ class VoAppTest : public ::testing::Test {
     return r;
   }
 
-  // Last TUM position of `file` (timestamp tx ty tz qx qy qz qw per line).
-  static std::array<double, 3> LastPosition(const fs::path& file, int* lines) {
-    std::ifstream in(file);
-    std::array<double, 3> p{};
-    *lines = 0;
-    for (std::string line; std::getline(in, line);) {
-      if (line.empty() || line[0] == '#') continue;
-      std::istringstream ss(line);
-      double t = 0;
-      ss >> t >> p[0] >> p[1] >> p[2];
-      ++*lines;
-    }
-    return p;
-  }
-
   static inline fs::path root_, drive_;
 };
 
 TEST_F(VoAppTest, WindowedAndDefaultRunsTrackTheRenderedDrive) {
-  int gt_lines = 0;
-  const auto gt = LastPosition(drive_ / "ground_truth_cam0.tum", &gt_lines);
-  const double distance = std::hypot(gt[0], gt[1], gt[2]);
+  const auto gt = locaid::kitti::ReadTumPoses(drive_ / "ground_truth_cam0.tum");
+  ASSERT_FALSE(gt.empty());
+  const double distance = gt.back().T_world_cam.translation().norm();  // the ground truth starts at the origin
   ASSERT_GT(distance, 5.0);
   for (const std::string extra : {"", " --window-keyframes 5"}) {
     const fs::path tum = root_ / "est.tum";
@@ -105,10 +102,9 @@ TEST_F(VoAppTest, WindowedAndDefaultRunsTrackTheRenderedDrive) {
     const auto j = nlohmann::json::parse(r.out);
     EXPECT_EQ(j.at("frames").get<int>(), kFrames) << extra;
     EXPECT_EQ(j.at("failed_frames").get<int>(), 0) << extra;
-    int lines = 0;
-    const auto est = LastPosition(tum, &lines);
-    EXPECT_EQ(lines, kFrames) << extra;
-    const double err = std::hypot(est[0] - gt[0], est[1] - gt[1], est[2] - gt[2]);
+    const auto est = locaid::kitti::ReadTumPoses(tum);
+    ASSERT_EQ(est.size(), static_cast<size_t>(kFrames)) << extra;
+    const double err = Gap(est.back(), gt.back());
     std::cout << "[ vo app   ]" << extra << ": end error " << err << " m over " << distance << " m\n";
     EXPECT_LT(err / distance, kEndErrorFracTol) << extra << ": end error " << err << " m over " << distance << " m";
   }
@@ -126,13 +122,11 @@ TEST_F(VoAppTest, MotorwaySpeedDriveIsTrackedWithoutFailedFrames) {
                             " --seed 5 --speed-min 25 --speed-max 30 --radius-min 300 --radius-max 1500"
                             " --anisotropic >/dev/null 2>&1";
   ASSERT_EQ(std::system(synth.c_str()), 0) << synth;
-  fs::path drive;
-  for (const auto& e : fs::directory_iterator(out))
-    if (e.is_directory()) drive = e.path();
+  const fs::path drive = DriveIn(out);
   ASSERT_FALSE(drive.empty());
-  int gt_lines = 0;
-  const auto gt = LastPosition(drive / "ground_truth_cam0.tum", &gt_lines);
-  const double distance = std::hypot(gt[0], gt[1], gt[2]);
+  const auto gt = locaid::kitti::ReadTumPoses(drive / "ground_truth_cam0.tum");
+  ASSERT_FALSE(gt.empty());
+  const double distance = gt.back().T_world_cam.translation().norm();
   ASSERT_GT(distance, 90.0) << "the drive should cover >= 2.5 m per frame";
   const fs::path tum = root_ / "motorway.tum";
   const Result r = Run("--drive " + Quote(drive.string()) + " --out-tum " + Quote(tum.string()) + " --json");
@@ -140,10 +134,9 @@ TEST_F(VoAppTest, MotorwaySpeedDriveIsTrackedWithoutFailedFrames) {
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j.at("frames").get<int>(), kMotorwayFrames);
   EXPECT_EQ(j.at("failed_frames").get<int>(), 0);
-  int lines = 0;
-  const auto est = LastPosition(tum, &lines);
-  EXPECT_EQ(lines, kMotorwayFrames);
-  const double err = std::hypot(est[0] - gt[0], est[1] - gt[1], est[2] - gt[2]);
+  const auto est = locaid::kitti::ReadTumPoses(tum);
+  ASSERT_EQ(est.size(), static_cast<size_t>(kMotorwayFrames));
+  const double err = Gap(est.back(), gt.back());
   std::cout << "[ vo app   ] motorway: end error " << err << " m over " << distance << " m\n";
   EXPECT_LT(err / distance, kMotorwayEndErrorFracTol) << "end error " << err << " m over " << distance << " m";
 }
@@ -152,17 +145,7 @@ TEST_F(VoAppTest, MotorwaySpeedDriveIsTrackedWithoutFailedFrames) {
 // own frame's time and on the ground truth of that frame.
 TEST_F(VoAppTest, FrameStepTracksEveryNthFrameAtItsOwnTime) {
   constexpr int kStep = 3;
-  std::vector<std::array<double, 4>> gt;  // t, x, y, z per frame
-  {
-    std::ifstream in(drive_ / "ground_truth_cam0.tum");
-    for (std::string line; std::getline(in, line);) {
-      if (line.empty() || line[0] == '#') continue;
-      std::istringstream ss(line);
-      std::array<double, 4> row{};
-      ss >> row[0] >> row[1] >> row[2] >> row[3];
-      gt.push_back(row);
-    }
-  }
+  const auto gt = locaid::kitti::ReadTumPoses(drive_ / "ground_truth_cam0.tum");
   ASSERT_EQ(gt.size(), static_cast<size_t>(kFrames));
   const fs::path tum = root_ / "step.tum";
   const Result r = Run("--drive " + Quote(drive_.string()) + " --out-tum " + Quote(tum.string()) +
@@ -173,23 +156,16 @@ TEST_F(VoAppTest, FrameStepTracksEveryNthFrameAtItsOwnTime) {
   EXPECT_EQ(j.at("frames").get<int>(), visited);
   EXPECT_EQ(j.at("frame_step").get<int>(), kStep);
   EXPECT_EQ(j.at("failed_frames").get<int>(), 0);
-  std::ifstream in(tum);
-  int k = 0;
-  for (std::string line; std::getline(in, line);) {
-    if (line.empty() || line[0] == '#') continue;
-    std::istringstream ss(line);
-    double t = 0, x = 0, y = 0, z = 0;
-    ss >> t >> x >> y >> z;
-    ASSERT_LT(k * kStep, kFrames);
-    const auto& g = gt[static_cast<size_t>(k * kStep)];
-    EXPECT_NEAR(t, g[0], 1e-6) << "pose " << k;
+  const auto est = locaid::kitti::ReadTumPoses(tum);
+  ASSERT_EQ(est.size(), static_cast<size_t>(visited));
+  for (size_t k = 0; k < est.size(); ++k) {
+    const auto& g = gt[k * kStep];
+    EXPECT_NEAR(est[k].t_s, g.t_s, 1e-6) << "pose " << k;
     // The estimate starts at the identity like the ground truth file; both
     // are in the first frame's camera axes.
-    const double travelled = std::hypot(g[1], g[2], g[3]);
-    EXPECT_LT(std::hypot(x - g[1], y - g[2], z - g[3]), 0.02 + kEndErrorFracTol * travelled) << "pose " << k;
-    ++k;
+    const double travelled = g.T_world_cam.translation().norm();
+    EXPECT_LT(Gap(est[k], g), 0.02 + kEndErrorFracTol * travelled) << "pose " << k;
   }
-  EXPECT_EQ(k, visited);
   const Result zero = Run("--drive " + Quote(drive_.string()) + " --out-tum " + Quote(tum.string()) +
                           " --frame-step 0");
   EXPECT_NE(zero.status, 0);
