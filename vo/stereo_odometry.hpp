@@ -75,9 +75,10 @@ struct DefaultConfig {
   double max_forward_backward_px = 1.0;  // temporal KLT forward-backward check
   // KLT start of each keyframe feature: its projection under the
   // constant-velocity prediction (true), or under the predicted rotation only
-  // (false; the pyramid then finds the translation's flow). With the full
-  // prediction the previous frame's translation error feeds into the next
-  // (docs/benchmarks.md, "Motorway speed").
+  // (false; the pyramid then finds the translation's flow). The rotation-only
+  // start drifts less on synthetic drives but more on the real excerpt at
+  // 5-2.5 Hz (docs/benchmarks.md, "Motorway speed" and "Real excerpt at lower
+  // frame rates"), so the full prediction is the default.
   bool klt_guess_translation = true;
   // Motion.
   int ransac_iterations = 100;

@@ -3,7 +3,7 @@
 //
 //   locaid-synth --out DIR [--frames N | --length-m M] [--seed S] [--width W --height H]
 //                [--speed-min V --speed-max V] [--radius-min R --radius-max R]
-//                [--rate-hz HZ] [--quiet]
+//                [--rate-hz HZ] [--anisotropic] [--quiet]
 #include "kitti/synth/synth.hpp"
 
 #include <CLI/CLI.hpp>

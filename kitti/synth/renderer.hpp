@@ -1,7 +1,8 @@
 // Software renderer of the synthetic world: z-buffered scanline rasterizer of
 // convex planar polygons with perspective-correct, mip-mapped, bilinearly
 // (optionally anisotropically) filtered grayscale textures; then sky, haze,
-// optics blur, vignetting, exposure gain and sensor noise. Single-threaded, no virtual calls per pixel.
+// optics blur, vignetting, exposure gain and sensor noise. Single-threaded,
+// no virtual calls per pixel.
 #pragma once
 
 #include "kitti/synth/texture.hpp"
