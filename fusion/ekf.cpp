@@ -159,33 +159,46 @@ void Ekf::ProcessVo(const VoMeasurement& measured, bool vo_ok) {
     cleaned.t_ns = measured.t_ns;
   }
   const VoMeasurement& m = finite ? measured : cleaned;
-  const double dt = std::max(1e-3, Seconds(m.t_ns, m.t_prev_ns));
-  Eigen::Isometry3d motion = m.T_prev_curr;
+  // The motion must start at the filter's VO anchor (the last frame VO measured
+  // or restarted on). After missing frames it spans several frames; a motion
+  // from anywhere else (VO restarted on a frame it reported as lost) cannot be
+  // used: the anchor moves to this frame and the next motion starts there.
+  bool reanchor = vo_ok;
+  if (vo_ok && vo_anchor_ns_ && m.t_prev_ns != *vo_anchor_ns_) {
+    ++vo_anchor_mismatches_;
+    vo_ok = false;
+  }
+  const int64_t prev_frame_ns = last_frame_ns_.value_or(m.t_prev_ns);
+  const double frame_dt = std::max(1e-3, Seconds(m.t_ns, prev_frame_ns));
+  const double vo_dt = std::max(1e-3, Seconds(m.t_ns, m.t_prev_ns));
+  last_frame_ns_ = m.t_ns;
+  if (!vo_anchor_ns_) reanchor = true;
+  Eigen::Isometry3d motion = m.T_prev_curr;  // from the anchor (vo_ok) or the last frame (coasting)
   if (!vo_ok) {
     // Coast at the last VO velocity.
     motion = Eigen::Isometry3d::Identity();
-    motion.translation() = last_vo_velocity_body_mps_ * dt;
+    motion.translation() = last_vo_velocity_body_mps_ * frame_dt;
   } else {
-    last_vo_velocity_body_mps_ = motion.translation() / dt;
+    last_vo_velocity_body_mps_ = motion.translation() / vo_dt;
   }
-  Mat6 Rvo = m.covariance * config_.vo_cov_scale;
-  // Relative term only where VO is a measurement checked against the IMU; in
-  // no-IMU mode it would only inflate the propagation noise (sim: worse GPS smoothing).
-  const double sigma_rel =
-      config_.use_imu ? config_.vo_sigma_t_per_m * motion.translation().norm() : 0.0;
-  for (int i = 0; i < 3; ++i) {
-    Rvo(i, i) += sigma_rel * sigma_rel;
-    Rvo(i, i) = std::max(Rvo(i, i), std::pow(config_.vo_min_sigma_t_m, 2));
-    Rvo(i + 3, i + 3) = std::max(Rvo(i + 3, i + 3), std::pow(config_.vo_min_sigma_rot_rad, 2));
+  Mat6 Rvo = VoNoise(m.covariance, motion);
+  // Motion to apply from the last frame: the VO motion minus what was coasted
+  // since the anchor (no-IMU propagation and the initialisation chain).
+  const Eigen::Isometry3d step = vo_ok ? T_coast_.inverse() * motion : motion;
+  T_coast_ = vo_ok ? Eigen::Isometry3d::Identity() : T_coast_ * motion;
+  if (reanchor) {
+    vo_anchor_ns_ = m.t_ns;
+    T_coast_ = Eigen::Isometry3d::Identity();
   }
+  const double dt = vo_ok ? vo_dt : frame_dt;
 
   if (!initialized_) {
     // Attach the buffered fixes of (t_prev, t] to the VO chain (interpolated).
     const Eigen::Isometry3d T_prev = T_start_body_;
-    T_start_body_ = T_start_body_ * motion;
+    T_start_body_ = T_start_body_ * step;
     for (auto& f : init_fixes_) {
       if (!std::isnan(f.T_start_body.matrix()(0, 0))) continue;
-      const double a = std::clamp(Seconds(f.t_ns, m.t_prev_ns) / dt, 0.0, 1.0);
+      const double a = std::clamp(Seconds(f.t_ns, prev_frame_ns) / frame_dt, 0.0, 1.0);
       f.T_start_body = T_start_body_;
       f.T_start_body.translation() = (1 - a) * T_prev.translation() + a * T_start_body_.translation();
     }
@@ -202,6 +215,7 @@ void Ekf::ProcessVo(const VoMeasurement& measured, bool vo_ok) {
       init_prev_v_body_ = v_body;
       init_have_prev_v_ = true;
     }
+    if (!vo_ok) init_have_prev_v_ = false;  // dv/dt only between consecutive VO motions
     init_accel_.clear();
     t_ns_ = m.t_ns;
     TryInitialize(m.t_ns);
@@ -209,14 +223,14 @@ void Ekf::ProcessVo(const VoMeasurement& measured, bool vo_ok) {
   }
 
   if (!config_.use_imu) {
-    Mat6 F = OdometryTransitionJacobian(x_.R_enu_body, motion);
-    Mat6 G = OdometryNoiseJacobian(x_.R_enu_body, motion);
+    Mat6 F = OdometryTransitionJacobian(x_.R_enu_body, step);
+    Mat6 G = OdometryNoiseJacobian(x_.R_enu_body, step);
     if (!vo_ok) {
       Rvo.setZero();
       Rvo.topLeftCorner<3, 3>().diagonal().setConstant(std::pow(config_.no_imu_lost_sigma_mps * dt, 2));
       Rvo.bottomRightCorner<3, 3>().diagonal().setConstant(std::pow(0.05 * dt, 2));
     }
-    OdometryPropagate(x_.p_enu_m, x_.R_enu_body, motion);
+    OdometryPropagate(x_.p_enu_m, x_.R_enu_body, step);
     P_ = F * P_ * F.transpose() + G * Rvo * G.transpose();
     Symmetrize(P_);
     x_.v_enu_mps = x_.R_enu_body * last_vo_velocity_body_mps_;
@@ -249,7 +263,21 @@ void Ekf::ProcessVo(const VoMeasurement& measured, bool vo_ok) {
     }
     if (!gate_ok) ++vo_rejected_;
   }
-  Clone();
+  if (reanchor) Clone();  // else the clone stays at the anchor the next motion starts from
+}
+
+Mat6 Ekf::VoNoise(const Mat6& reported, const Eigen::Isometry3d& motion) const {
+  Mat6 Rvo = reported * config_.vo_cov_scale;
+  // Relative term only where VO is a measurement checked against the IMU; in
+  // no-IMU mode it would only inflate the propagation noise (sim: worse GPS smoothing).
+  const double sigma_rel =
+      config_.use_imu ? config_.vo_sigma_t_per_m * motion.translation().norm() : 0.0;
+  for (int i = 0; i < 3; ++i) {
+    Rvo(i, i) += sigma_rel * sigma_rel;
+    Rvo(i, i) = std::max(Rvo(i, i), std::pow(config_.vo_min_sigma_t_m, 2));
+    Rvo(i + 3, i + 3) = std::max(Rvo(i + 3, i + 3), std::pow(config_.vo_min_sigma_rot_rad, 2));
+  }
+  return Rvo;
 }
 
 void Ekf::Clone() {

@@ -99,6 +99,9 @@ class Ekf {
   double last_vo_nis() const { return last_vo_nis_; }
   int vo_rejected() const { return vo_rejected_; }    // gated out, or non-finite
   int imu_rejected() const { return imu_rejected_; }  // non-finite samples refused
+  // VO motions that did not start at the filter's anchor (VO restarted on a
+  // frame it reported lost): skipped, the anchor moves on.
+  int vo_anchor_mismatches() const { return vo_anchor_mismatches_; }
   double gps_period_s() const { return gps_period_s_; }
   double gps_gate() const { return gate_; }
   int gps_used() const { return gps_used_; }
@@ -110,6 +113,7 @@ class Ekf {
   void Correct(const Eigen::VectorXd& dx);
   void Clone();
   Vec3 GpsEnu(const GpsFix& fix);
+  Mat6 VoNoise(const Mat6& reported, const Eigen::Isometry3d& motion) const;
 
   EkfConfig config_;
   EnuFrame enu_;
@@ -122,7 +126,12 @@ class Ekf {
   Mat3 R_clone_ = Mat3::Identity();
   // Last IMU sample (zero-order hold between samples).
   std::optional<ImuSample> last_imu_;
-  Vec3 last_vo_velocity_body_mps_ = Vec3::Zero();  // no-IMU mode
+  Vec3 last_vo_velocity_body_mps_ = Vec3::Zero();
+  // VO anchor: the frame the next VO motion starts from (the clone's time with
+  // IMU), and the motion coasted since it while VO was lost.
+  std::optional<int64_t> vo_anchor_ns_, last_frame_ns_;
+  Eigen::Isometry3d T_coast_ = Eigen::Isometry3d::Identity();
+  int vo_anchor_mismatches_ = 0;
   // Initialisation buffers: VO-chained body poses and fixes.
   struct InitFix { int64_t t_ns; Vec3 p_enu; double sigma_h; Eigen::Isometry3d T_start_body; };
   std::vector<InitFix> init_fixes_;

@@ -395,6 +395,7 @@ RelativeMotion DefaultOdometry::Track(const StereoFrame& frame) {
                      : Status::kDegraded;
     out.inliers = static_cast<int>(ref_features_.size());
     out.covariance = Matrix6d::Identity() * 1e-12;  // the first frame defines the origin
+    out.t_prev_ns = frame.t_ns;
     out.total_ms = SumTimings(out.timings);
     return out;
   }
@@ -551,6 +552,7 @@ RelativeMotion DefaultOdometry::Track(const StereoFrame& frame) {
   }
 
   out.T_prev_curr = T_w_out_.inverse() * T_w_curr;
+  out.t_prev_ns = prev_t_ns_;
   T_w_out_ = T_w_curr;
   out.covariance = refined.covariance;
   out.inliers = refined.inliers;

@@ -63,6 +63,7 @@ bool FrameUsable(const StereoFrame& frame, const kitti::StereoCamera& camera, do
 RelativeMotion NoMotion(int64_t t_ns, Status status) {
   RelativeMotion m;
   m.t_ns = t_ns;
+  m.t_prev_ns = t_ns;
   m.status = status;
   m.covariance = LargeCovariance();
   return m;

@@ -29,7 +29,12 @@ using StageTimings = std::vector<std::pair<std::string, double>>;
 
 struct RelativeMotion {
   int64_t t_ns = 0;
-  // Motion of cam0 between the previous and this frame: p_prev = T_prev_curr * p_curr.
+  // Time of the pose the motion starts from: the last frame this odometry
+  // reported a motion for (OK or DEGRADED) or restarted on. After missing or
+  // lost frames it is older than the previous frame; equal to t_ns on the
+  // first frame and on LOST results (no motion).
+  int64_t t_prev_ns = 0;
+  // Motion of cam0 between the pose at t_prev_ns and this frame: p_prev = T_prev_curr * p_curr.
   Eigen::Isometry3d T_prev_curr = Eigen::Isometry3d::Identity();
   // Covariance of the minimal perturbation [dt (m), dtheta (rad)] of
   // T_prev_curr, applied on the right (T * Exp(delta)); in cam0 (curr) axes.

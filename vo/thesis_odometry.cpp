@@ -45,6 +45,7 @@ class ThesisOdometry final : public StereoOdometry {
   cv::Ptr<cv::StereoBM> bm_;
   cv::Ptr<cv::BFMatcher> matcher_;
   bool has_prev_ = false;
+  int64_t prev_t_ns_ = 0;  // time of the frame the next motion starts from
   std::vector<cv::KeyPoint> prev_kps_;
   cv::Mat prev_desc_, prev_disparity_;  // disparity CV_16S, fixed point x16
 };
@@ -112,6 +113,8 @@ RelativeMotion ThesisOdometry::Track(const StereoFrame& frame) {
     }
     m.timings = out.timings;
     m.t_ns = frame.t_ns;
+    m.t_prev_ns = m.status == Status::kLost || first ? frame.t_ns : prev_t_ns_;
+    prev_t_ns_ = frame.t_ns;
     m.total_ms = SumTimings(m.timings);
     return m;
   };

@@ -103,6 +103,7 @@ vo::RelativeMotion Localizer::TrackVo(const vo::StereoFrame& frame) {
   if (!vo_) {
     vo::RelativeMotion m;
     m.t_ns = frame.t_ns;
+    m.t_prev_ns = frame.t_ns;
     m.status = vo::Status::kLost;
     return m;
   }
@@ -152,7 +153,9 @@ FrameResult Localizer::Fuse(const vo::RelativeMotion& vo_cam,
   const bool vo_ok = vo_cam.status != vo::Status::kLost && last_frame_ns_.has_value();
   const Eigen::Isometry3d T_cam_body = T_cam0_imu_;
   r.vo_body = fusion::CameraMotionToBody(vo_cam.T_prev_curr, vo_cam.covariance, T_cam_body);
-  r.vo_body.t_prev_ns = last_frame_ns_.value_or(t_ns);
+  // The motion starts at the VO's own reference frame (older than the last
+  // frame after missing frames).
+  r.vo_body.t_prev_ns = vo_ok ? vo_cam.t_prev_ns : last_frame_ns_.value_or(t_ns);
   r.vo_body.t_ns = t_ns;
   ekf_->ProcessVo(r.vo_body, vo_ok);
   r.pose = ekf_->Output(t_ns, vo_cam.status != vo::Status::kLost);

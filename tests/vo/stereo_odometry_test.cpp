@@ -209,6 +209,30 @@ TEST(DefaultOdometry, MissingFrameIsBridgedByTheNextMotion) {
   EXPECT_LT(err.translation().norm(), 3 * tol.step_translation_m);
 }
 
+TEST(DefaultOdometry, MotionAfterMissingFramesStartsAtTheLastTrackedFrame) {
+  // Frames 3 and 4 reach Track empty (as the real excerpt's left frame 23):
+  // they come back LOST with no motion, and frame 5's motion spans 2 -> 5 and
+  // says so in t_prev_ns, so a filter does not apply it over one frame period.
+  const auto& drive = SyntheticDrive::Get();
+  auto vo = MakeStereoOdometry("default", drive.camera);
+  const AccuracyTolerance tol = ToleranceFor("default");
+  for (int k : {0, 1, 2}) vo->Track(drive.frames[static_cast<size_t>(k)]);
+  for (int k : {3, 4}) {
+    StereoFrame missing;
+    missing.t_ns = drive.frames[static_cast<size_t>(k)].t_ns;
+    const RelativeMotion m = vo->Track(missing);
+    EXPECT_EQ(m.status, Status::kLost);
+    EXPECT_EQ(m.t_prev_ns, m.t_ns) << "a LOST result carries no motion";
+  }
+  const RelativeMotion m = vo->Track(drive.frames[5]);
+  ASSERT_NE(m.status, Status::kLost);
+  EXPECT_EQ(m.t_prev_ns, drive.frames[2].t_ns);
+  const Eigen::Isometry3d truth = drive.T_world_cam[2].inverse() * drive.T_world_cam[5];
+  EXPECT_LT((m.T_prev_curr.translation() - truth.translation()).norm(), 3 * tol.step_translation_m);
+  const RelativeMotion next = vo->Track(drive.frames[6]);
+  EXPECT_EQ(next.t_prev_ns, drive.frames[5].t_ns);
+}
+
 TEST(StereoOdometryFactory, RejectsUnknownMethodAndBadCamera) {
   EXPECT_THROW(MakeStereoOdometry("nope", SyntheticCamera()), std::invalid_argument);
   EXPECT_THROW(MakeStereoOdometry("default", kitti::StereoCamera{}), std::invalid_argument);

@@ -80,7 +80,7 @@ struct VoCache {
 };
 
 std::string VoCacheHeader(const std::string& drive, const std::string& method, size_t frames) {
-  return "locaid-vo-cache v1 method=" + method + " frames=" + std::to_string(frames) + " drive=" + drive;
+  return "locaid-vo-cache v2 method=" + method + " frames=" + std::to_string(frames) + " drive=" + drive;
 }
 
 std::optional<VoCache> ReadVoCache(const std::string& path, const std::string& expected_header) {
@@ -99,7 +99,7 @@ std::optional<VoCache> ReadVoCache(const std::string& path, const std::string& e
     size_t index = 0;
     int status = 0;
     vo::RelativeMotion m;
-    ls >> index >> m.t_ns >> status >> m.inliers;
+    ls >> index >> m.t_ns >> m.t_prev_ns >> status >> m.inliers;
     Eigen::Matrix<double, 3, 4> T;
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 4; ++c) ls >> T(r, c);
@@ -125,7 +125,7 @@ void WriteVoCache(const std::string& path, const std::string& header, const std:
     out << header << '\n' << std::setprecision(17);
     for (size_t i = 0; i < motions.size(); ++i) {
       const auto& m = motions[i];
-      out << i << ' ' << m.t_ns << ' ' << static_cast<int>(m.status) << ' ' << m.inliers;
+      out << i << ' ' << m.t_ns << ' ' << m.t_prev_ns << ' ' << static_cast<int>(m.status) << ' ' << m.inliers;
       for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 4; ++c) out << ' ' << m.T_prev_curr.matrix()(r, c);
       for (int r = 0; r < 6; ++r)
