@@ -9,6 +9,7 @@ namespace {
 
 constexpr double kNsPerS = 1e9;
 constexpr int kP = 0, kV = 3, kTh = 6, kBa = 9, kBg = 12, kPc = 15, kThc = 18;  // IMU layout
+constexpr int kCal = 21;  // VO boresight (3) and scale (1), IMU mode
 constexpr double kMaxImuStepS = 0.01;
 
 double Seconds(int64_t a_ns, int64_t b_ns) { return static_cast<double>(a_ns - b_ns) / kNsPerS; }
@@ -17,8 +18,22 @@ void Symmetrize(Eigen::MatrixXd& P) { P = 0.5 * (P + P.transpose()).eval(); }
 
 }  // namespace
 
+Mat6 VoNoiseModel(const EkfConfig& config, const Mat6& reported, const Eigen::Isometry3d& motion) {
+  Mat6 Rvo = reported * config.vo_cov_scale;
+  // Relative term only where VO is a measurement checked against the IMU; in
+  // no-IMU mode it would only inflate the propagation noise (sim: worse GPS smoothing).
+  const double sigma_rel = config.use_imu ? config.vo_sigma_t_per_m * motion.translation().norm() : 0.0;
+  for (int i = 0; i < 3; ++i) {
+    Rvo(i, i) += sigma_rel * sigma_rel;
+    Rvo(i, i) = std::max(Rvo(i, i), std::pow(config.vo_min_sigma_t_m, 2));
+    Rvo(i + 3, i + 3) = std::max(Rvo(i + 3, i + 3), std::pow(config.vo_min_sigma_rot_rad, 2));
+  }
+  return Rvo;
+}
+
 Ekf::Ekf(EkfConfig config) : config_(config) {
-  gate_ = ChiSquareQuantile(config_.gps_gate_probability, 3);
+  gate_h_ = ChiSquareQuantile(config_.gps_gate_probability, 2);
+  gate_v_ = ChiSquareQuantile(config_.gps_gate_probability, 1);
   vo_gate_ = ChiSquareQuantile(config_.vo_gate_probability, 6);
 }
 
@@ -65,9 +80,10 @@ void Ekf::PropagateTo(int64_t t_ns) {
                                     config_.gyro_bias_walk_radps2_sqrt_hz);
     x_ = fusion::PropagateImu(x_, f, w, dt, g);
     const Eigen::MatrixXd P15 = P_.topLeftCorner<15, 15>();
+    const Eigen::Index rest = P_.cols() - 15;  // clone and VO calibration
     P_.topLeftCorner<15, 15>() = F * P15 * F.transpose() + Q;
-    P_.topRightCorner<15, 6>() = F * P_.topRightCorner<15, 6>();
-    P_.bottomLeftCorner<6, 15>() = P_.topRightCorner<15, 6>().transpose();
+    P_.topRightCorner(15, rest) = F * P_.topRightCorner(15, rest);
+    P_.bottomLeftCorner(rest, 15) = P_.topRightCorner(15, rest).transpose();
   }
   Symmetrize(P_);
   t_ns_ = t_ns;
@@ -105,7 +121,6 @@ bool Ekf::UpdateGps(const GpsFix& fix) {
     return false;
   }
   PropagateTo(fix.t_ns);
-  const int n = static_cast<int>(P_.rows());
   Vec3 predicted = x_.p_enu_m;
   Mat3 R = Mat3::Zero();
   R.diagonal() << fix.sigma_h_m * fix.sigma_h_m, fix.sigma_h_m * fix.sigma_h_m,
@@ -117,32 +132,89 @@ bool Ekf::UpdateGps(const GpsFix& fix) {
     R.diagonal().array() += std::pow(0.3 * dt, 2);
   }
   const Vec3 y = z - predicted;
-  const Eigen::MatrixXd H = GpsJacobian(n);
-  Mat3 S = P_.topLeftCorner<3, 3>() + R;
-  last_nis_ = y.dot(S.ldlt().solve(y));
-  if (!std::isfinite(last_nis_) || last_nis_ > gate_) {
-    ++consecutive_rejections_;
-    if (consecutive_rejections_ <= config_.gps_max_consecutive_rejections ||
-        !std::isfinite(last_nis_)) {
-      ++gps_rejected_;
-      last_gps_rejected_ns_ = fix.t_ns;
-      return false;
-    }
-    // Many rejections in a row: the filter, not the GPS, is wrong. Inflate.
-    P_.topLeftCorner<3, 3>() += y * y.transpose() + R;
-    S = P_.topLeftCorner<3, 3>() + R;
+  // Horizontal (E, N) and vertical (U) are gated on their own, so that a
+  // vertical disagreement does not throw away the horizontal information.
+  const GpsGateResult gate = GateGps(y, R);
+  last_nis_ = gate.nis_h;
+  last_nis_v_ = gate.nis_v;
+  bool use_h = gate.h_ok, use_v = gate.v_ok;
+  // A run of rejections means the filter, not the GPS, is off (an open-sky
+  // receiver does not fail 3 times in a row at the 0.1 % gate): reset the
+  // rejected component's position covariance to cover the innovation, so the
+  // fix is taken and the state snaps back to GPS. Counted on the pose.
+  const int reset_after = std::max(1, config_.gps_reset_after_rejections);
+  const bool reset_h = !use_h && std::isfinite(gate.nis_h) && ++rejections_h_ > reset_after;
+  const bool reset_v = !use_v && std::isfinite(gate.nis_v) && ++rejections_v_ > reset_after;
+  if (reset_h || reset_v) {
+    ResetPositionToGps(y, R, reset_h, reset_v);
+    use_h = use_h || reset_h;
+    use_v = use_v || reset_v;
   }
-  consecutive_rejections_ = 0;
-  const Eigen::MatrixXd PHt = P_.leftCols<3>();
-  const Eigen::MatrixXd K = PHt * S.inverse();
-  const Eigen::VectorXd dx = K * y;
-  const Eigen::MatrixXd IKH = Eigen::MatrixXd::Identity(n, n) - K * H;
-  P_ = IKH * P_ * IKH.transpose() + K * R * K.transpose();
-  Symmetrize(P_);
-  Correct(dx);
+  if (use_h) rejections_h_ = 0;
+  if (use_v) rejections_v_ = 0;
+  // A fix counts as used when its horizontal part is fused (a vertical-only
+  // update is reported as a rejection); vertical rejections are counted apart.
+  if (use_h || use_v) ApplyGpsUpdate(y, R, use_h, use_v);
+  if (!use_v) ++gps_rejected_vertical_;
+  if (!use_h || !use_v) last_gps_rejected_ns_ = fix.t_ns;  // GPS_DEGRADED for a while
+  if (!use_h) {
+    ++gps_rejected_;
+    return false;
+  }
   ++gps_used_;
   last_gps_accepted_ns_ = fix.t_ns;
   return true;
+}
+
+Ekf::GpsGateResult Ekf::GateGps(const Vec3& y, const Mat3& R) const {
+  const Mat3 S = P_.topLeftCorner<3, 3>() + R;
+  GpsGateResult g;
+  const Eigen::Vector2d y_h = y.head<2>();
+  g.nis_h = y_h.dot(S.topLeftCorner<2, 2>().ldlt().solve(y_h));
+  g.nis_v = y.z() * y.z() / S(2, 2);
+  g.h_ok = std::isfinite(g.nis_h) && g.nis_h <= gate_h_;
+  g.v_ok = std::isfinite(g.nis_v) && g.nis_v <= gate_v_;
+  return g;
+}
+
+void Ekf::ResetPositionToGps(const Vec3& y, const Mat3& R, bool horizontal, bool vertical) {
+  // Position (and velocity: a state that drifted that far has a wrong velocity
+  // too) covariance grows by the innovation, which the update then absorbs;
+  // cross terms to the other states are kept, so attitude and biases follow.
+  Vec3 mask(horizontal ? 1.0 : 0.0, horizontal ? 1.0 : 0.0, vertical ? 1.0 : 0.0);
+  const Vec3 y_masked = y.cwiseProduct(mask);
+  P_.topLeftCorner<3, 3>() += y_masked * y_masked.transpose() + mask.asDiagonal() * R;
+  if (config_.use_imu) {
+    const double gap_s = last_gps_accepted_ns_ ? std::max(1.0, Seconds(t_ns_, *last_gps_accepted_ns_)) : 1.0;
+    const Vec3 dv = y_masked / gap_s;
+    P_.block<3, 3>(kV, kV) += dv * dv.transpose() +
+                              Mat3(mask.asDiagonal()) * std::pow(config_.init_velocity_sigma_mps, 2);
+  }
+  Symmetrize(P_);
+  ++gps_resets_;
+}
+
+void Ekf::ApplyGpsUpdate(const Vec3& y, const Mat3& R, bool horizontal, bool vertical) {
+  std::vector<int> rows;
+  if (horizontal) rows = {0, 1};
+  if (vertical) rows.push_back(2);
+  const int m = static_cast<int>(rows.size());
+  const int n = static_cast<int>(P_.rows());
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(m, n);
+  Eigen::VectorXd ym(m);
+  Eigen::MatrixXd Rm(m, m);
+  for (int i = 0; i < m; ++i) {
+    H(i, rows[static_cast<size_t>(i)]) = 1.0;
+    ym(i) = y(rows[static_cast<size_t>(i)]);
+    for (int j = 0; j < m; ++j) Rm(i, j) = R(rows[static_cast<size_t>(i)], rows[static_cast<size_t>(j)]);
+  }
+  const Eigen::MatrixXd PHt = P_ * H.transpose();
+  const Eigen::MatrixXd S = H * PHt + Rm;
+  const Eigen::MatrixXd K = PHt * S.inverse();
+  const Eigen::MatrixXd IKH = Eigen::MatrixXd::Identity(n, n) - K * H;
+  P_ = IKH * P_ * IKH.transpose() + K * Rm * K.transpose();
+  Symmetrize(P_);
+  Correct(K * ym);
 }
 
 // ------------------------------------------------------------------ VO
@@ -181,7 +253,7 @@ void Ekf::ProcessVo(const VoMeasurement& measured, bool vo_ok) {
   } else {
     last_vo_velocity_body_mps_ = motion.translation() / vo_dt;
   }
-  Mat6 Rvo = VoNoise(m.covariance, motion);
+  Mat6 Rvo = VoNoiseModel(config_, m.covariance, motion);
   // Motion to apply from the last frame: the VO motion minus what was coasted
   // since the anchor (no-IMU propagation and the initialisation chain).
   const Eigen::Isometry3d step = vo_ok ? T_coast_.inverse() * motion : motion;
@@ -202,20 +274,21 @@ void Ekf::ProcessVo(const VoMeasurement& measured, bool vo_ok) {
       f.T_start_body = T_start_body_;
       f.T_start_body.translation() = (1 - a) * T_prev.translation() + a * T_start_body_.translation();
     }
-    // Gravity direction in the start frame from the accelerometer, minus the
-    // car's own acceleration (centripetal w x v and dv/dt from the VO).
+    // Specific force and VO position in the start frame, for the gravity fit
+    // (FitGravity) at initialisation; coasted frames carry no position.
     if (!init_accel_.empty() && vo_ok) {
       Vec3 f_mean = Vec3::Zero();
       for (const auto& a : init_accel_) f_mean += a;
       f_mean /= static_cast<double>(init_accel_.size());
-      const Vec3 v_body = motion.translation() / dt;
-      const Vec3 w_body = LogSO3(motion.linear()) / dt;
-      const Vec3 a_body = w_body.cross(v_body) + (v_body - init_prev_v_body_) / dt;
-      if (init_have_prev_v_) init_gravity_start_ += T_start_body_.linear() * (f_mean - a_body);
-      init_prev_v_body_ = v_body;
-      init_have_prev_v_ = true;
+      GravitySample g;
+      g.t_s = Seconds(m.t_ns, m.t_prev_ns) * 0.5 + Seconds(m.t_prev_ns, init_fit_t0_ns_.value_or(m.t_prev_ns));
+      if (!init_fit_t0_ns_) init_fit_t0_ns_ = m.t_prev_ns;
+      g.R_start_body = T_start_body_.linear();
+      g.f_body_mps2 = f_mean;
+      g.v_body_mps = motion.translation() / dt;
+      g.w_body_radps = LogSO3(motion.linear()) / dt;
+      init_gravity_.push_back(g);
     }
-    if (!vo_ok) init_have_prev_v_ = false;  // dv/dt only between consecutive VO motions
     init_accel_.clear();
     t_ns_ = m.t_ns;
     TryInitialize(m.t_ns);
@@ -240,13 +313,18 @@ void Ekf::ProcessVo(const VoMeasurement& measured, bool vo_ok) {
 
   PropagateTo(m.t_ns);
   if (vo_ok) {
-    const Vec6 r = VoResidual(x_.p_enu_m, x_.R_enu_body, p_clone_, R_clone_, motion);
-    const MatVoH Hs = VoJacobian(x_.p_enu_m, x_.R_enu_body, p_clone_, R_clone_, motion);
+    // The VO translation with the estimated boresight and scale removed.
+    Eigen::Isometry3d corrected = motion;
+    corrected.translation() = CorrectVoTranslation(motion.translation(), R_boresight_, vo_scale_error_);
+    const Vec6 r = VoResidual(x_.p_enu_m, x_.R_enu_body, p_clone_, R_clone_, corrected);
+    const MatVoH Hs = VoJacobian(x_.p_enu_m, x_.R_enu_body, p_clone_, R_clone_, corrected);
     Eigen::MatrixXd H = Eigen::MatrixXd::Zero(6, P_.rows());
     H.middleCols<3>(kP) = Hs.middleCols<3>(0);
     H.middleCols<3>(kTh) = Hs.middleCols<3>(3);
     H.middleCols<3>(kPc) = Hs.middleCols<3>(6);
     H.middleCols<3>(kThc) = Hs.middleCols<3>(9);
+    H.middleCols<kVoCalibStates>(kCal) =
+        VoCalibrationJacobian(motion.linear(), motion.translation(), R_boresight_, vo_scale_error_);
     const Mat6 S = H * P_ * H.transpose() + Rvo;
     const double nis = r.dot(S.ldlt().solve(r));
     last_vo_nis_ = nis;
@@ -266,19 +344,6 @@ void Ekf::ProcessVo(const VoMeasurement& measured, bool vo_ok) {
   if (reanchor) Clone();  // else the clone stays at the anchor the next motion starts from
 }
 
-Mat6 Ekf::VoNoise(const Mat6& reported, const Eigen::Isometry3d& motion) const {
-  Mat6 Rvo = reported * config_.vo_cov_scale;
-  // Relative term only where VO is a measurement checked against the IMU; in
-  // no-IMU mode it would only inflate the propagation noise (sim: worse GPS smoothing).
-  const double sigma_rel =
-      config_.use_imu ? config_.vo_sigma_t_per_m * motion.translation().norm() : 0.0;
-  for (int i = 0; i < 3; ++i) {
-    Rvo(i, i) += sigma_rel * sigma_rel;
-    Rvo(i, i) = std::max(Rvo(i, i), std::pow(config_.vo_min_sigma_t_m, 2));
-    Rvo(i + 3, i + 3) = std::max(Rvo(i + 3, i + 3), std::pow(config_.vo_min_sigma_rot_rad, 2));
-  }
-  return Rvo;
-}
 
 void Ekf::Clone() {
   p_clone_ = x_.p_enu_m;
@@ -299,6 +364,8 @@ void Ekf::Correct(const Eigen::VectorXd& dx) {
     x_ = BoxPlus(x_, dx.head<15>());
     p_clone_ += dx.segment<3>(kPc);
     R_clone_ = ExpSO3(dx.segment<3>(kThc)) * R_clone_;
+    R_boresight_ = ExpSO3(dx.segment<3>(kCal)) * R_boresight_;
+    vo_scale_error_ += dx(kCal + 3);
   } else {
     x_.p_enu_m += dx.head<3>();
     x_.R_enu_body = ExpSO3(dx.segment<3>(3)) * x_.R_enu_body;
@@ -326,8 +393,11 @@ void Ekf::TryInitialize(int64_t t_ns) {
 
   // Roll / pitch of the start frame from gravity (IMU), else level.
   Mat3 R_level_start = Mat3::Identity();
-  if (config_.use_imu && init_gravity_start_.norm() > 1e-6) {
-    const Vec3 up = init_gravity_start_.normalized();  // "up" in start axes
+  const GravityFit gravity = FitGravity(init_gravity_);
+  double tilt_var = std::pow(config_.init_roll_pitch_sigma_rad, 2);
+  if (config_.use_imu && gravity.ok) {
+    tilt_var += std::pow(gravity.accel_sigma_mps2 / config_.gravity_mps2, 2);
+    const Vec3 up = gravity.up_start;  // "up" in start axes
     R_level_start = Eigen::Quaterniond::FromTwoVectors(up, Vec3::UnitZ()).toRotationMatrix();
   }
   // 2D Procrustes: p_i ~= Rz(psi) q_i + t, robust (drop > 3 sigma, twice).
@@ -384,20 +454,23 @@ void Ekf::TryInitialize(int64_t t_ns) {
   const double sigma_psi = std::sqrt(k) * sigma_h / std::sqrt(spread2);
   const Vec3 lever(p_now_xy.x() - p_mean.x(), p_now_xy.y() - p_mean.y(), 0);
   const Vec3 J_psi = Vec3::UnitZ().cross(lever);
-  const int n = config_.use_imu ? kImuStates + kCloneStates : kPoseStates;
+  const int n = config_.use_imu ? kImuStates + kCloneStates + kVoCalibStates : kPoseStates;
   const int th = config_.use_imu ? kTh : 3;
   P_ = Eigen::MatrixXd::Zero(n, n);
   const double sigma_v = std::max(3.0, 1.5 * sigma_h);
   P_.block<3, 3>(0, 0).diagonal() << var_c, var_c, sigma_v * sigma_v / used;
   P_.block<3, 3>(0, 0) += J_psi * J_psi.transpose() * sigma_psi * sigma_psi;
-  P_.block<3, 3>(th, th).diagonal() << std::pow(config_.init_roll_pitch_sigma_rad, 2),
-      std::pow(config_.init_roll_pitch_sigma_rad, 2), sigma_psi * sigma_psi;
+  P_.block<3, 3>(th, th).diagonal() << tilt_var, tilt_var, sigma_psi * sigma_psi;
   P_.block<3, 1>(0, th + 2) = J_psi * sigma_psi * sigma_psi;
   P_.block<1, 3>(th + 2, 0) = (J_psi * sigma_psi * sigma_psi).transpose();
   if (config_.use_imu) {
     P_.block<3, 3>(kV, kV).diagonal().setConstant(std::pow(config_.init_velocity_sigma_mps, 2));
     P_.block<3, 3>(kBa, kBa).diagonal().setConstant(std::pow(config_.init_accel_bias_sigma_mps2, 2));
     P_.block<3, 3>(kBg, kBg).diagonal().setConstant(std::pow(config_.init_gyro_bias_sigma_radps, 2));
+    P_.block<3, 3>(kCal, kCal).diagonal().setConstant(std::pow(config_.vo_boresight_sigma_rad, 2));
+    P_(kCal + 3, kCal + 3) = std::pow(config_.vo_scale_sigma, 2);
+    R_boresight_ = Mat3::Identity();
+    vo_scale_error_ = 0;
     Clone();
   }
   t_ns_ = t_ns;
@@ -415,6 +488,7 @@ FusedPose Ekf::Output(int64_t t_ns, bool vo_ok) const {
   out.t_ns = t_ns;
   out.gps_used = gps_used_;
   out.gps_rejected = gps_rejected_;
+  out.gps_resets = gps_resets_;
   out.seconds_since_gps = last_gps_accepted_ns_ ? Seconds(t_ns, *last_gps_accepted_ns_)
                                                 : std::numeric_limits<double>::infinity();
   if (!initialized_) {

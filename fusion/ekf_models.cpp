@@ -174,6 +174,55 @@ VoMeasurement CameraMotionToBody(const Eigen::Isometry3d& T_prev_curr_cam, const
   return m;
 }
 
+Vec3 CorrectVoTranslation(const Vec3& t_measured, const Mat3& R_boresight, double scale_error) {
+  return R_boresight.transpose() * t_measured / (1.0 + scale_error);
+}
+
+Eigen::Matrix<double, 6, kVoCalibStates> VoCalibrationJacobian(const Mat3& R_measured,
+                                                               const Vec3& t_measured,
+                                                               const Mat3& R_boresight,
+                                                               double scale_error) {
+  Eigen::Matrix<double, 6, kVoCalibStates> H = Eigen::Matrix<double, 6, kVoCalibStates>::Zero();
+  const double k = 1.0 / (1.0 + scale_error);
+  const Vec3 t_c = CorrectVoTranslation(t_measured, R_boresight, scale_error);
+  // r_t = R_m^T (t_c - v): d t_c / d dphi = k R_b^T [t_m]x, d t_c / d ds = -k t_c.
+  H.block<3, 3>(0, 0) = -R_measured.transpose() * (k * R_boresight.transpose() * Skew(t_measured));
+  H.block<3, 1>(0, 3) = R_measured.transpose() * (k * t_c);
+  return H;
+}
+
+GravityFit FitGravity(const std::vector<GravitySample>& samples) {
+  GravityFit fit;
+  const size_t n = samples.size();
+  if (n < 5) return fit;
+  double t_mean = 0, s_mean = 0;
+  for (const auto& k : samples) { t_mean += k.t_s; s_mean += k.v_body_mps.norm(); }
+  t_mean /= static_cast<double>(n);
+  s_mean /= static_cast<double>(n);
+  double stt = 0, sts = 0;
+  for (const auto& k : samples) {
+    stt += (k.t_s - t_mean) * (k.t_s - t_mean);
+    sts += (k.t_s - t_mean) * (k.v_body_mps.norm() - s_mean);
+  }
+  if (!(stt > 0)) return fit;
+  const double speed_rate = sts / stt;  // m/s^2 along the motion
+  double res2 = 0;
+  Vec3 g_up = Vec3::Zero();
+  for (const auto& k : samples) {
+    const double speed = k.v_body_mps.norm();
+    const double r = speed - (s_mean + speed_rate * (k.t_s - t_mean));
+    res2 += r * r;
+    const Vec3 along = speed > 1e-3 ? Vec3(k.v_body_mps / speed) : Vec3::Zero();
+    const Vec3 a_body = k.w_body_radps.cross(k.v_body_mps) + speed_rate * along;
+    g_up += k.R_start_body * (k.f_body_mps2 - a_body);
+  }
+  if (!g_up.allFinite() || g_up.norm() < 1e-6) return fit;
+  fit.up_start = g_up.normalized();
+  fit.accel_sigma_mps2 = std::sqrt(res2 / std::max(1.0, static_cast<double>(n) - 2.0) / stt);
+  fit.ok = std::isfinite(fit.accel_sigma_mps2);
+  return fit;
+}
+
 double ChiSquareCdf(double x, int dof) {
   if (x <= 0) return 0.0;
   if (dof % 2 == 0) {

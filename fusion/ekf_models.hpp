@@ -13,6 +13,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <vector>
+
 namespace locaid::fusion {
 
 using Vec3 = Eigen::Vector3d;
@@ -68,6 +70,20 @@ Vec6 VoResidual(const Vec3& p_enu, const Mat3& R_enu_body, const Vec3& p_c_enu,
 MatVoH VoJacobian(const Vec3& p_enu, const Mat3& R_enu_body, const Vec3& p_c_enu,
                   const Mat3& R_enu_clone, const Eigen::Isometry3d& T_prev_curr_meas);
 
+// VO calibration (IMU mode): the VO's translation is measured in axes rotated
+// by a small boresight R_b from the body axes, and scaled by (1 + s):
+//   t_m = (1 + s) R_b t_true.
+// CorrectVoTranslation undoes the current estimate (t_c = R_b^T t_m / (1 + s));
+// VoCalibrationJacobian gives d r / d [dphi (3), ds] of the VO residual computed
+// with the corrected motion, in the residual convention r(x (+) dx) ~= r - H dx,
+// with R_b = Exp(dphi) R_b_hat and s = s_hat + ds.
+inline constexpr int kVoCalibStates = 4;  // boresight (3), scale (1)
+Vec3 CorrectVoTranslation(const Vec3& t_measured, const Mat3& R_boresight, double scale_error);
+Eigen::Matrix<double, 6, kVoCalibStates> VoCalibrationJacobian(const Mat3& R_measured,
+                                                               const Vec3& t_measured,
+                                                               const Mat3& R_boresight,
+                                                               double scale_error);
+
 // GPS position measurement z = p_enu (+ noise): H = [I3 0 ...] (3 x n).
 Eigen::MatrixXd GpsJacobian(int state_dim);
 
@@ -83,6 +99,30 @@ Mat6 OdometryNoiseJacobian(const Mat3& R_enu_body, const Eigen::Isometry3d& T_pr
 VoMeasurement CameraMotionToBody(const Eigen::Isometry3d& T_prev_curr_cam,
                                  const Mat6& covariance_cam,
                                  const Eigen::Isometry3d& T_cam_body);
+
+// Gravity direction in a fixed start frame while the car drives, for the
+// filter's start-up. Per tracked frame k (body axes): specific force f_k (mean
+// of the IMU samples of the frame), VO velocity v_k and angular rate w_k, and
+// R_k (start <- body). The car's own acceleration in body axes is the
+// centripetal w_k x v_k plus the change of speed along v_k, whose rate comes
+// from a least-squares line through the speeds |v_k|: differencing per-frame
+// VO velocities (2.6 m/s^2 of noise per frame on the real KITTI excerpt)
+// tilted the start-up pitch by 1 deg. Then g * up = mean_k R_k (f_k - a_k).
+// accel_sigma_mps2: 1-sigma of the speed-rate fit (from its residuals). ok is
+// false with fewer than 5 frames or no time span.
+struct GravitySample {
+  double t_s = 0;
+  Mat3 R_start_body = Mat3::Identity();
+  Vec3 f_body_mps2 = Vec3::Zero();
+  Vec3 v_body_mps = Vec3::Zero();
+  Vec3 w_body_radps = Vec3::Zero();
+};
+struct GravityFit {
+  Vec3 up_start = Vec3::UnitZ();  // unit vector
+  double accel_sigma_mps2 = 0;
+  bool ok = false;
+};
+GravityFit FitGravity(const std::vector<GravitySample>& samples);
 
 // chi-square CDF (closed form for integer dof) and its quantile (bisection).
 double ChiSquareCdf(double x, int dof);

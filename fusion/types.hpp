@@ -44,7 +44,8 @@ struct FusedPose {
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Identity();
   Mode mode = Mode::kLost;
   double seconds_since_gps = 0;  // since the last accepted fix; +inf before the first
-  int gps_used = 0, gps_rejected = 0;  // cumulative counts
+  int gps_used = 0, gps_rejected = 0;  // cumulative counts (a fix used in part counts as used)
+  int gps_resets = 0;  // cumulative: position resets to GPS after a run of gate rejections
 };
 
 }  // namespace locaid::fusion

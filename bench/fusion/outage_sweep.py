@@ -1,19 +1,28 @@
 #!/usr/bin/python3
-"""Seed sweep of locaid-replay: one filter figure over many GPS-noise seeds.
+"""Seed sweep of locaid-replay: filter accuracy AND consistency over many GPS-noise seeds.
 
 One seed is one draw of the GPS noise; on a short drive the end-of-outage
-error depends on that draw as much as on the filter (the heading at the start
-of the outage comes from a few seconds of noisy fixes). This runs
-locaid-replay for seeds 1..N on each (scenario, IMU / no IMU) case, reusing one
-VO run per drive through --vo-cache, and prints the median, 90th percentile
-and maximum of rmse_gps_m and of every outage's end_error_pct.
+error depends on that draw as much as on the filter. This runs locaid-replay
+for seeds 1..N on each (scenario, IMU / no IMU) case, reusing one VO run per
+drive through --vo-cache, and reports per case:
 
-  bench/fusion/outage_sweep.py --drive DIR --scenario tunnel-30s \
-      [--scenario urban-canyon ...] [--seeds 10] [--no-imu-too] [--json]
+  - rmse_gps_m, end_error_pct (every outage), reconverge_s: median / p90 / max
+  - NEES: per-run mean 3-dof position NEES against the run's own 99 %
+    chi-square bound (chi2_0.99(3n)/n over its n frames); runs above it
+  - max vertical error of every run (worst run)
+  - GPS gate: fixes rejected (horizontal part / vertical part) over all fixes
+    fused or rejected, against the gate's nominal false-alarm rate; the longest
+    run of consecutive rejections; position resets to GPS
+  - VO updates rejected by the filter's VO gate
 
-Progress goes to stderr; with --json one object goes to stdout.
+  bench/fusion/outage_sweep.py --drive DIR --scenario scenarios/outage-10s-middle.yaml \\
+      [--scenario urban-canyon ...] [--seeds 50] [--no-imu-too] [--jobs 2] [--json] [--runs-csv F]
+
+Progress goes to stderr; with --json one object goes to stdout. Exit status 0
+even when a target is missed: this measures, it does not judge.
 """
 import argparse
+import concurrent.futures
 import hashlib
 import json
 import os
@@ -21,6 +30,8 @@ import statistics
 import subprocess
 import sys
 import tempfile
+
+GATE_PROBABILITY = 0.999  # EkfConfig::gps_gate_probability (each of the two gates)
 
 
 def percentile(values, q):
@@ -37,6 +48,13 @@ def summary(values):
             "max": max(values), "values": values} if values else None
 
 
+def run_one(cmd):
+    run = subprocess.run(cmd, capture_output=True, text=True)
+    if run.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)}\nfailed: {run.stderr.strip().splitlines()[-1:]}")
+    return json.loads(run.stdout)
+
+
 def main():
     here = os.path.dirname(os.path.abspath(__file__))
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -48,47 +66,99 @@ def main():
                     help="locaid-replay binary (default build/bin/locaid-replay)")
     ap.add_argument("--cache-dir", default=tempfile.gettempdir(), help="where the VO cache is kept")
     ap.add_argument("--ekf", action="append", default=[], help="NAME=VALUE passed to locaid-replay --ekf")
+    ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel replays (default: cores)")
+    ap.add_argument("--runs-csv", help="also write one line per run to this CSV")
     ap.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     args = ap.parse_args()
     if args.seeds < 1:
         ap.error("--seeds must be >= 1")
+    if args.jobs < 1:
+        ap.error("--jobs must be >= 1")
     if not os.access(args.replay, os.X_OK):
         ap.error(f"{args.replay}: not an executable (build first, or pass --replay)")
+    if not os.path.isdir(args.drive):
+        ap.error(f"{args.drive}: no such drive folder")
 
     drive = os.path.realpath(args.drive)
     key = hashlib.sha1(drive.encode()).hexdigest()[:12]
-    cache = os.path.join(args.cache_dir, f"locaid-vo-{key}.cache")
+    cache = os.path.join(args.cache_dir, f"locaid-vo-{key}.v2.cache")
     extra = [a for e in args.ekf for a in ("--ekf", e)]
     cases = [(s, imu) for s in args.scenario for imu in ([True, False] if args.no_imu_too else [True])]
-    result = {"drive": drive, "seeds": args.seeds, "ekf": args.ekf, "cases": []}
+    result = {"drive": drive, "seeds": args.seeds, "ekf": args.ekf, "gate_probability": GATE_PROBABILITY,
+              "cases": []}
+    runs_out = []
     for scenario, imu in cases:
-        rmse, end_pct, reconv = [], [], []
-        for seed in range(1, args.seeds + 1):
-            cmd = [args.replay, "--drive", drive, "--scenario", scenario, "--json", "--seed", str(seed),
-                   "--vo-cache", cache] + ([] if imu else ["--no-imu"]) + extra
-            print(f"\r{scenario} {'IMU' if imu else 'no IMU'} seed {seed}/{args.seeds}   ",
-                  end="", file=sys.stderr, flush=True)
-            run = subprocess.run(cmd, capture_output=True, text=True)
-            if run.returncode != 0:
-                sys.exit(f"\n{' '.join(cmd)}\nfailed: {run.stderr.strip().splitlines()[-1:]}")
-            j = json.loads(run.stdout)
+        def cmd(seed):
+            return [args.replay, "--drive", drive, "--scenario", scenario, "--json", "--seed", str(seed),
+                    "--vo-cache", cache] + ([] if imu else ["--no-imu"]) + extra
+        # Seed 1 first and alone: it writes the VO cache the others read.
+        runs = {1: run_one(cmd(1))}
+        with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
+            futures = {pool.submit(run_one, cmd(s)): s for s in range(2, args.seeds + 1)}
+            for n, f in enumerate(concurrent.futures.as_completed(futures), start=2):
+                runs[futures[f]] = f.result()
+                print(f"\r{scenario} {'IMU' if imu else 'no IMU'} {n}/{args.seeds} runs   ",
+                      end="", file=sys.stderr, flush=True)
+        rmse, end_pct, reconv, nees_ratio, max_up = [], [], [], [], []
+        fixes = rej_h = rej_v = resets = vo_rej = 0
+        over_bound, longest_run = [], 0
+        for seed in sorted(runs):
+            j = runs[seed]
             rmse.append(j["rmse_gps_m"])
             for o in j["outages"]:
                 end_pct.append(o["end_error_pct"])
                 reconv.append(o["reconverge_s"])
-        result["cases"].append({"scenario": scenario, "use_imu": imu, "rmse_gps_m": summary(rmse),
-                                "end_error_pct": summary(end_pct), "reconverge_s": summary(reconv)})
+            nees_ratio.append(j["nees_mean"] / j["nees_bound_99"])
+            if j["nees_mean"] > j["nees_bound_99"]:
+                over_bound.append(seed)
+            max_up.append(j["max_vertical_error_m"])
+            fixes += j["gps_used"] + j["gps_rejected"]
+            rej_h += j["gps_rejected"]
+            rej_v += j["gps_rejected_vertical"]
+            resets += j["gps_resets"]
+            vo_rej += j["vo_rejected_by_gate"]
+            longest_run = max(longest_run, j["max_gps_rejection_run"], j["max_gps_rejection_run_vertical"])
+            runs_out.append({"scenario": scenario, "use_imu": imu, "seed": seed, "nees_mean": j["nees_mean"],
+                             "nees_bound_99": j["nees_bound_99"], "max_vertical_error_m": j["max_vertical_error_m"],
+                             "gps_rejected": j["gps_rejected"], "gps_rejected_vertical": j["gps_rejected_vertical"],
+                             "gps_resets": j["gps_resets"], "rmse_gps_m": j["rmse_gps_m"],
+                             "end_error_pct": [o["end_error_pct"] for o in j["outages"]]})
+        result["cases"].append({
+            "scenario": scenario, "use_imu": imu, "rmse_gps_m": summary(rmse),
+            "end_error_pct": summary(end_pct), "reconverge_s": summary(reconv),
+            "nees_over_bound_runs": over_bound, "nees_mean_over_bound": summary(nees_ratio),
+            "max_vertical_error_m": summary(max_up),
+            "gps_fixes": fixes, "gps_rejected": rej_h, "gps_rejected_vertical": rej_v,
+            "gps_expected_false_alarms": fixes * (1 - GATE_PROBABILITY),
+            "gps_longest_rejection_run": longest_run, "gps_resets": resets,
+            "vo_rejected_per_run": vo_rej / len(runs)})
     print("", file=sys.stderr)
+    if args.runs_csv:
+        with open(args.runs_csv, "w") as f:
+            f.write("scenario,use_imu,seed,nees_mean,nees_bound_99,max_vertical_error_m,gps_rejected,"
+                    "gps_rejected_vertical,gps_resets,rmse_gps_m,end_error_pct\n")
+            for r in runs_out:
+                f.write(f"{r['scenario']},{int(r['use_imu'])},{r['seed']},{r['nees_mean']:.3f},"
+                        f"{r['nees_bound_99']:.3f},{r['max_vertical_error_m']:.3f},{r['gps_rejected']},"
+                        f"{r['gps_rejected_vertical']},{r['gps_resets']},{r['rmse_gps_m']:.3f},"
+                        f"{' '.join('%.3f' % v for v in r['end_error_pct'])}\n")
     if args.json:
         print(json.dumps(result, indent=2))
         return
     print(f"{drive}, seeds 1..{args.seeds}" + (f", --ekf {' '.join(args.ekf)}" if args.ekf else ""))
-    print(f"{'scenario':<28} {'IMU':<4} {'rmse_gps_m med/p90/max':<26} {'end_error_pct med/p90/max':<28}")
     for c in result["cases"]:
         def fmt(s, f):
             return "-" if s is None else "/".join(f % s[k] for k in ("median", "p90", "max"))
-        print(f"{c['scenario']:<28} {'yes' if c['use_imu'] else 'no':<4} "
-              f"{fmt(c['rmse_gps_m'], '%.3f'):<26} {fmt(c['end_error_pct'], '%.2f'):<28}")
+        print(f"{c['scenario']} ({'IMU' if c['use_imu'] else 'no IMU'})")
+        print(f"  rmse_gps_m med/p90/max        {fmt(c['rmse_gps_m'], '%.3f')}")
+        print(f"  end_error_pct med/p90/max     {fmt(c['end_error_pct'], '%.2f')}")
+        print(f"  NEES/bound99 med/p90/max      {fmt(c['nees_mean_over_bound'], '%.2f')}"
+              f"   runs over the bound: {len(c['nees_over_bound_runs'])} {c['nees_over_bound_runs'] or ''}")
+        print(f"  max vertical error m          {fmt(c['max_vertical_error_m'], '%.2f')}")
+        print(f"  GPS fixes {c['gps_fixes']}: rejected {c['gps_rejected']} horizontal, "
+              f"{c['gps_rejected_vertical']} vertical (nominal {c['gps_expected_false_alarms']:.1f} each); "
+              f"longest run {c['gps_longest_rejection_run']}; resets {c['gps_resets']}")
+        print(f"  VO updates rejected per run   {c['vo_rejected_per_run']:.1f}")
 
 
 if __name__ == "__main__":

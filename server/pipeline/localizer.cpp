@@ -141,8 +141,12 @@ FrameResult Localizer::Fuse(const vo::RelativeMotion& vo_cam,
       GpsFeed feed;
       feed.fix = *fix;
       const int rejected_before = ekf_->gps_rejected();
+      const int rejected_v_before = ekf_->gps_rejected_vertical();
+      const int resets_before = ekf_->gps_resets();
       feed.accepted = ekf_->UpdateGps(*fix);
       feed.rejected = ekf_->gps_rejected() > rejected_before;
+      feed.rejected_vertical = ekf_->gps_rejected_vertical() > rejected_v_before;
+      r.gps_reset = r.gps_reset || ekf_->gps_resets() > resets_before;
       feed.p_enu_m = ekf_->enu().ToEnu(fix->lat_deg, fix->lon_deg, fix->alt_m);
       r.gps_rejected = r.gps_rejected || feed.rejected;
       r.gps_fix_fed = *fix;

@@ -39,7 +39,8 @@ struct GpsFeed {
   fusion::GpsFix fix;
   Eigen::Vector3d p_enu_m = Eigen::Vector3d::Zero();  // fix in the filter's ENU (valid once has_origin)
   bool accepted = false;   // used by the filter
-  bool rejected = false;   // refused by the chi-square gate (false while buffered for init)
+  bool rejected = false;   // horizontal part refused by the chi-square gate (false while buffered for init)
+  bool rejected_vertical = false;  // vertical part refused by its gate
 };
 
 struct FrameResult {
@@ -49,6 +50,7 @@ struct FrameResult {
   std::optional<fusion::GpsFix> gps_fix_fed;  // last fix fed to the filter this frame
   std::vector<GpsFeed> gps_feeds;     // every fix fed this frame
   bool gps_rejected = false;          // some fix of this frame was rejected by the gate
+  bool gps_reset = false;             // the filter reset its position to GPS this frame
   bool in_outage = false;             // GPS outage (scheduled or run-time) at the frame time
   int imu_samples = 0;                // IMU samples fed this frame
   double vo_ms = 0, fusion_ms = 0;    // wall time of the two stages

@@ -5,6 +5,8 @@
 #include <fstream>
 #include <iomanip>
 #include <stdexcept>
+#include <tuple>
+#include <utility>
 
 #include "fusion/ekf_models.hpp"
 
@@ -23,12 +25,19 @@ ReplayMetrics ComputeReplayMetrics(const std::vector<ReplaySample>& s, double si
     const Eigen::Vector3d e = s[i].p_enu_est_m - s[i].p_enu_gt_m;
     const double q = e.dot(s[i].P_pos_m2.ldlt().solve(e));
     if (std::isfinite(q)) { nees += q; ++m.nees_frames; }
+    m.max_vertical_error_m = std::max(m.max_vertical_error_m, std::abs(e.z()));
     const bool gps_in_use = !s[i].in_outage &&
         (s[i].mode == fusion::Mode::kGpsFused || s[i].mode == fusion::Mode::kGpsDegraded);
     if (gps_in_use) { sum2 += err_h(i) * err_h(i); ++n; }
   }
   m.rmse_gps_m = n ? std::sqrt(sum2 / n) : std::nan("");
   m.nees_mean = m.nees_frames ? nees / m.nees_frames : std::nan("");
+  if (m.nees_frames > 0) {
+    // Wilson-Hilferty: the closed-form CDF does not reach thousands of dof.
+    const double k = 3.0 * m.nees_frames, z99 = 2.326347874;
+    const double c = 2.0 / (9.0 * k);
+    m.nees_bound_99 = k * std::pow(1.0 - c + z99 * std::sqrt(c), 3) / m.nees_frames;
+  }
 
   for (size_t i = 0; i < s.size(); ++i) {
     if (!s[i].in_outage || (i > 0 && s[i - 1].in_outage)) continue;
@@ -62,32 +71,44 @@ ReplayMetrics ComputeReplayMetrics(const std::vector<ReplaySample>& s, double si
   return m;
 }
 
+namespace {
+
+// Mean and median of a list (median reorders it); zeros when empty.
+std::pair<double, double> MeanAndMedian(std::vector<double>& v) {
+  if (v.empty()) return {0.0, 0.0};
+  double sum = 0;
+  for (double q : v) sum += q;
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+  return {sum / static_cast<double>(v.size()), v[v.size() / 2]};
+}
+
+}  // namespace
+
 VoErrorStats ComputeVoErrorStats(const std::vector<VoErrorPair>& pairs) {
   VoErrorStats st;
-  std::vector<double> nees;
-  Eigen::Matrix<double, 6, 1> e2 = Eigen::Matrix<double, 6, 1>::Zero(), s2 = e2;
+  std::vector<double> nees, nees_model;
+  Eigen::Matrix<double, 6, 1> e2 = Eigen::Matrix<double, 6, 1>::Zero(), s2 = e2, m2 = e2;
   for (const auto& p : pairs) {
     const Eigen::Isometry3d E = p.T_prev_curr_gt.inverse() * p.T_prev_curr_vo;
     Eigen::Matrix<double, 6, 1> d;
     d.head<3>() = E.translation();
     d.tail<3>() = fusion::LogSO3(E.linear());
-    if (!d.allFinite() || !p.covariance.allFinite()) continue;
+    if (!d.allFinite() || !p.covariance.allFinite() || !p.model_covariance.allFinite()) continue;
     e2 += d.cwiseProduct(d);
     s2 += p.covariance.diagonal();
+    m2 += p.model_covariance.diagonal();
     const double q = d.dot(p.covariance.ldlt().solve(d));
     if (std::isfinite(q)) nees.push_back(q);
+    const double qm = d.dot(p.model_covariance.ldlt().solve(d));
+    if (std::isfinite(qm)) nees_model.push_back(qm);
     ++st.frames;
   }
   if (st.frames == 0) return st;
   st.rms_error = (e2 / st.frames).cwiseSqrt();
   st.rms_sigma = (s2 / st.frames).cwiseSqrt();
-  if (!nees.empty()) {
-    double sum = 0;
-    for (double q : nees) sum += q;
-    st.nees_mean = sum / static_cast<double>(nees.size());
-    std::nth_element(nees.begin(), nees.begin() + static_cast<long>(nees.size() / 2), nees.end());
-    st.nees_median = nees[nees.size() / 2];
-  }
+  st.rms_model_sigma = (m2 / st.frames).cwiseSqrt();
+  std::tie(st.nees_mean, st.nees_median) = MeanAndMedian(nees);
+  std::tie(st.nees_mean_model, st.nees_median_model) = MeanAndMedian(nees_model);
   return st;
 }
 

@@ -38,6 +38,10 @@ struct ReplayMetrics {
   double rmse_gps_m = 0;    // horizontal RMSE over frames with GPS in use (not in outage)
   double nees_mean = 0;     // mean 3-dof position NEES over initialised frames
   int nees_frames = 0;
+  // 99 % bound of nees_mean for a consistent filter with independent errors:
+  // chi2_0.99(3 n) / n over the n NEES frames.
+  double nees_bound_99 = 0;
+  double max_vertical_error_m = 0;  // over initialised frames with ground truth
   std::vector<OutageStats> outages;
 };
 
@@ -49,6 +53,7 @@ struct VoErrorPair {
   Eigen::Isometry3d T_prev_curr_vo = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d T_prev_curr_gt = Eigen::Isometry3d::Identity();
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Identity();  // as reported
+  Eigen::Matrix<double, 6, 6> model_covariance = Eigen::Matrix<double, 6, 6>::Identity();  // fusion::VoNoiseModel
 };
 
 struct VoErrorStats {
@@ -57,6 +62,9 @@ struct VoErrorStats {
   Eigen::Matrix<double, 6, 1> rms_sigma = Eigen::Matrix<double, 6, 1>::Zero();   // reported, per axis
   double nees_mean = 0;         // mean d^T C^-1 d with the reported C (6 dof: 6 if consistent)
   double nees_median = 0;
+  double nees_mean_model = 0;   // the same with the filter's noise model (model_covariance)
+  double nees_median_model = 0;
+  Eigen::Matrix<double, 6, 1> rms_model_sigma = Eigen::Matrix<double, 6, 1>::Zero();
 };
 
 VoErrorStats ComputeVoErrorStats(const std::vector<VoErrorPair>& pairs);

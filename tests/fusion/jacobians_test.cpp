@@ -82,6 +82,35 @@ TEST(VoJacobian, MatchesFiniteDifferences) {
   }
 }
 
+TEST(VoCalibrationJacobian, MatchesFiniteDifferences) {
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> n01;
+  for (int trial = 0; trial < 10; ++trial) {
+    const NominalState a = RandomState(rng);
+    const Vec3 p = a.p_enu_m, p_c = p + Vec3(n01(rng), n01(rng), 0.1 * n01(rng));
+    const Mat3 R = a.R_enu_body, R_c = R * ExpSO3(0.05 * Vec3(n01(rng), n01(rng), n01(rng)));
+    Eigen::Isometry3d T_m = Eigen::Isometry3d::Identity();
+    T_m.linear() = (R_c.transpose() * R) * ExpSO3(0.01 * Vec3(n01(rng), n01(rng), n01(rng)));
+    T_m.translation() = 1.02 * (R_c.transpose() * (p - p_c)) + 0.05 * Vec3(n01(rng), n01(rng), n01(rng));
+    const Mat3 R_b = ExpSO3(0.01 * Vec3(n01(rng), n01(rng), n01(rng)));
+    const double s = 0.02 * n01(rng);
+    auto residual = [&](const Mat3& Rb, double scale) {
+      Eigen::Isometry3d corrected = T_m;
+      corrected.translation() = CorrectVoTranslation(T_m.translation(), Rb, scale);
+      return VoResidual(p, R, p_c, R_c, corrected);
+    };
+    const auto H = VoCalibrationJacobian(T_m.linear(), T_m.translation(), R_b, s);
+    Eigen::Matrix<double, 6, kVoCalibStates> H_num;
+    for (int j = 0; j < 3; ++j) {
+      Vec3 d = Vec3::Zero();
+      d[j] = kStep;
+      H_num.col(j) = -(residual(ExpSO3(d) * R_b, s) - residual(ExpSO3(-d) * R_b, s)) / (2 * kStep);
+    }
+    H_num.col(3) = -(residual(R_b, s + kStep) - residual(R_b, s - kStep)) / (2 * kStep);
+    EXPECT_LT((H - H_num).cwiseAbs().maxCoeff(), kJacobianTol) << "H\n" << H << "\nnum\n" << H_num;
+  }
+}
+
 TEST(GpsJacobian, MatchesFiniteDifferences) {
   std::mt19937_64 rng(3);
   const NominalState x = RandomState(rng);

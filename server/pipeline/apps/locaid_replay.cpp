@@ -151,6 +151,14 @@ void ApplyEkfSetting(fusion::EkfConfig& c, const std::string& setting) {
       {"vo_gate_probability", &c.vo_gate_probability},
       {"gps_gate_probability", &c.gps_gate_probability},
       {"init_cov_inflation", &c.init_cov_inflation},
+      {"init_velocity_sigma_mps", &c.init_velocity_sigma_mps},
+      {"init_roll_pitch_sigma_rad", &c.init_roll_pitch_sigma_rad},
+      {"init_accel_bias_sigma_mps2", &c.init_accel_bias_sigma_mps2},
+      {"init_gyro_bias_sigma_radps", &c.init_gyro_bias_sigma_radps},
+      {"max_imu_gap_s", &c.max_imu_gap_s},
+      {"gravity_mps2", &c.gravity_mps2},
+      {"vo_boresight_sigma_rad", &c.vo_boresight_sigma_rad},
+      {"vo_scale_sigma", &c.vo_scale_sigma},
       {"no_imu_lost_sigma_mps", &c.no_imu_lost_sigma_mps},
       {"degraded_hold_s", &c.degraded_hold_s},
       {"vo_only_after_periods", &c.vo_only_after_periods},
@@ -257,6 +265,7 @@ int main(int argc, char** argv) {
       return kitti::InterpolatePose(gt_poses, t_ns, static_cast<int64_t>(0.5e9));
     };
     int lost_frames = 0;
+    int rejection_run = 0, rejection_run_v = 0, max_rejection_run = 0, max_rejection_run_v = 0;
     double vo_ms_total = 0;
     std::vector<pipeline::VoErrorPair> vo_pairs;  // VO vs ground truth (noise calibration)
     while (auto lf = queue.Pop()) {
@@ -280,7 +289,9 @@ int main(int argc, char** argv) {
       }
       if (r.vo.status != vo::Status::kLost && gt_enu && i > 0) {
         const auto g0 = gt_at(r.vo_body.t_prev_ns), g1 = gt_at(r.vo_body.t_ns);
-        if (g0 && g1) vo_pairs.push_back({r.vo_body.T_prev_curr, g0->inverse() * *g1, r.vo_body.covariance});
+        if (g0 && g1)
+          vo_pairs.push_back({r.vo_body.T_prev_curr, g0->inverse() * *g1, r.vo_body.covariance,
+                              fusion::VoNoiseModel(localizer.ekf().config(), r.vo_body.covariance, r.vo_body.T_prev_curr)});
       }
       vo_motion.push_back(r.vo.status == vo::Status::kLost ? Eigen::Isometry3d::Identity()
                                                            : r.vo_body.T_prev_curr);
@@ -305,6 +316,11 @@ int main(int argc, char** argv) {
       for (const auto& f : r.gps_feeds) {
         g = f.p_enu_m;
         rej = rej || f.rejected;
+        if (!f.accepted && !f.rejected) continue;  // buffered before initialisation
+        rejection_run = f.rejected ? rejection_run + 1 : 0;
+        rejection_run_v = f.rejected_vertical ? rejection_run_v + 1 : 0;
+        max_rejection_run = std::max(max_rejection_run, rejection_run);
+        max_rejection_run_v = std::max(max_rejection_run_v, rejection_run_v);
       }
       // Ground truth at the time of the fix the CSV shows (the last one fed).
       if (gt_enu && !r.gps_feeds.empty()) {
@@ -365,19 +381,28 @@ int main(int argc, char** argv) {
     j["frames"] = samples.size();
     j["rmse_gps_m"] = metrics.rmse_gps_m;
     j["nees_mean"] = metrics.nees_mean;
+    j["nees_bound_99"] = metrics.nees_bound_99;
+    j["max_vertical_error_m"] = metrics.max_vertical_error_m;
     j["frames_per_s"] = samples.size() / wall_s;
     j["vo_ms_mean"] = vo_ms_total / std::max<size_t>(1, samples.size());
     j["vo_lost_frames"] = lost_frames;
     j["vo_rejected_by_gate"] = localizer.ekf().vo_rejected();
     j["gps_used"] = results.back().pose.gps_used;
     j["gps_rejected"] = results.back().pose.gps_rejected;
+    j["gps_rejected_vertical"] = localizer.ekf().gps_rejected_vertical();
+    j["gps_resets"] = results.back().pose.gps_resets;
+    j["max_gps_rejection_run"] = max_rejection_run;
+    j["max_gps_rejection_run_vertical"] = max_rejection_run_v;
     const auto vo_err = pipeline::ComputeVoErrorStats(vo_pairs);
     auto vec6 = [](const Eigen::Matrix<double, 6, 1>& v) { return std::vector<double>(v.data(), v.data() + 6); };
     j["vo_error"] = {{"frames", vo_err.frames},
                      {"rms_error_t_m_r_rad", vec6(vo_err.rms_error)},
                      {"rms_reported_sigma", vec6(vo_err.rms_sigma)},
                      {"nees6_mean_reported_cov", vo_err.nees_mean},
-                     {"nees6_median_reported_cov", vo_err.nees_median}};
+                     {"nees6_median_reported_cov", vo_err.nees_median},
+                     {"rms_model_sigma", vec6(vo_err.rms_model_sigma)},
+                     {"nees6_mean_model", vo_err.nees_mean_model},
+                     {"nees6_median_model", vo_err.nees_median_model}};
     j["outages"] = nlohmann::json::array();
     for (const auto& o : metrics.outages) {
       j["outages"].push_back({{"start_s", o.start_s}, {"duration_s", o.duration_s},
