@@ -254,6 +254,8 @@ void Ekf::ProcessVo(const VoMeasurement& measured, bool vo_ok) {
     last_vo_velocity_body_mps_ = motion.translation() / vo_dt;
   }
   Mat6 Rvo = VoNoiseModel(config_, m.covariance, motion);
+  if (config_.use_imu && config_.adaptive_vo_rotation_noise)
+    for (int i = 0; i < 3; ++i) Rvo(3 + i, 3 + i) *= vo_rotation_noise_scale_[i];
   // Motion to apply from the last frame: the VO motion minus what was coasted
   // since the anchor (no-IMU propagation and the initialisation chain).
   const Eigen::Isometry3d step = vo_ok ? T_coast_.inverse() * motion : motion;
@@ -328,6 +330,7 @@ void Ekf::ProcessVo(const VoMeasurement& measured, bool vo_ok) {
     const Mat6 S = H * P_ * H.transpose() + Rvo;
     const double nis = r.dot(S.ldlt().solve(r));
     last_vo_nis_ = nis;
+    AdaptVoRotationNoise(r.tail<3>(), S.bottomRightCorner<3, 3>());
     const bool gate_ok = std::isfinite(nis) && nis < vo_gate_;
     // A run of rejections means the prediction, not the VO, is off: accept.
     if (gate_ok || (std::isfinite(nis) && ++vo_consecutive_rejections_ > 2)) {
@@ -344,6 +347,21 @@ void Ekf::ProcessVo(const VoMeasurement& measured, bool vo_ok) {
   if (reanchor) Clone();  // else the clone stays at the anchor the next motion starts from
 }
 
+
+void Ekf::AdaptVoRotationNoise(const Vec3& r_rot, const Mat3& S_rot) {
+  if (!config_.adaptive_vo_rotation_noise) return;
+  // Per body axis: mean normalised squared rotation innovation (1 when
+  // consistent); one outlier moves it by at most 10 x the rate.
+  constexpr double kRate = 0.05;
+  const double max_scale = std::max(1.0, config_.adaptive_vo_rotation_noise_max_scale);
+  for (int i = 0; i < 3; ++i) {
+    const double q = r_rot[i] * r_rot[i] / S_rot(i, i);
+    if (!std::isfinite(q)) return;
+    rot_nis_mean_[i] = (1 - kRate) * rot_nis_mean_[i] + kRate * std::min(q, 10.0);
+    vo_rotation_noise_scale_[i] =
+        std::clamp(vo_rotation_noise_scale_[i] * std::pow(rot_nis_mean_[i], kRate), 1.0, max_scale);
+  }
+}
 
 void Ekf::Clone() {
   p_clone_ = x_.p_enu_m;

@@ -159,6 +159,7 @@ void ApplyEkfSetting(fusion::EkfConfig& c, const std::string& setting) {
       {"gravity_mps2", &c.gravity_mps2},
       {"vo_boresight_sigma_rad", &c.vo_boresight_sigma_rad},
       {"vo_scale_sigma", &c.vo_scale_sigma},
+      {"adaptive_vo_rotation_noise_max_scale", &c.adaptive_vo_rotation_noise_max_scale},
       {"no_imu_lost_sigma_mps", &c.no_imu_lost_sigma_mps},
       {"degraded_hold_s", &c.degraded_hold_s},
       {"vo_only_after_periods", &c.vo_only_after_periods},
@@ -391,6 +392,8 @@ int main(int argc, char** argv) {
     j["gps_rejected"] = results.back().pose.gps_rejected;
     j["gps_rejected_vertical"] = localizer.ekf().gps_rejected_vertical();
     j["gps_resets"] = results.back().pose.gps_resets;
+    const Eigen::Vector3d& rot_scale = localizer.ekf().vo_rotation_noise_scale();
+    j["vo_rotation_noise_scale"] = {rot_scale.x(), rot_scale.y(), rot_scale.z()};
     j["max_gps_rejection_run"] = max_rejection_run;
     j["max_gps_rejection_run_vertical"] = max_rejection_run_v;
     const auto vo_err = pipeline::ComputeVoErrorStats(vo_pairs);
