@@ -22,9 +22,10 @@ Mat6 VoNoiseModel(const EkfConfig& config, const Mat6& reported, const Eigen::Is
   Mat6 Rvo = reported * config.vo_cov_scale;
   // Relative term only where VO is a measurement checked against the IMU; in
   // no-IMU mode it would only inflate the propagation noise (sim: worse GPS smoothing).
-  const double sigma_rel = config.use_imu ? config.vo_sigma_t_per_m * motion.translation().norm() : 0.0;
+  const Vec3 per_m(config.vo_sigma_t_per_m, config.vo_sigma_lateral_per_m, config.vo_sigma_vertical_per_m);
+  const Vec3 sigma_rel = config.use_imu ? Vec3(per_m * motion.translation().norm()) : Vec3::Zero();
   for (int i = 0; i < 3; ++i) {
-    Rvo(i, i) += sigma_rel * sigma_rel;
+    Rvo(i, i) += sigma_rel[i] * sigma_rel[i];
     Rvo(i, i) = std::max(Rvo(i, i), std::pow(config.vo_min_sigma_t_m, 2));
     Rvo(i + 3, i + 3) = std::max(Rvo(i + 3, i + 3), std::pow(config.vo_min_sigma_rot_rad, 2));
   }
@@ -145,16 +146,16 @@ bool Ekf::UpdateGps(const GpsFix& fix) {
   const int reset_after = std::max(1, config_.gps_reset_after_rejections);
   const bool reset_h = !use_h && std::isfinite(gate.nis_h) && ++rejections_h_ > reset_after;
   const bool reset_v = !use_v && std::isfinite(gate.nis_v) && ++rejections_v_ > reset_after;
-  if (reset_h || reset_v) {
-    ResetPositionToGps(y, R, reset_h, reset_v);
-    use_h = use_h || reset_h;
-    use_v = use_v || reset_v;
-  }
+  // The reset uses the fix for its component(s); a passing other component
+  // gets the normal update (its innovation is unchanged by the reset).
+  if (reset_h || reset_v) ResetPositionToGps(y, R, reset_h, reset_v);
+  if ((use_h && !reset_h) || (use_v && !reset_v)) ApplyGpsUpdate(y, R, use_h && !reset_h, use_v && !reset_v);
+  use_h = use_h || reset_h;
+  use_v = use_v || reset_v;
   if (use_h) rejections_h_ = 0;
   if (use_v) rejections_v_ = 0;
   // A fix counts as used when its horizontal part is fused (a vertical-only
   // update is reported as a rejection); vertical rejections are counted apart.
-  if (use_h || use_v) ApplyGpsUpdate(y, R, use_h, use_v);
   if (!use_v) ++gps_rejected_vertical_;
   if (!use_h || !use_v) last_gps_rejected_ns_ = fix.t_ns;  // GPS_DEGRADED for a while
   if (!use_h) {
@@ -178,17 +179,29 @@ Ekf::GpsGateResult Ekf::GateGps(const Vec3& y, const Mat3& R) const {
 }
 
 void Ekf::ResetPositionToGps(const Vec3& y, const Mat3& R, bool horizontal, bool vertical) {
-  // Position (and velocity: a state that drifted that far has a wrong velocity
-  // too) covariance grows by the innovation, which the update then absorbs;
-  // cross terms to the other states are kept, so attitude and biases follow.
-  Vec3 mask(horizontal ? 1.0 : 0.0, horizontal ? 1.0 : 0.0, vertical ? 1.0 : 0.0);
-  const Vec3 y_masked = y.cwiseProduct(mask);
-  P_.topLeftCorner<3, 3>() += y_masked * y_masked.transpose() + mask.asDiagonal() * R;
-  if (config_.use_imu) {
-    const double gap_s = last_gps_accepted_ns_ ? std::max(1.0, Seconds(t_ns_, *last_gps_accepted_ns_)) : 1.0;
-    const Vec3 dv = y_masked / gap_s;
-    P_.block<3, 3>(kV, kV) += dv * dv.transpose() +
-                              Mat3(mask.asDiagonal()) * std::pow(config_.init_velocity_sigma_mps, 2);
+  // Hard reset of the rejected component(s) to the fix, as mature filters do
+  // after a run of rejections: the position jumps by the innovation, and so
+  // does the clone (a reset is not motion: the next VO update must not see
+  // it), the position covariance of those axes becomes the fix's, and the
+  // velocity (a state that drifted that far has a wrong velocity too) gets its
+  // start-up uncertainty back plus the drift rate since the last used fix.
+  const Vec3 mask(horizontal ? 1.0 : 0.0, horizontal ? 1.0 : 0.0, vertical ? 1.0 : 0.0);
+  const Vec3 jump = y.cwiseProduct(mask);
+  x_.p_enu_m += jump;
+  const bool clone = config_.use_imu;
+  if (clone) p_clone_ += jump;
+  const double gap_s = last_gps_accepted_ns_ ? std::max(1.0, Seconds(t_ns_, *last_gps_accepted_ns_)) : 1.0;
+  for (int i = 0; i < 3; ++i) {
+    if (mask[i] == 0.0) continue;
+    P_.row(i).setZero();
+    P_.col(i).setZero();
+    P_(i, i) = R(i, i);
+    if (clone) {
+      P_.row(kPc + i).setZero();
+      P_.col(kPc + i).setZero();
+      P_(kPc + i, kPc + i) = P_(i, kPc + i) = P_(kPc + i, i) = R(i, i);
+      P_(kV + i, kV + i) += std::pow(config_.init_velocity_sigma_mps, 2) + std::pow(jump[i] / gap_s, 2);
+    }
   }
   Symmetrize(P_);
   ++gps_resets_;

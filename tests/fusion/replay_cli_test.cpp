@@ -3,43 +3,22 @@
 // is refused by name, and --ekf settings are checked. Also
 // bench/fusion/causal_bound.py, on a CSV whose answer is known by hand and on
 // a real locaid-replay CSV.
+#include "cli_support.hpp"
+
 #include <gtest/gtest.h>
 
-#include <array>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
-#include <sys/wait.h>
 #include <unistd.h>
 
 namespace {
 
 namespace fs = std::filesystem;
 
-struct RunResult {
-  int exit_code = -1;
-  std::string out;  // stdout + stderr
-};
-
-RunResult RunCommand(const std::string& cmd) {
-  RunResult r;
-  FILE* pipe = popen((cmd + " 2>&1").c_str(), "r");
-  if (!pipe) return r;
-  std::array<char, 4096> buf{};
-  while (fgets(buf.data(), buf.size(), pipe)) r.out += buf.data();
-  const int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
-
-std::string JsonField(const std::string& json, const std::string& key) {
-  const auto at = json.find("\"" + key + "\":");
-  if (at == std::string::npos) return {};
-  const auto start = at + key.size() + 3;
-  return json.substr(start, json.find_first_of(",\n}", start) - start);
-}
+using locaid::test::JsonField;
+using locaid::test::RunCommand;
 
 class ReplayCli : public ::testing::Test {
  protected:

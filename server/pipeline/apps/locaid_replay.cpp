@@ -146,6 +146,8 @@ void ApplyEkfSetting(fusion::EkfConfig& c, const std::string& setting) {
       {"gyro_bias_walk_radps2_sqrt_hz", &c.gyro_bias_walk_radps2_sqrt_hz},
       {"vo_cov_scale", &c.vo_cov_scale},
       {"vo_sigma_t_per_m", &c.vo_sigma_t_per_m},
+      {"vo_sigma_lateral_per_m", &c.vo_sigma_lateral_per_m},
+      {"vo_sigma_vertical_per_m", &c.vo_sigma_vertical_per_m},
       {"vo_min_sigma_t_m", &c.vo_min_sigma_t_m},
       {"vo_min_sigma_rot_rad", &c.vo_min_sigma_rot_rad},
       {"vo_gate_probability", &c.vo_gate_probability},
