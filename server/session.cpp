@@ -70,6 +70,7 @@ void FillPoseUpdate(const StepResult& r, double latency_ms, PoseMessage* out) {
   out->set_vo_status(ToProtoVo(r.vo_status));
   out->set_gps_used(static_cast<uint32_t>(std::max(0, p.gps_used)));
   out->set_gps_rejected(static_cast<uint32_t>(std::max(0, p.gps_rejected)));
+  out->set_gps_resets(static_cast<uint32_t>(std::max(0, p.gps_resets)));
   out->set_gps_outage_active(r.gps_outage_active);
   out->set_processing_latency_ms(latency_ms);
 }

@@ -27,7 +27,7 @@ CSV_COLUMNS = [
     "t_s", "frame_index", "sequence", "e_m", "n_m", "u_m", "lat_deg", "lon_deg", "alt_m",
     "qw", "qx", "qy", "qz", "ve_mps", "vn_mps", "vu_mps", "sigma_e_m", "sigma_n_m", "sigma_u_m",
     "mode", "seconds_since_gps", "vo_inliers", "gps_used", "gps_rejected", "gps_outage",
-    "processing_latency_ms", "delay_ms", "dropped",
+    "processing_latency_ms", "delay_ms", "dropped", "gps_resets",
 ]
 
 MODE_NAMES = {0: "UNSPECIFIED", 1: "GPS_FUSED", 2: "GPS_DEGRADED", 3: "VO_ONLY", 4: "LOST"}
@@ -71,6 +71,7 @@ def pose_row(p, delay_ms):
         sigma[0], sigma[1], sigma[2],
         MODE_NAMES.get(p.mode, str(p.mode)), p.seconds_since_gps, p.vo_inliers, p.gps_used, p.gps_rejected,
         1 if p.gps_outage_active else 0, p.processing_latency_ms, delay_ms, p.dropped_for_subscriber,
+        p.gps_resets,
     ]
 
 
