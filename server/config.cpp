@@ -195,7 +195,12 @@ void ValidateConfig(ServerConfig* c) {
     CheckReadable(c->tls_key_file, "tls_key_file");
   }
   if (!c->token.empty() && !c->token_file.empty()) throw ConfigError("token and token_file are exclusive");
-  if (!c->token_file.empty()) c->token = ReadFirstLine(c->token_file, "token_file");
+  if (!c->token_file.empty()) {
+    // Resolved here once: the file's token replaces the path, so validating
+    // the same config again (LocalizationServer does) sees one token source.
+    c->token = ReadFirstLine(c->token_file, "token_file");
+    c->token_file.clear();
+  }
   if (c->max_receive_mb < 1 || c->max_receive_mb > 1024) {
     throw ConfigError("max_receive_mb: must be in [1, 1024], got " + std::to_string(c->max_receive_mb));
   }

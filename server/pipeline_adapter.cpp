@@ -37,7 +37,14 @@ class LocalizerEstimator : public FrameEstimator {
   void StartOutageNow() override { localizer_.StartOutageNow(); }
   void StopOutageNow() override { localizer_.StopOutageNow(); }
   void SetScenario(const fusion::Scenario& scenario) override { localizer_.SetScenario(scenario); }
-  bool origin(double*, double*, double*) const override { return false; }
+  bool origin(double* lat_deg, double* lon_deg, double* alt_m) const override {
+    if (!localizer_.has_enu_origin()) return false;
+    const auto& enu = localizer_.ekf().enu();
+    *lat_deg = enu.origin_lat_deg();
+    *lon_deg = enu.origin_lon_deg();
+    *alt_m = enu.origin_alt_m();
+    return true;
+  }
 
  private:
   pipeline::Localizer localizer_;
@@ -57,7 +64,8 @@ fusion::Scenario ScenarioFromName(const std::string& name) {
 
 fusion::Scenario ScenarioFromYaml(const std::string& yaml) {
   try {
-    fusion::Scenario s = pipeline::ParseScenarioYaml(yaml, "scenario.yaml");
+    // "yaml" names it (errors read "yaml:LINE: ...") unless it has a name: key.
+    fusion::Scenario s = pipeline::ParseScenarioYaml(yaml, "yaml");
     fusion::ValidateScenario(s);
     return s;
   } catch (const pipeline::ScenarioError& e) {

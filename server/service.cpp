@@ -8,6 +8,9 @@
 #include <google/protobuf/io/coded_stream.h>
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/health_check_service_interface.h>
+
+#include <cstdio>
+#include <random>
 #include <grpcpp/support/proto_buffer_reader.h>
 
 #include <sys/socket.h>
@@ -23,6 +26,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <random>
 
 namespace locaid::server {
 namespace {
@@ -38,6 +42,22 @@ grpc::ServerUnaryReactor* Reply(grpc::CallbackServerContext* ctx, const Status& 
 }
 
 Status Invalid(const std::string& msg) { return {StatusCode::INVALID_ARGUMENT, msg}; }
+
+// The service's name for grpc.health.v1 (besides "" for the whole server).
+const std::string kServiceName = v1::Localization::service_full_name();
+
+// "s" + 12 random hex digits (48 bits from std::random_device): unique across
+// server restarts, so an id kept by a client from before a restart can never
+// name another session (ids counting from s1 did).
+std::string RandomSessionId() {
+  static std::mutex mu;
+  static std::random_device device;
+  std::lock_guard lock(mu);
+  const uint64_t bits = (static_cast<uint64_t>(device()) << 32 | device()) & 0xffffffffffffULL;
+  char buf[16];
+  std::snprintf(buf, sizeof(buf), "s%012llx", static_cast<unsigned long long>(bits));
+  return buf;
+}
 
 // ------------------------------------------------------- shared stream ---
 
@@ -501,7 +521,8 @@ Status LocalizationService::AddSession(SessionOptions options, std::unique_ptr<S
     return {StatusCode::RESOURCE_EXHAUSTED,
             "max_sessions (" + std::to_string(config_.max_sessions) + ") sessions are running; stop one first"};
   }
-  options.id = "s" + std::to_string(next_id_++);
+  do options.id = RandomSessionId();
+  while (sessions_.count(options.id) > 0);
   *id = options.id;
   auto session = std::make_shared<Session>(std::move(options), std::move(pipeline));
   sessions_[*id] = Entry{session, live, false};  // encodings: its default (a fresh cache)
@@ -916,7 +937,9 @@ LocalizationServer::LocalizationServer(ServerConfig config, EstimatorFactory est
                                reason);
     }
   }
+  // Health answers for the server ("") and for the service by its full name.
   server_->GetHealthCheckService()->SetServingStatus(true);
+  server_->GetHealthCheckService()->SetServingStatus(kServiceName, true);
   if (!config_.port_file.empty()) {
     std::ofstream(config_.port_file) << port_ << "\n";
   }
@@ -931,6 +954,7 @@ void LocalizationServer::Shutdown() {
       return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     };
     server_->GetHealthCheckService()->SetServingStatus(false);
+    server_->GetHealthCheckService()->SetServingStatus(kServiceName, false);
     service_->BeginShutdown();
     // Every stream was just told to end with UNAVAILABLE; once all have
     // delivered that status nothing is left to wait for, so idle client

@@ -144,7 +144,6 @@ class LocalizationService final
   const EstimatorFactory estimator_factory_;
   mutable std::mutex mu_;
   std::map<std::string, Entry> sessions_;
-  uint64_t next_id_ = 1;
   std::set<std::shared_ptr<Waker>> streams_;
   std::condition_variable streams_cv_;  // streams_ became empty
   std::atomic<bool> shutting_down_{false};

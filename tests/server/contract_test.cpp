@@ -1,0 +1,139 @@
+// Regression tests of the service contract (issue 18), each against the real
+// locaid-server process on 127.0.0.1 driven by the real CLI or a gRPC stub
+// built from proto/ alone, the way an outside client sees it.
+#include "test_support.hpp"
+
+#include <cstdlib>
+#include <set>
+
+namespace locaid::server::testing {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path TestDir(const std::string& name) {
+  const fs::path dir = fs::path(::testing::TempDir()) / ("contract_" + name + "_" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+void WriteFile(const fs::path& p, const std::string& text) { std::ofstream(p) << text; }
+
+// Defect 1: the documented ways to keep the token out of argv.
+TEST(Contract, TokenFileWorksAsFlagConfigKeyAndContainerVariable) {
+  const fs::path dir = TestDir("token");
+  WriteFile(dir / "token", "s3cret\n");
+  WriteFile(dir / "server.yaml", "token_file: " + (dir / "token").string() + "\n");
+  auto check = [](int port, const std::string& how) {
+    ASSERT_GT(port, 0) << how << ": the server did not start";
+    CliResult r = RunCli(port, {"session", "list"});
+    EXPECT_NE(r.err.find("UNAUTHENTICATED"), std::string::npos) << how << ": " << r.err;
+    r = RunCli(port, {"session", "list"}, {"--token", "s3cret"});
+    EXPECT_EQ(r.exit_code, 0) << how << ": " << r.err;
+  };
+  {
+    ServerProcess flag(dir / "flag", {"--token-file", (dir / "token").string()});
+    check(flag.port(), "--token-file\n" + flag.log());
+  }
+  {
+    ServerProcess yaml(dir / "yaml", {"--config", (dir / "server.yaml").string()});
+    check(yaml.port(), "token_file: in --config\n" + yaml.log());
+  }
+  // The container's entrypoint maps LOCAID_TOKEN_FILE to --token-file.
+  const fs::path port_file = dir / "entry.port";
+  const std::string cmd = "PATH=" + std::string(LOCAID_BIN_DIR) + ":$PATH LOCAID_TOKEN_FILE=" +
+                          (dir / "token").string() + " LOCAID_LISTEN=127.0.0.1:0 LOCAID_CONFIG=" +
+                          (dir / "absent.yaml").string() + " bash " + LOCAID_SOURCE_DIR +
+                          "/deploy/entrypoint.sh server --port-file " + port_file.string() + " >" +
+                          (dir / "entry.log").string() + " 2>&1 & echo $!";
+  FILE* pipe = popen(cmd.c_str(), "r");
+  ASSERT_NE(pipe, nullptr);
+  int pid = 0;
+  ASSERT_EQ(fscanf(pipe, "%d", &pid), 1);
+  pclose(pipe);
+  int port = 0;
+  for (int i = 0; i < 1000 && port == 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    std::ifstream(port_file) >> port;
+  }
+  check(port, "LOCAID_TOKEN_FILE\n" + Slurp(dir / "entry.log"));
+  kill(pid, SIGTERM);
+  for (int i = 0; i < 500 && kill(pid, 0) == 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+}
+
+// Defect 15: grpc.health.v1 answers for the service's full name too.
+TEST(Contract, HealthAnswersForTheServerAndForTheServiceName) {
+  ServerProcess server(TestDir("health"));
+  ASSERT_GT(server.port(), 0) << server.log();
+  EXPECT_EQ(RunCli(server.port(), {"health"}).out, "SERVING\n");
+  EXPECT_EQ(RunCli(server.port(), {"health", "--service", "locaid.v1.Localization"}).out, "SERVING\n");
+  const CliResult other = RunCli(server.port(), {"health", "--service", "locaid.v1.Nope"});
+  EXPECT_NE(other.err.find("NOT_FOUND"), std::string::npos) << other.err;
+}
+
+v1::Session StartSynthetic(v1::Localization::Stub* stub, const std::string& scenario_yaml, int frames) {
+  grpc::ClientContext ctx;
+  SetDeadline(&ctx, 60);
+  v1::StartSessionRequest req;
+  req.mutable_synthetic()->set_seed(3);
+  req.mutable_synthetic()->set_frames(frames);
+  req.mutable_synthetic()->set_options_yaml("width: 320\nheight: 96\n");
+  if (!scenario_yaml.empty()) req.mutable_scenario()->set_yaml(scenario_yaml);
+  req.set_playback_rate(0);
+  v1::Session s;
+  const grpc::Status st = stub->StartSession(&ctx, req, &s);
+  EXPECT_TRUE(st.ok()) << st.error_message();
+  return s;
+}
+
+v1::Session Get(v1::Localization::Stub* stub, const std::string& id) {
+  grpc::ClientContext ctx;
+  SetDeadline(&ctx, 10);
+  v1::GetSessionRequest req;
+  req.set_session_id(id);
+  v1::Session s;
+  EXPECT_TRUE(stub->GetSession(&ctx, req, &s).ok());
+  return s;
+}
+
+// Defects 2, 14 and 16 (scenario name): a session of the real pipeline.
+TEST(Contract, SessionReportsItsOriginIdsAreUniqueAcrossRestartsYamlScenarioIsNamedYaml) {
+  const fs::path dir = TestDir("session");
+  std::set<std::string> ids;
+  std::string first_id;
+  for (int run = 0; run < 2; ++run) {  // two server processes: a restart
+    ServerProcess server(dir / ("run" + std::to_string(run)));
+    ASSERT_GT(server.port(), 0) << server.log();
+    auto stub = v1::Localization::NewStub(server.NewChannel());
+    if (run == 1) {
+      // The id from before the restart names nothing now.
+      grpc::ClientContext ctx;
+      SetDeadline(&ctx, 10);
+      v1::GetSessionRequest req;
+      req.set_session_id(first_id);
+      v1::Session s;
+      EXPECT_EQ(stub->GetSession(&ctx, req, &s).error_code(), grpc::NOT_FOUND);
+    }
+    const v1::Session s = StartSynthetic(stub.get(), "base: open-sky\nseed: 2\n", 60);
+    ASSERT_FALSE(s.id().empty());
+    EXPECT_EQ(s.id().size(), 13u) << s.id();
+    EXPECT_TRUE(ids.insert(s.id()).second) << "id " << s.id() << " used twice";
+    if (run == 0) first_id = s.id();
+    EXPECT_EQ(s.scenario(), "yaml");
+    v1::Session done;
+    for (int i = 0; i < 600; ++i) {  // at most 60 s
+      done = Get(stub.get(), s.id());
+      if (done.state() == v1::SESSION_STATE_FINISHED || done.state() == v1::SESSION_STATE_FAILED) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    ASSERT_EQ(done.state(), v1::SESSION_STATE_FINISHED) << done.error();
+    EXPECT_TRUE(done.has_origin()) << "the filter fixed its ENU origin at the first fix";
+    // Synthetic drives are rendered around Karlsruhe (49 N, 8.4 E).
+    EXPECT_NEAR(done.origin_latitude_deg(), 49.0, 1.0);
+    EXPECT_NEAR(done.origin_longitude_deg(), 8.4, 1.0);
+  }
+}
+
+}  // namespace
+}  // namespace locaid::server::testing
