@@ -11,6 +11,7 @@
 
 #include <cstdio>
 #include <random>
+#include <sstream>
 #include <grpcpp/support/proto_buffer_reader.h>
 
 #include <sys/socket.h>
@@ -20,6 +21,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <climits>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -35,9 +37,35 @@ namespace v1 = locaid::v1;
 using grpc::Status;
 using grpc::StatusCode;
 
+// Every status leaves the server through Bounded: a message echoing a huge
+// input (a 1 MiB session id, a 31 MiB path) would trip the client's metadata
+// limit and reach it as RESOURCE_EXHAUSTED instead of the real code.
+constexpr size_t kMaxStatusMessageBytes = 1024;
+Status Bounded(const Status& s) {
+  if (s.error_message().size() <= kMaxStatusMessageBytes) return s;
+  return {s.error_code(), s.error_message().substr(0, kMaxStatusMessageBytes) + "... (message cut)"};
+}
+
+constexpr double kMinPlaybackRate = 1e-3, kMaxPlaybackRate = 1e3;
+
+// Controls of a session's pipeline apply only while it runs (or starts).
+Status RequireActive(const Session& session, const char* rpc) {
+  const auto state = session.state();
+  if (state == v1::SESSION_STATE_RUNNING || state == v1::SESSION_STATE_STARTING) return Status::OK;
+  return {StatusCode::FAILED_PRECONDITION, std::string(rpc) + ": session '" + session.id() + "' is " +
+                                               v1::SessionState_Name(state) + "; only a running session takes it"};
+}
+
+// An input echoed in a message: quoted, cut to 200 bytes (with its size).
+std::string Quoted(const std::string& input) {
+  constexpr size_t kMax = 200;
+  if (input.size() <= kMax) return "'" + input + "'";
+  return "'" + input.substr(0, kMax) + "...' (" + std::to_string(input.size()) + " bytes)";
+}
+
 grpc::ServerUnaryReactor* Reply(grpc::CallbackServerContext* ctx, const Status& status) {
   auto* reactor = ctx->DefaultReactor();
-  reactor->Finish(status);
+  reactor->Finish(Bounded(status));
   return reactor;
 }
 
@@ -175,7 +203,7 @@ class HubStream : public Reactor, public StreamTarget {
       return;
     }
     finished_ = true;
-    this->Finish(status);
+    this->Finish(Bounded(status));
   }
   bool open_locked() const { return !finished_ && !finish_; }
 
@@ -464,7 +492,7 @@ Status LocalizationService::FindSession(const std::string& id, std::shared_ptr<S
   if (id.empty()) return Invalid("session_id: required");
   std::lock_guard lock(mu_);
   auto it = sessions_.find(id);
-  if (it == sessions_.end()) return {StatusCode::NOT_FOUND, "session '" + id + "' not found"};
+  if (it == sessions_.end()) return {StatusCode::NOT_FOUND, "session " + Quoted(id) + " not found"};
   *out = it->second.session;
   if (encodings) *encodings = it->second.encodings;
   return Status::OK;
@@ -531,9 +559,13 @@ Status LocalizationService::AddSession(SessionOptions options, std::unique_ptr<S
 }
 
 Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::string* id) {
-  if (!Finite(req.playback_rate()) || req.playback_rate() < 0) {
-    return Invalid("playback_rate: must be finite and >= 0 (0 = as fast as possible), got " +
-                   std::to_string(req.playback_rate()));
+  // Pacing divides the sensor time by the rate: outside [1e-3, 1e3] it
+  // overflows or is meaningless (1e-300 played at full speed).
+  const double rate = req.playback_rate();
+  if (!Finite(rate) || (rate != 0 && (rate < kMinPlaybackRate || rate > kMaxPlaybackRate))) {
+    std::ostringstream got;
+    got << rate;
+    return Invalid("playback_rate: must be 0 (as fast as possible) or in [0.001, 1000], got " + got.str());
   }
   SessionOptions options;
   options.playback_rate = req.playback_rate();
@@ -551,18 +583,26 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
       case v1::StartSessionRequest::kKitti: {
         const auto& k = req.kitti();
         if (k.path().empty()) return Invalid("kitti.path: required");
+        if (k.path().size() > PATH_MAX) {
+          return Invalid("kitti.path: " + std::to_string(k.path().size()) + " bytes, longer than PATH_MAX (" +
+                         std::to_string(PATH_MAX) + ")");
+        }
         std::error_code ec;
-        if (!std::filesystem::exists(k.path(), ec)) return Invalid("kitti.path '" + k.path() + "': does not exist");
+        if (!std::filesystem::exists(k.path(), ec)) return Invalid("kitti.path " + Quoted(k.path()) + ": does not exist");
         if (!std::filesystem::is_directory(k.path(), ec)) {
-          return Invalid("kitti.path '" + k.path() + "': not a directory");
+          return Invalid("kitti.path " + Quoted(k.path()) + ": not a directory");
         }
         if (k.first_frame() < 0) return Invalid("kitti.first_frame: must be >= 0");
+        if (k.last_frame() > 0 && k.last_frame() < k.first_frame()) {
+          return Invalid("kitti.last_frame " + std::to_string(k.last_frame()) + ": before first_frame " +
+                         std::to_string(k.first_frame()) + " (last_frame <= 0 plays to the end)");
+        }
         // A bad OXTS file mid-drive is skipped and counted (DatasetFrameSource
         // reports it as bad OXTS lines), not a refused drive.
         kitti::RawDriveOptions open_options;
         open_options.skip_bad_oxts = true;
         auto dataset = kitti::OpenDataset(k.path(), open_options);
-        if (dataset->size() == 0) return {StatusCode::FAILED_PRECONDITION, "kitti.path '" + k.path() + "': no frames"};
+        if (dataset->size() == 0) return {StatusCode::FAILED_PRECONDITION, "kitti.path " + Quoted(k.path()) + ": no frames"};
         if (static_cast<size_t>(k.first_frame()) >= dataset->size()) {
           return Invalid("kitti.first_frame " + std::to_string(k.first_frame()) + ": the drive has " +
                          std::to_string(dataset->size()) + " frames");
@@ -628,16 +668,16 @@ Status LocalizationService::StartLive(const v1::PushStart& start, std::shared_pt
   if (!start.session_id().empty()) {
     std::lock_guard lock(mu_);
     auto it = sessions_.find(start.session_id());
-    if (it == sessions_.end()) return {StatusCode::NOT_FOUND, "session '" + start.session_id() + "' not found"};
+    if (it == sessions_.end()) return {StatusCode::NOT_FOUND, "session " + Quoted(start.session_id()) + " not found"};
     if (!it->second.live) {
-      return {StatusCode::FAILED_PRECONDITION, "session '" + start.session_id() + "' is not a live session"};
+      return {StatusCode::FAILED_PRECONDITION, "session " + Quoted(start.session_id()) + " is not a live session"};
     }
     if (it->second.live_attached) {
       return {StatusCode::FAILED_PRECONDITION,
-              "session '" + start.session_id() + "' already has a PushSensorData stream"};
+              "session " + Quoted(start.session_id()) + " already has a PushSensorData stream"};
     }
     if (it->second.session->state() != v1::SESSION_STATE_RUNNING) {
-      return {StatusCode::FAILED_PRECONDITION, "session '" + start.session_id() + "' is not running"};
+      return {StatusCode::FAILED_PRECONDITION, "session " + Quoted(start.session_id()) + " is not running"};
     }
     it->second.live_attached = true;
     *session = it->second.session;
@@ -724,7 +764,7 @@ grpc::ServerWriteReactor<grpc::ByteBuffer>* LocalizationService::StreamPoses(grp
   auto fail = [](const Status& s) {
     class Failed : public grpc::ServerWriteReactor<grpc::ByteBuffer> {
      public:
-      explicit Failed(const Status& s) { Finish(s); }
+      explicit Failed(const Status& s) { Finish(Bounded(s)); }
       void OnDone() override { delete this; }
     };
     return new Failed(s);
@@ -747,7 +787,7 @@ grpc::ServerWriteReactor<grpc::ByteBuffer>* LocalizationService::StreamPoses(grp
                         std::to_string(config_.max_queue_size)));
   }
   if (session->hub().subscriber_count() >= config_.max_subscribers_per_session) {
-    return fail(Status(StatusCode::RESOURCE_EXHAUSTED, "session '" + req.session_id() + "' has " +
+    return fail(Status(StatusCode::RESOURCE_EXHAUSTED, "session " + Quoted(req.session_id()) + " has " +
                                                            std::to_string(config_.max_subscribers_per_session) +
                                                            " subscribers (max_subscribers_per_session)"));
   }
@@ -760,6 +800,7 @@ grpc::ServerUnaryReactor* LocalizationService::InjectOutage(grpc::CallbackServer
   if (Status s = Authorize(ctx); !s.ok()) return Reply(ctx, s);
   std::shared_ptr<Session> session;
   if (Status s = FindSession(req->session_id(), &session); !s.ok()) return Reply(ctx, s);
+  if (Status s = RequireActive(*session, "InjectOutage"); !s.ok()) return Reply(ctx, s);
   const double start_s = req->start_s(), duration_s = req->duration_s();
   if (!Finite(start_s) || !Finite(duration_s) || duration_s < 0) {
     return Reply(ctx, Invalid("start_s/duration_s: must be finite, duration_s >= 0"));
@@ -789,6 +830,7 @@ grpc::ServerUnaryReactor* LocalizationService::SetScenario(grpc::CallbackServerC
   if (Status s = Authorize(ctx); !s.ok()) return Reply(ctx, s);
   std::shared_ptr<Session> session;
   if (Status s = FindSession(req->session_id(), &session); !s.ok()) return Reply(ctx, s);
+  if (Status s = RequireActive(*session, "SetScenario"); !s.ok()) return Reply(ctx, s);
   if (req->scenario().kind_case() == v1::Scenario::KIND_NOT_SET) return Reply(ctx, Invalid("scenario: required"));
   fusion::Scenario scenario;
   std::string name;
@@ -804,7 +846,7 @@ grpc::ServerBidiReactor<v1::PushRequest, v1::PushResponse>* LocalizationService:
   if (Status s = Authorize(ctx); !s.ok() || shutting_down_) {
     class Failed : public grpc::ServerBidiReactor<v1::PushRequest, v1::PushResponse> {
      public:
-      explicit Failed(const Status& s) { Finish(s); }
+      explicit Failed(const Status& s) { Finish(Bounded(s)); }
       void OnDone() override { delete this; }
     };
     return new Failed(s.ok() ? Status(StatusCode::UNAVAILABLE, "server is shutting down") : s);

@@ -4,6 +4,7 @@
 #include "test_support.hpp"
 
 #include <cstdlib>
+#include <limits>
 #include <set>
 
 namespace locaid::server::testing {
@@ -133,6 +134,107 @@ TEST(Contract, SessionReportsItsOriginIdsAreUniqueAcrossRestartsYamlScenarioIsNa
     EXPECT_NEAR(done.origin_latitude_deg(), 49.0, 1.0);
     EXPECT_NEAR(done.origin_longitude_deg(), 8.4, 1.0);
   }
+}
+
+class ContractRequests : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    server_ = std::make_unique<ServerProcess>(TestDir("requests"));
+    ASSERT_GT(server_->port(), 0) << server_->log();
+    stub_ = v1::Localization::NewStub(server_->NewChannel());
+  }
+  grpc::Status Start(const v1::StartSessionRequest& req, v1::Session* out = nullptr) {
+    grpc::ClientContext ctx;
+    SetDeadline(&ctx, 30);
+    v1::Session resp;
+    const grpc::Status s = stub_->StartSession(&ctx, req, &resp);
+    if (out) *out = resp;
+    return s;
+  }
+  std::unique_ptr<ServerProcess> server_;
+  std::unique_ptr<v1::Localization::Stub> stub_;
+};
+
+// Defect 6: a huge input is answered with its own code and a cut echo.
+TEST_F(ContractRequests, HugeInputsGetTheirOwnCodeAndACutEcho) {
+  const std::string huge(1 << 20, 'x');
+  grpc::ClientContext ctx;
+  SetDeadline(&ctx, 30);
+  v1::GetSessionRequest get;
+  get.set_session_id(huge);
+  v1::Session session;
+  grpc::Status s = stub_->GetSession(&ctx, get, &session);
+  EXPECT_EQ(s.error_code(), grpc::NOT_FOUND) << s.error_message().substr(0, 300);
+  EXPECT_LE(s.error_message().size(), 1100u);
+  EXPECT_NE(s.error_message().find("(1048576 bytes)"), std::string::npos) << s.error_message();
+  v1::StartSessionRequest req;
+  req.mutable_kitti()->set_path("/" + huge);
+  s = Start(req);
+  EXPECT_EQ(s.error_code(), grpc::INVALID_ARGUMENT) << s.error_message().substr(0, 300);
+  EXPECT_NE(s.error_message().find("PATH_MAX"), std::string::npos) << s.error_message().substr(0, 300);
+  req.mutable_kitti()->set_path("/nonexistent/" + std::string(3000, 'y'));
+  s = Start(req);
+  EXPECT_EQ(s.error_code(), grpc::INVALID_ARGUMENT);
+  EXPECT_NE(s.error_message().find("(3013 bytes)"), std::string::npos) << s.error_message();
+  EXPECT_EQ(RunCli(server_->port(), {"health"}).out, "SERVING\n");
+}
+
+// Defects 8 and 9: ranges are checked before the session exists.
+TEST_F(ContractRequests, FrameRangeAndPlaybackRateAreCheckedBeforeOk) {
+  v1::StartSessionRequest req;
+  req.mutable_kitti()->set_path(::testing::TempDir());  // exists: the range check comes next
+  req.mutable_kitti()->set_first_frame(10);
+  req.mutable_kitti()->set_last_frame(5);
+  grpc::Status s = Start(req);
+  EXPECT_EQ(s.error_code(), grpc::INVALID_ARGUMENT);
+  EXPECT_NE(s.error_message().find("kitti.last_frame 5: before first_frame 10"), std::string::npos)
+      << s.error_message();
+  v1::StartSessionRequest live;
+  *live.mutable_live() = SmallCamera();
+  for (double bad : {1e-300, 1e-4, 1e4, -1.0, std::numeric_limits<double>::infinity()}) {
+    live.set_playback_rate(bad);
+    s = Start(live);
+    EXPECT_EQ(s.error_code(), grpc::INVALID_ARGUMENT) << bad;
+    EXPECT_NE(s.error_message().find("playback_rate: must be 0 (as fast as possible) or in [0.001, 1000]"),
+              std::string::npos)
+        << s.error_message();
+  }
+  for (double good : {0.0, 0.001, 2.5, 1000.0}) {
+    live.set_playback_rate(good);
+    EXPECT_TRUE(Start(live).ok()) << good;
+  }
+}
+
+// Defect 10: controls of a stopped session are refused, not silently kept.
+TEST_F(ContractRequests, OutageAndScenarioOnAStoppedSessionAreFailedPrecondition) {
+  v1::StartSessionRequest req;
+  *req.mutable_live() = SmallCamera();
+  v1::Session session;
+  ASSERT_TRUE(Start(req, &session).ok());
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(&ctx, 10);
+    v1::StopSessionRequest stop;
+    stop.set_session_id(session.id());
+    v1::Session stopped;
+    ASSERT_TRUE(stub_->StopSession(&ctx, stop, &stopped).ok());
+  }
+  grpc::ClientContext ctx1;
+  SetDeadline(&ctx1, 10);
+  v1::InjectOutageRequest outage;
+  outage.set_session_id(session.id());
+  outage.set_action(v1::InjectOutageRequest::START_NOW);
+  v1::Session out;
+  grpc::Status s = stub_->InjectOutage(&ctx1, outage, &out);
+  EXPECT_EQ(s.error_code(), grpc::FAILED_PRECONDITION) << s.error_message();
+  EXPECT_NE(s.error_message().find("SESSION_STATE_STOPPED"), std::string::npos) << s.error_message();
+  grpc::ClientContext ctx2;
+  SetDeadline(&ctx2, 10);
+  v1::SetScenarioRequest scenario;
+  scenario.set_session_id(session.id());
+  scenario.mutable_scenario()->set_name("open-sky");
+  s = stub_->SetScenario(&ctx2, scenario, &out);
+  EXPECT_EQ(s.error_code(), grpc::FAILED_PRECONDITION) << s.error_message();
 }
 
 }  // namespace
