@@ -160,6 +160,8 @@ void ApplyYamlConfig(const std::filesystem::path& file, ServerConfig* c) {
       {"default_scenario", str(&c->default_scenario)},
       {"default_vo_method", str(&c->default_vo_method)},
       {"synthetic_default_frames", size(&c->synthetic_default_frames)},
+      {"max_synthetic_frames", size(&c->max_synthetic_frames)},
+      {"max_concurrent_renders", size(&c->max_concurrent_renders)},
       {"keepalive_time_s", real(&c->keepalive_time_s)},
       {"keepalive_timeout_s", real(&c->keepalive_timeout_s)},
       {"shutdown_grace_s", real(&c->shutdown_grace_s)},
@@ -219,7 +221,16 @@ void ValidateConfig(ServerConfig* c) {
   if (!(c->shutdown_grace_s >= 0 && c->shutdown_grace_s <= 60)) {
     throw ConfigError("shutdown_grace_s: must be in [0, 60]");
   }
-  if (c->synthetic_default_frames < 2) throw ConfigError("synthetic_default_frames: must be >= 2");
+  if (c->max_concurrent_renders < 1 || c->max_concurrent_renders > 64) {
+    throw ConfigError("max_concurrent_renders: must be in [1, 64], got " + std::to_string(c->max_concurrent_renders));
+  }
+  if (c->max_synthetic_frames < 2 || c->max_synthetic_frames > 100000) {
+    throw ConfigError("max_synthetic_frames: must be in [2, 100000], got " + std::to_string(c->max_synthetic_frames));
+  }
+  if (c->synthetic_default_frames < 2 || c->synthetic_default_frames > c->max_synthetic_frames) {
+    throw ConfigError("synthetic_default_frames: must be in [2, max_synthetic_frames=" +
+                      std::to_string(c->max_synthetic_frames) + "], got " + std::to_string(c->synthetic_default_frames));
+  }
 }
 
 }  // namespace locaid::server

@@ -40,6 +40,14 @@ struct ServerConfig {
   std::string default_scenario = "open-sky";
   std::string default_vo_method = "default";
   size_t synthetic_default_frames = 100;
+  // Largest synthetic drive a session may ask for (frames, or the frames a
+  // length_m drive needs at its slowest speed): 3000 = 5 min at 10 Hz, about
+  // 1.3 GB of PNGs at KITTI size.
+  size_t max_synthetic_frames = 3000;
+  // Sessions that may prepare their input (render a synthetic drive) at the
+  // same time; StartSession beyond is RESOURCE_EXHAUSTED. Each render uses
+  // one core.
+  size_t max_concurrent_renders = 2;
   double keepalive_time_s = 20;            // HTTP/2 pings on idle connections
   double keepalive_timeout_s = 10;
   double shutdown_grace_s = 1.5;           // streams still open this long after SIGTERM are cancelled

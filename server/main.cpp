@@ -51,6 +51,11 @@ int main(int argc, char** argv) {
   app.add_option("--queue-size", cli.queue_size, "default per-subscriber queue, poses")->capture_default_str();
   app.add_option("--max-sessions", cli.max_sessions, "running sessions at once")->capture_default_str();
   app.add_option("--work-dir", cli.work_dir, "where synthetic drives are rendered");
+  app.add_option("--max-synthetic-frames", cli.max_synthetic_frames, "largest synthetic drive a session may ask for")
+      ->capture_default_str();
+  app.add_option("--max-concurrent-renders", cli.max_concurrent_renders,
+                 "synthetic drives rendered at once (StartSession beyond: RESOURCE_EXHAUSTED)")
+      ->capture_default_str();
   app.add_option("--default-scenario", cli.default_scenario, "GPS scenario when a session names none")
       ->capture_default_str();
   app.add_option("--default-vo", cli.default_vo_method, "VO method when a session names none")->capture_default_str();
@@ -79,6 +84,8 @@ int main(int argc, char** argv) {
     take("--queue-size", &ServerConfig::queue_size);
     take("--max-sessions", &ServerConfig::max_sessions);
     take("--work-dir", &ServerConfig::work_dir);
+    take("--max-synthetic-frames", &ServerConfig::max_synthetic_frames);
+    take("--max-concurrent-renders", &ServerConfig::max_concurrent_renders);
     take("--default-scenario", &ServerConfig::default_scenario);
     take("--default-vo", &ServerConfig::default_vo_method);
     take("--shutdown-grace-s", &ServerConfig::shutdown_grace_s);

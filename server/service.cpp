@@ -549,6 +549,15 @@ Status LocalizationService::AddSession(SessionOptions options, std::unique_ptr<S
     return {StatusCode::RESOURCE_EXHAUSTED,
             "max_sessions (" + std::to_string(config_.max_sessions) + ") sessions are running; stop one first"};
   }
+  if (!pipeline->ready()) {  // it prepares its input (renders) first
+    size_t preparing = 0;
+    for (const auto& [k, e] : sessions_) preparing += e.session->state() == v1::SESSION_STATE_STARTING ? 1 : 0;
+    if (preparing >= config_.max_concurrent_renders) {
+      return {StatusCode::RESOURCE_EXHAUSTED, std::to_string(preparing) +
+                                                  " sessions are preparing their input (max_concurrent_renders); "
+                                                  "retry when one is RUNNING"};
+    }
+  }
   do options.id = RandomSessionId();
   while (sessions_.count(options.id) > 0);
   *id = options.id;
@@ -615,12 +624,22 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
       case v1::StartSessionRequest::kSynthetic: {
         const auto& s = req.synthetic();
         const size_t frames = s.frames() == 0 ? config_.synthetic_default_frames : s.frames();
-        if (frames < 2 || frames > 100000) return Invalid("synthetic.frames: must be in [2, 100000]");
+        if (frames < 2 || frames > config_.max_synthetic_frames) {
+          return Invalid("synthetic.frames: must be in [2, max_synthetic_frames=" +
+                         std::to_string(config_.max_synthetic_frames) + "], got " + std::to_string(frames));
+        }
+        try {
+          ValidateSyntheticRequest(s.seed(), frames, s.options_yaml(), config_.max_synthetic_frames);
+        } catch (const SyntheticError& e) {
+          return Invalid(e.what());
+        }
         options.source = "synthetic:seed=" + std::to_string(s.seed()) + ",frames=" + std::to_string(frames);
         // Rendered on the session thread (can take seconds); failures fail the session.
         auto factory = [work_dir = config_.work_dir, seed = s.seed(), frames, yaml = s.options_yaml(), setup,
-                        make = estimator_factory_]() mutable -> std::unique_ptr<SessionPipeline> {
-          auto src = std::make_unique<DatasetFrameSource>(MakeSyntheticDrive(work_dir, seed, frames, yaml), 0, -1);
+                        make = estimator_factory_](const std::atomic<bool>& cancel) mutable
+            -> std::unique_ptr<SessionPipeline> {
+          auto src = std::make_unique<DatasetFrameSource>(
+              MakeSyntheticDrive(work_dir, seed, frames, yaml, &cancel), 0, -1);
           setup.camera = src->camera();
           setup.T_cam0_imu = src->T_cam0_imu();
           if (src->duration_s() > 0) setup.scenario = PlaceScenarioOutages(setup.scenario, src->duration_s());

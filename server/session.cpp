@@ -88,7 +88,7 @@ Session::~Session() {
 }
 
 void Session::Start() {
-  state_ = locaid::v1::SESSION_STATE_RUNNING;
+  state_ = pipeline_->ready() ? locaid::v1::SESSION_STATE_RUNNING : locaid::v1::SESSION_STATE_STARTING;
   // Subscriber wakes (which start gRPC writes) run on the hub's fan-out
   // thread, so 1000 subscribers do not slow the pipeline; joined in Join().
   hub_.StartFanoutThread();
@@ -183,6 +183,8 @@ void Session::Run() {
       const auto t0 = Clock::now();
       StepResult r = pipeline_->Step();
       const auto t1 = Clock::now();
+      auto starting = locaid::v1::SESSION_STATE_STARTING;
+      if (pipeline_->ready()) state_.compare_exchange_strong(starting, locaid::v1::SESSION_STATE_RUNNING);
       if (r.kind == StepResult::Kind::kEnd) {
         if (!stop_) state_ = locaid::v1::SESSION_STATE_FINISHED;
         break;
@@ -208,11 +210,18 @@ void Session::Run() {
       hub_.Publish(std::move(msg));
     }
   } catch (const std::exception& e) {
-    std::lock_guard lock(stats_mu_);
-    error_ = e.what();
-    state_ = locaid::v1::SESSION_STATE_FAILED;
+    // Stopping cancels input preparation (a render throws): that is a stop,
+    // not a failure.
+    if (!stop_) {
+      std::lock_guard lock(stats_mu_);
+      error_ = e.what();
+      state_ = locaid::v1::SESSION_STATE_FAILED;
+    }
   }
-  if (stop_ && state_ == locaid::v1::SESSION_STATE_RUNNING) state_ = locaid::v1::SESSION_STATE_STOPPED;
+  const auto state = state_.load();
+  if (stop_ && (state == locaid::v1::SESSION_STATE_RUNNING || state == locaid::v1::SESSION_STATE_STARTING)) {
+    state_ = locaid::v1::SESSION_STATE_STOPPED;
+  }
   hub_.Close();
 }
 

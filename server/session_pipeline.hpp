@@ -49,6 +49,9 @@ class SessionPipeline {
   virtual void Wake() {}
   // Frames in the input, 0 when unknown (live).
   virtual int64_t total_frames() const { return 0; }
+  // False while the input is still being prepared (a synthetic drive
+  // rendering): the session is STARTING until then. Any thread.
+  virtual bool ready() const { return true; }
   // GPS control, applied from the next frame on. Sensor times are relative to
   // the first frame of the session.
   virtual void StartOutageNow(double duration_s) = 0;  // 0 = until StopOutage

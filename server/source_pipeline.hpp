@@ -5,6 +5,7 @@
 #include "server/frame_source.hpp"
 #include "server/session_pipeline.hpp"
 
+#include <atomic>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -86,18 +87,24 @@ namespace locaid::server {
 // before that are replayed onto it. A throwing factory fails the session.
 class DeferredPipeline : public SessionPipeline {
  public:
-  using Factory = std::function<std::unique_ptr<SessionPipeline>()>;
+  // The factory gets the cancel flag Cancel() sets (e.g. to stop a render).
+  using Factory = std::function<std::unique_ptr<SessionPipeline>(const std::atomic<bool>& cancel)>;
   DeferredPipeline(Factory factory, int64_t total_frames) : factory_(std::move(factory)), total_(total_frames) {}
 
   StepResult Step() override {
     if (!inner_) {
-      inner_ = factory_();
+      inner_ = factory_(cancel_);
       for (auto& op : pending_) op(*inner_);
       pending_.clear();
+      ready_ = true;
     }
     return inner_->Step();
   }
-  void Cancel() override {}
+  void Cancel() override {
+    cancel_ = true;
+    if (ready_) inner_->Cancel();
+  }
+  bool ready() const override { return ready_; }
   int64_t total_frames() const override { return total_; }
   void StartOutageNow(double d) override { Do([d](SessionPipeline& p) { p.StartOutageNow(d); }); }
   void StopOutage() override { Do([](SessionPipeline& p) { p.StopOutage(); }); }
@@ -112,6 +119,7 @@ class DeferredPipeline : public SessionPipeline {
   }
   Factory factory_;
   int64_t total_;
+  std::atomic<bool> cancel_{false}, ready_{false};
   std::unique_ptr<SessionPipeline> inner_;
   std::vector<std::function<void(SessionPipeline&)>> pending_;
 };

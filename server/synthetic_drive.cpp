@@ -7,6 +7,7 @@
 
 #include <fstream>
 #include <functional>
+#include <map>
 #include <mutex>
 #include <unistd.h>
 
@@ -55,12 +56,40 @@ kitti::synth::SynthConfig ParseOptions(const std::string& yaml, uint64_t seed, s
   return config;
 }
 
-std::mutex g_render_mutex;  // two sessions never render the same folder at once
+// One lock per drive folder: two sessions never render the same folder at
+// once, different folders render in parallel. Entries are never erased (one
+// per distinct drive key, a few dozen bytes each).
+std::mutex& FolderLock(const std::string& key) {
+  static std::mutex map_mu;
+  static std::map<std::string, std::unique_ptr<std::mutex>> locks;
+  std::lock_guard lock(map_mu);
+  auto& m = locks[key];
+  if (!m) m = std::make_unique<std::mutex>();
+  return *m;
+}
 
 }  // namespace
 
+void ValidateSyntheticRequest(uint64_t seed, size_t frames, const std::string& options_yaml, size_t max_frames) {
+  const kitti::synth::SynthConfig config = ParseOptions(options_yaml, seed, frames);
+  try {
+    kitti::synth::ValidateSynthConfig(config);
+  } catch (const kitti::Error& e) {
+    throw SyntheticError(std::string("synthetic.options_yaml: ") + e.what());
+  }
+  // A length_m drive lasts at most length / slowest speed (+ 5 s of margin).
+  const double frames_needed =
+      config.length_m > 0 ? (config.length_m / config.speed_min_mps + 5) * config.frame_rate_hz
+                          : static_cast<double>(config.frames);
+  if (frames_needed > static_cast<double>(max_frames)) {
+    throw SyntheticError("synthetic: the drive needs up to " + std::to_string(static_cast<long long>(frames_needed)) +
+                         " frames, more than the server's max_synthetic_frames (" + std::to_string(max_frames) + ")");
+  }
+}
+
 std::unique_ptr<kitti::StereoDataset> MakeSyntheticDrive(const std::string& work_dir, uint64_t seed, size_t frames,
-                                                         const std::string& options_yaml) {
+                                                         const std::string& options_yaml,
+                                                         const std::atomic<bool>* cancel) {
   const kitti::synth::SynthConfig config = ParseOptions(options_yaml, seed, frames);
   const std::filesystem::path root =
       work_dir.empty() ? std::filesystem::temp_directory_path() / ("locaid-server-" + std::to_string(::getuid()))
@@ -68,13 +97,23 @@ std::unique_ptr<kitti::StereoDataset> MakeSyntheticDrive(const std::string& work
   const std::string key = "seed" + std::to_string(seed) + "_f" + std::to_string(frames) + "_" +
                           std::to_string(std::hash<std::string>{}(options_yaml) % 100000);
   const std::filesystem::path dir = root / "synthetic" / key;
-  std::lock_guard lock(g_render_mutex);
+  std::lock_guard lock(FolderLock(dir.string()));
   try {
     const auto marker = dir / "complete";
     if (!std::filesystem::exists(marker)) {
       std::filesystem::remove_all(dir);
       std::filesystem::create_directories(dir);
-      const auto summary = kitti::synth::GenerateDrive(config, dir);
+      const auto stop_if_cancelled = [cancel](int, int) {
+        if (cancel && cancel->load()) throw SyntheticCancelled();
+      };
+      kitti::synth::SynthSummary summary;
+      try {
+        summary = kitti::synth::GenerateDrive(config, dir, stop_if_cancelled);
+      } catch (const SyntheticCancelled&) {
+        std::error_code ec;
+        std::filesystem::remove_all(dir, ec);
+        throw;
+      }
       std::ofstream(marker) << summary.drive_dir.filename().string() << "\n";
     }
     std::string drive;

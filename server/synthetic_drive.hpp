@@ -6,6 +6,8 @@
 
 #include <Eigen/Geometry>
 
+#include <atomic>
+
 #include <cstdint>
 #include <memory>
 #include <stdexcept>
@@ -18,10 +20,24 @@ class SyntheticError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// Checks a session's synthetic request before it is accepted: options_yaml
+// (keys, types, ranges, NaN) and the number of frames the drive will have
+// (frames, or what length_m needs at the slowest speed) against max_frames.
+// Throws SyntheticError naming the field.
+void ValidateSyntheticRequest(uint64_t seed, size_t frames, const std::string& options_yaml, size_t max_frames);
+
 // Renders (or reuses, same seed/frames/options) a drive under work_dir and
-// opens it. Throws SyntheticError when the generator is unavailable or fails.
+// opens it. Throws SyntheticError when the generator is unavailable or fails,
+// and SyntheticCancelled (leaving no partial folder) as soon as *cancel is set
+// (checked after every rendered frame). Different drives render in parallel;
+// two requests for the same drive render it once.
+class SyntheticCancelled : public SyntheticError {
+ public:
+  SyntheticCancelled() : SyntheticError("synthetic drive: rendering cancelled") {}
+};
 std::unique_ptr<kitti::StereoDataset> MakeSyntheticDrive(const std::string& work_dir, uint64_t seed,
-                                                         size_t frames, const std::string& options_yaml);
+                                                         size_t frames, const std::string& options_yaml,
+                                                         const std::atomic<bool>* cancel = nullptr);
 
 // cam0 (rectified) <- imu of the KITTI 2011_09_26 rig, from its calibration
 // files (R_rect_00 * T_cam0_velo * T_velo_imu); default for live sessions.

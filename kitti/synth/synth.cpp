@@ -227,8 +227,10 @@ SynthCalib MakeSynthCalib(int width, int height) {
   return c;
 }
 
-SynthSummary GenerateDrive(const SynthConfig& cfg, const std::filesystem::path& out_dir,
-                           const std::function<void(int, int)>& progress) {
+void ValidateSynthConfig(const SynthConfig& cfg) {
+  if (!std::isfinite(cfg.length_m)) throw Error("synth: length_m must be finite");
+  if (!(cfg.noise_sigma_dn >= 0 && cfg.noise_sigma_dn <= 50))
+    throw Error("synth: noise_sigma_dn must be in [0, 50] (got " + std::to_string(cfg.noise_sigma_dn) + ")");
   if (cfg.length_m <= 0 && cfg.frames < 2) throw Error("synth: frames must be >= 2 (got " + std::to_string(cfg.frames) + ")");
   if (cfg.length_m > 100000) throw Error("synth: length_m must be <= 100000");
   if (cfg.width < 64 || cfg.width > 4096 || cfg.height < 48 || cfg.height > 4096)
@@ -245,6 +247,11 @@ SynthSummary GenerateDrive(const SynthConfig& cfg, const std::filesystem::path& 
         cfg.curve_radius_max_m <= 10000))
     throw Error("synth: curve radius range " + Range(cfg.curve_radius_min_m, cfg.curve_radius_max_m) +
                 " m is not 10 <= min <= max <= 10000");
+}
+
+SynthSummary GenerateDrive(const SynthConfig& cfg, const std::filesystem::path& out_dir,
+                           const std::function<void(int, int)>& progress) {
+  ValidateSynthConfig(cfg);
 
   const SynthCalib calib = MakeSynthCalib(cfg.width, cfg.height);
   const double dt = 1.0 / cfg.frame_rate_hz;

@@ -65,6 +65,9 @@ struct SynthSummary {
 
 // Throws kitti::Error for bad configs ("synth: --frames must be >= 2") and
 // unwritable folders ("synth: cannot create folder '/x': Permission denied").
+// Throws kitti::Error naming the field and its range when `config` cannot be
+// rendered (GenerateDrive checks it first; callers can check before).
+void ValidateSynthConfig(const SynthConfig& config);
 SynthSummary GenerateDrive(const SynthConfig& config, const std::filesystem::path& out_dir,
                            const std::function<void(int frame, int total)>& progress = {});
 
