@@ -162,6 +162,8 @@ void ApplyYamlConfig(const std::filesystem::path& file, ServerConfig* c) {
       {"synthetic_default_frames", size(&c->synthetic_default_frames)},
       {"max_synthetic_frames", size(&c->max_synthetic_frames)},
       {"max_concurrent_renders", size(&c->max_concurrent_renders)},
+      {"max_ended_sessions", size(&c->max_ended_sessions)},
+      {"ended_session_ttl_s", real(&c->ended_session_ttl_s)},
       {"keepalive_time_s", real(&c->keepalive_time_s)},
       {"keepalive_timeout_s", real(&c->keepalive_timeout_s)},
       {"shutdown_grace_s", real(&c->shutdown_grace_s)},
@@ -220,6 +222,12 @@ void ValidateConfig(ServerConfig* c) {
   if (!(c->keepalive_timeout_s >= 1)) throw ConfigError("keepalive_timeout_s: must be >= 1");
   if (!(c->shutdown_grace_s >= 0 && c->shutdown_grace_s <= 60)) {
     throw ConfigError("shutdown_grace_s: must be in [0, 60]");
+  }
+  if (c->max_ended_sessions > 100000) {
+    throw ConfigError("max_ended_sessions: must be in [0, 100000], got " + std::to_string(c->max_ended_sessions));
+  }
+  if (!(c->ended_session_ttl_s >= 0 && c->ended_session_ttl_s <= 30 * 86400)) {
+    throw ConfigError("ended_session_ttl_s: must be in [0, 2592000] (30 days)");
   }
   if (c->max_concurrent_renders < 1 || c->max_concurrent_renders > 64) {
     throw ConfigError("max_concurrent_renders: must be in [1, 64], got " + std::to_string(c->max_concurrent_renders));

@@ -48,6 +48,12 @@ struct ServerConfig {
   // same time; StartSession beyond is RESOURCE_EXHAUSTED. Each render uses
   // one core.
   size_t max_concurrent_renders = 2;
+  // Ended sessions (FINISHED, STOPPED, FAILED; not removed) are kept for their
+  // history and GetSession, at most this many (the oldest go first) and at
+  // most this long after they ended; checked whenever a session starts or
+  // sessions are listed. Each keeps up to history_size poses (~1 KB each).
+  size_t max_ended_sessions = 64;
+  double ended_session_ttl_s = 3600;
   double keepalive_time_s = 20;            // HTTP/2 pings on idle connections
   double keepalive_timeout_s = 10;
   double shutdown_grace_s = 1.5;           // streams still open this long after SIGTERM are cancelled

@@ -53,6 +53,11 @@ int main(int argc, char** argv) {
   app.add_option("--work-dir", cli.work_dir, "where synthetic drives are rendered");
   app.add_option("--max-synthetic-frames", cli.max_synthetic_frames, "largest synthetic drive a session may ask for")
       ->capture_default_str();
+  app.add_option("--max-ended-sessions", cli.max_ended_sessions,
+                 "ended sessions kept for GetSession / history (oldest removed first)")
+      ->capture_default_str();
+  app.add_option("--ended-session-ttl-s", cli.ended_session_ttl_s, "ended sessions are removed this long after")
+      ->capture_default_str();
   app.add_option("--max-concurrent-renders", cli.max_concurrent_renders,
                  "synthetic drives rendered at once (StartSession beyond: RESOURCE_EXHAUSTED)")
       ->capture_default_str();
@@ -86,6 +91,8 @@ int main(int argc, char** argv) {
     take("--work-dir", &ServerConfig::work_dir);
     take("--max-synthetic-frames", &ServerConfig::max_synthetic_frames);
     take("--max-concurrent-renders", &ServerConfig::max_concurrent_renders);
+    take("--max-ended-sessions", &ServerConfig::max_ended_sessions);
+    take("--ended-session-ttl-s", &ServerConfig::ended_session_ttl_s);
     take("--default-scenario", &ServerConfig::default_scenario);
     take("--default-vo", &ServerConfig::default_vo_method);
     take("--shutdown-grace-s", &ServerConfig::shutdown_grace_s);

@@ -470,7 +470,12 @@ grpc::ByteBuffer EncodePoseForSubscriber(const grpc::Slice& encoded, uint64_t dr
 // -------------------------------------------------------------- service --
 
 LocalizationService::LocalizationService(ServerConfig config, EstimatorFactory estimator_factory)
-    : config_(std::move(config)), estimator_factory_(std::move(estimator_factory)) {}
+    : config_(std::move(config)), estimator_factory_(std::move(estimator_factory)) {
+  if (const size_t stale = RemoveStaleSyntheticDrives(config_.work_dir); stale > 0 && config_.log_shutdown) {
+    std::cout << "locaid-server: removed " << stale << " synthetic drive(s) left by an earlier server in "
+              << SyntheticRoot(config_.work_dir).string() << std::endl;
+  }
+}
 
 LocalizationService::~LocalizationService() {
   BeginShutdown();
@@ -536,9 +541,31 @@ Status LocalizationService::ResolveScenario(const v1::Scenario& s, fusion::Scena
   return Status::OK;
 }
 
+std::vector<std::shared_ptr<Session>> LocalizationService::PruneEndedLocked() {
+  const int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                          std::chrono::system_clock::now().time_since_epoch()).count();
+  const auto ttl_ns = static_cast<int64_t>(config_.ended_session_ttl_s * 1e9);
+  std::vector<std::pair<int64_t, std::string>> ended;  // (ended at, id)
+  std::vector<std::shared_ptr<Session>> pruned;
+  for (const auto& [id, e] : sessions_) {
+    const int64_t at = e.session->ended_unix_ns();
+    if (at > 0) ended.emplace_back(at, id);
+  }
+  std::sort(ended.begin(), ended.end());
+  for (size_t i = 0; i < ended.size(); ++i) {
+    const bool too_many = ended.size() - i > config_.max_ended_sessions;
+    if (!too_many && now - ended[i].first <= ttl_ns) continue;
+    pruned.push_back(sessions_.at(ended[i].second).session);
+    sessions_.erase(ended[i].second);
+  }
+  return pruned;
+}
+
 Status LocalizationService::AddSession(SessionOptions options, std::unique_ptr<SessionPipeline> pipeline,
                                        LiveFrameSource* live, std::string* id) {
+  std::vector<std::shared_ptr<Session>> pruned;  // destroyed after the lock
   std::lock_guard lock(mu_);
+  pruned = PruneEndedLocked();
   if (shutting_down_) return {StatusCode::UNAVAILABLE, "server is shutting down"};
   size_t active = 0;
   for (const auto& [k, e] : sessions_) {
@@ -635,18 +662,26 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
         }
         options.source = "synthetic:seed=" + std::to_string(s.seed()) + ",frames=" + std::to_string(frames);
         // Rendered on the session thread (can take seconds); failures fail the session.
-        auto factory = [work_dir = config_.work_dir, seed = s.seed(), frames, yaml = s.options_yaml(), setup,
+        // Each session renders its own folder and deletes it when its
+        // pipeline ends, so rendered drives never outlive their sessions.
+        const std::filesystem::path drive_dir = SyntheticRoot(config_.work_dir) / RandomSessionId();
+        auto factory = [drive_dir, seed = s.seed(), frames, yaml = s.options_yaml(), setup,
                         make = estimator_factory_](const std::atomic<bool>& cancel) mutable
             -> std::unique_ptr<SessionPipeline> {
           auto src = std::make_unique<DatasetFrameSource>(
-              MakeSyntheticDrive(work_dir, seed, frames, yaml, &cancel), 0, -1);
+              MakeSyntheticDrive(drive_dir, seed, frames, yaml, &cancel), 0, -1);
           setup.camera = src->camera();
           setup.T_cam0_imu = src->T_cam0_imu();
           if (src->duration_s() > 0) setup.scenario = PlaceScenarioOutages(setup.scenario, src->duration_s());
           return std::make_unique<SourcePipeline>(std::move(src), make(setup));
         };
+        auto remove_drive = [drive_dir] {
+          std::error_code ec;
+          std::filesystem::remove_all(drive_dir, ec);
+        };
         return AddSession(std::move(options),
-                          std::make_unique<DeferredPipeline>(std::move(factory), static_cast<int64_t>(frames)),
+                          std::make_unique<DeferredPipeline>(std::move(factory), static_cast<int64_t>(frames),
+                                                             std::move(remove_drive)),
                           nullptr, id);
       }
       case v1::StartSessionRequest::kLive: {
@@ -744,9 +779,10 @@ grpc::ServerUnaryReactor* LocalizationService::ListSessions(grpc::CallbackServer
                                                             const v1::ListSessionsRequest*,
                                                             v1::ListSessionsResponse* resp) {
   if (Status s = Authorize(ctx); !s.ok()) return Reply(ctx, s);
-  std::vector<std::shared_ptr<Session>> all;
+  std::vector<std::shared_ptr<Session>> all, pruned;
   {
     std::lock_guard lock(mu_);
+    pruned = PruneEndedLocked();
     for (const auto& [id, e] : sessions_) all.push_back(e.session);
   }
   for (const auto& s : all) *resp->add_sessions() = s->ToProto();

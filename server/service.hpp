@@ -139,6 +139,10 @@ class LocalizationService final
   grpc::Status ResolveScenario(const locaid::v1::Scenario& s, fusion::Scenario* out, std::string* name) const;
   grpc::Status AddSession(SessionOptions options, std::unique_ptr<SessionPipeline> pipeline,
                           LiveFrameSource* live, std::string* id);
+  // Takes ended sessions beyond max_ended_sessions or older than
+  // ended_session_ttl_s out of the registry (mu_ held); the caller destroys
+  // them after unlocking.
+  std::vector<std::shared_ptr<Session>> PruneEndedLocked();
 
   const ServerConfig config_;
   const EstimatorFactory estimator_factory_;

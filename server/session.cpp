@@ -222,6 +222,11 @@ void Session::Run() {
   if (stop_ && (state == locaid::v1::SESSION_STATE_RUNNING || state == locaid::v1::SESSION_STATE_STARTING)) {
     state_ = locaid::v1::SESSION_STATE_STOPPED;
   }
+  try {
+    pipeline_->Release();
+  } catch (const std::exception&) {  // freeing must not turn a finished session into a crash
+  }
+  ended_unix_ns_ = UnixNowNs();
   hub_.Close();
 }
 

@@ -56,6 +56,8 @@ class Session {
   locaid::v1::Session ToProto() const;
   locaid::v1::SessionStats Stats() const;
   locaid::v1::SessionState state() const { return state_.load(); }
+  // Wall clock (ns) when the session's thread ended; 0 while it runs.
+  int64_t ended_unix_ns() const { return ended_unix_ns_.load(); }
 
  private:
   void Run();
@@ -70,6 +72,7 @@ class Session {
   Hub hub_;
   std::thread thread_;
   const int64_t created_unix_ns_;
+  std::atomic<int64_t> ended_unix_ns_{0};  // when Run() returned; 0 while it runs
   const int64_t total_frames_;
 
   std::atomic<locaid::v1::SessionState> state_{locaid::v1::SESSION_STATE_STARTING};

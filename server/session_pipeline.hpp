@@ -52,6 +52,9 @@ class SessionPipeline {
   // False while the input is still being prepared (a synthetic drive
   // rendering): the session is STARTING until then. Any thread.
   virtual bool ready() const { return true; }
+  // The session's thread is done with the pipeline: free what it holds
+  // (files, images). Called once, from the session thread, as it ends.
+  virtual void Release() {}
   // GPS control, applied from the next frame on. Sensor times are relative to
   // the first frame of the session.
   virtual void StartOutageNow(double duration_s) = 0;  // 0 = until StopOutage

@@ -11,6 +11,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <utility>
 
 namespace locaid::server {
 
@@ -89,7 +90,15 @@ class DeferredPipeline : public SessionPipeline {
  public:
   // The factory gets the cancel flag Cancel() sets (e.g. to stop a render).
   using Factory = std::function<std::unique_ptr<SessionPipeline>(const std::atomic<bool>& cancel)>;
-  DeferredPipeline(Factory factory, int64_t total_frames) : factory_(std::move(factory)), total_(total_frames) {}
+  // on_release runs once the session's pipeline has ended (Release), e.g. to
+  // delete the drive it rendered.
+  DeferredPipeline(Factory factory, int64_t total_frames, std::function<void()> on_release = {})
+      : factory_(std::move(factory)), total_(total_frames), on_release_(std::move(on_release)) {}
+  ~DeferredPipeline() override { Release(); }
+  void Release() override {
+    inner_.reset();
+    if (on_release_) std::exchange(on_release_, nullptr)();
+  }
 
   StepResult Step() override {
     if (!inner_) {
@@ -110,7 +119,7 @@ class DeferredPipeline : public SessionPipeline {
   void StopOutage() override { Do([](SessionPipeline& p) { p.StopOutage(); }); }
   void AddOutageWindow(double s, double d) override { Do([s, d](SessionPipeline& p) { p.AddOutageWindow(s, d); }); }
   void SetScenario(const fusion::Scenario& sc) override { Do([sc](SessionPipeline& p) { p.SetScenario(sc); }); }
-  bool origin(double* a, double* b, double* c) const override { return inner_ && inner_->origin(a, b, c); }
+  bool origin(double* a, double* b, double* c) const override { return ready_ && inner_ && inner_->origin(a, b, c); }
 
  private:
   void Do(std::function<void(SessionPipeline&)> op) {
@@ -119,6 +128,7 @@ class DeferredPipeline : public SessionPipeline {
   }
   Factory factory_;
   int64_t total_;
+  std::function<void()> on_release_;
   std::atomic<bool> cancel_{false}, ready_{false};
   std::unique_ptr<SessionPipeline> inner_;
   std::vector<std::function<void(SessionPipeline&)>> pending_;

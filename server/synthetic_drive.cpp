@@ -87,16 +87,29 @@ void ValidateSyntheticRequest(uint64_t seed, size_t frames, const std::string& o
   }
 }
 
-std::unique_ptr<kitti::StereoDataset> MakeSyntheticDrive(const std::string& work_dir, uint64_t seed, size_t frames,
-                                                         const std::string& options_yaml,
-                                                         const std::atomic<bool>* cancel) {
-  const kitti::synth::SynthConfig config = ParseOptions(options_yaml, seed, frames);
+std::filesystem::path SyntheticRoot(const std::string& work_dir) {
   const std::filesystem::path root =
       work_dir.empty() ? std::filesystem::temp_directory_path() / ("locaid-server-" + std::to_string(::getuid()))
                        : std::filesystem::path(work_dir);
-  const std::string key = "seed" + std::to_string(seed) + "_f" + std::to_string(frames) + "_" +
-                          std::to_string(std::hash<std::string>{}(options_yaml) % 100000);
-  const std::filesystem::path dir = root / "synthetic" / key;
+  return root / "synthetic";
+}
+
+size_t RemoveStaleSyntheticDrives(const std::string& work_dir) {
+  std::error_code ec;
+  const auto root = SyntheticRoot(work_dir);
+  size_t removed = 0;
+  for (const auto& e : std::filesystem::directory_iterator(root, ec)) {
+    std::error_code rm;
+    std::filesystem::remove_all(e.path(), rm);
+    removed += rm ? 0 : 1;
+  }
+  return removed;
+}
+
+std::unique_ptr<kitti::StereoDataset> MakeSyntheticDrive(const std::filesystem::path& dir, uint64_t seed,
+                                                         size_t frames, const std::string& options_yaml,
+                                                         const std::atomic<bool>* cancel) {
+  const kitti::synth::SynthConfig config = ParseOptions(options_yaml, seed, frames);
   std::lock_guard lock(FolderLock(dir.string()));
   try {
     const auto marker = dir / "complete";

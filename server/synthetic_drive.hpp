@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 
 #include <atomic>
+#include <filesystem>
 
 #include <cstdint>
 #include <memory>
@@ -26,18 +27,25 @@ class SyntheticError : public std::runtime_error {
 // Throws SyntheticError naming the field.
 void ValidateSyntheticRequest(uint64_t seed, size_t frames, const std::string& options_yaml, size_t max_frames);
 
-// Renders (or reuses, same seed/frames/options) a drive under work_dir and
-// opens it. Throws SyntheticError when the generator is unavailable or fails,
-// and SyntheticCancelled (leaving no partial folder) as soon as *cancel is set
-// (checked after every rendered frame). Different drives render in parallel;
-// two requests for the same drive render it once.
+// Renders a drive into `dir` (or reuses a complete one there) and opens it.
+// Throws SyntheticError when the generator fails, and SyntheticCancelled
+// (leaving no partial folder) as soon as *cancel is set (checked after every
+// rendered frame). Different folders render in parallel.
 class SyntheticCancelled : public SyntheticError {
  public:
   SyntheticCancelled() : SyntheticError("synthetic drive: rendering cancelled") {}
 };
-std::unique_ptr<kitti::StereoDataset> MakeSyntheticDrive(const std::string& work_dir, uint64_t seed,
+std::unique_ptr<kitti::StereoDataset> MakeSyntheticDrive(const std::filesystem::path& dir, uint64_t seed,
                                                          size_t frames, const std::string& options_yaml,
                                                          const std::atomic<bool>* cancel = nullptr);
+
+// Where a server renders its sessions' drives: <work_dir>/synthetic (work_dir
+// empty: $TMPDIR/locaid-server-<uid>/synthetic). A session's drive is
+// <root>/<key>, rendered when it starts and deleted when its pipeline ends.
+std::filesystem::path SyntheticRoot(const std::string& work_dir);
+// Deletes what a previous server process left under the root (its drives
+// were deleted with their sessions unless it was killed). Returns the count.
+size_t RemoveStaleSyntheticDrives(const std::string& work_dir);
 
 // cam0 (rectified) <- imu of the KITTI 2011_09_26 rig, from its calibration
 // files (R_rect_00 * T_cam0_velo * T_velo_imu); default for live sessions.

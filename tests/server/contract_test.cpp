@@ -205,6 +205,32 @@ TEST_F(ContractRequests, FrameRangeAndPlaybackRateAreCheckedBeforeOk) {
   }
 }
 
+// Defect 7: synthetic options are validated before StartSession returns OK.
+TEST_F(ContractRequests, SyntheticOptionsAreValidatedBeforeOk) {
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {"width: [1, 2", "synthetic.options_yaml"},               // not YAML
+      {"colour: red", "unknown key 'colour'"},                  // unknown key
+      {"width: 100000\nheight: 100000", "out of range"},        // huge image
+      {"frame_rate_hz: 0", "frame_rate_hz"},                    // zero rate
+      {"noise_sigma_dn: .nan", "noise_sigma_dn"},               // NaN
+      {"length_m: 50000", "max_synthetic_frames"},              // too long a drive
+  };
+  for (const auto& [yaml, expected] : bad) {
+    v1::StartSessionRequest req;
+    req.mutable_synthetic()->set_seed(1);
+    req.mutable_synthetic()->set_frames(20);
+    req.mutable_synthetic()->set_options_yaml(yaml);
+    const grpc::Status s = Start(req);
+    EXPECT_EQ(s.error_code(), grpc::INVALID_ARGUMENT) << yaml;
+    EXPECT_NE(s.error_message().find(expected), std::string::npos) << yaml << " -> " << s.error_message();
+  }
+  v1::StartSessionRequest too_many;
+  too_many.mutable_synthetic()->set_frames(100000);
+  const grpc::Status s = Start(too_many);
+  EXPECT_EQ(s.error_code(), grpc::INVALID_ARGUMENT);
+  EXPECT_NE(s.error_message().find("max_synthetic_frames=3000"), std::string::npos) << s.error_message();
+}
+
 // Defect 10: controls of a stopped session are refused, not silently kept.
 TEST_F(ContractRequests, OutageAndScenarioOnAStoppedSessionAreFailedPrecondition) {
   v1::StartSessionRequest req;
@@ -304,6 +330,81 @@ TEST(Contract, StopDuringRenderReturnsPromptlyAndRendersAreBounded) {
     for (const auto& e : fs::directory_iterator(dir / "work" / "synthetic")) left += e.is_directory() ? 1 : 0;
   EXPECT_EQ(left, 0u) << "rendered folders left in " << (dir / "work" / "synthetic");
   EXPECT_EQ(RunCli(server.port(), {"health"}).out, "SERVING\n");
+}
+
+size_t CountDirs(const fs::path& dir) {
+  size_t n = 0;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(dir, ec)) n += e.is_directory() ? 1 : 0;
+  return n;
+}
+
+// Defect 4: rendered drives live as long as their session's pipeline, and
+// drives a killed server left behind are removed when the next one starts.
+TEST(Contract, RenderedDrivesAreDeletedWithTheirSessionAndStaleOnesAtStartup) {
+  const fs::path dir = TestDir("disk");
+  const fs::path synthetic = dir / "work" / "synthetic";
+  fs::create_directories(synthetic / "left-by-a-killed-server" / "2024_05_17");
+  WriteFile(synthetic / "left-by-a-killed-server" / "2024_05_17" / "big.png", std::string(4096, 'x'));
+  ServerProcess server(dir);
+  ASSERT_GT(server.port(), 0) << server.log();
+  EXPECT_EQ(CountDirs(synthetic), 0u) << "stale drive not removed at start-up";
+  auto stub = v1::Localization::NewStub(server.NewChannel());
+  for (int round = 0; round < 3; ++round) {
+    const v1::Session s = StartSynthetic(stub.get(), "", 30);
+    v1::Session done;
+    for (int i = 0; i < 600; ++i) {
+      done = Get(stub.get(), s.id());
+      if (done.state() == v1::SESSION_STATE_FINISHED || done.state() == v1::SESSION_STATE_FAILED) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    ASSERT_EQ(done.state(), v1::SESSION_STATE_FINISHED) << done.error();
+    for (int i = 0; i < 100 && CountDirs(synthetic) > 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    EXPECT_EQ(CountDirs(synthetic), 0u) << "round " << round << ": the finished session's drive is still on disk";
+  }
+}
+
+// Defect 5: ended sessions are kept for a while, not forever.
+TEST(Contract, EndedSessionsAreCappedByCountAndAge) {
+  const fs::path dir = TestDir("ended");
+  ServerProcess server(dir, {"--max-ended-sessions", "3"});
+  ASSERT_GT(server.port(), 0) << server.log();
+  auto stub = v1::Localization::NewStub(server.NewChannel());
+  auto start_and_stop = [&] {
+    grpc::ClientContext ctx;
+    SetDeadline(&ctx, 10);
+    v1::StartSessionRequest req;
+    *req.mutable_live() = SmallCamera();
+    v1::Session s;
+    EXPECT_TRUE(stub->StartSession(&ctx, req, &s).ok());
+    grpc::ClientContext stop_ctx;
+    SetDeadline(&stop_ctx, 10);
+    v1::StopSessionRequest stop;
+    stop.set_session_id(s.id());
+    v1::Session out;
+    EXPECT_TRUE(stub->StopSession(&stop_ctx, stop, &out).ok());
+    return s.id();
+  };
+  auto list = [&] {
+    grpc::ClientContext ctx;
+    SetDeadline(&ctx, 10);
+    v1::ListSessionsResponse r;
+    EXPECT_TRUE(stub->ListSessions(&ctx, v1::ListSessionsRequest{}, &r).ok());
+    return r;
+  };
+  std::vector<std::string> ids;
+  for (int i = 0; i < 6; ++i) ids.push_back(start_and_stop());
+  const auto kept = list();
+  ASSERT_EQ(kept.sessions_size(), 3);
+  for (const auto& s : kept.sessions()) {
+    EXPECT_TRUE(s.id() == ids[3] || s.id() == ids[4] || s.id() == ids[5]) << s.id() << ": not one of the newest";
+  }
+  ServerProcess ttl(dir / "ttl", {"--ended-session-ttl-s", "0"});
+  ASSERT_GT(ttl.port(), 0) << ttl.log();
+  stub = v1::Localization::NewStub(ttl.NewChannel());
+  start_and_stop();
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_EQ(list().sessions_size(), 0) << "ended_session_ttl_s 0 keeps nothing once it ended";
 }
 
 }  // namespace
