@@ -8,6 +8,7 @@
 #include <atomic>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <span>
 #include <string>
@@ -96,22 +97,31 @@ class DeferredPipeline : public SessionPipeline {
       : factory_(std::move(factory)), total_(total_frames), on_release_(std::move(on_release)) {}
   ~DeferredPipeline() override { Release(); }
   void Release() override {
-    inner_.reset();
+    std::unique_ptr<SessionPipeline> done;
+    {
+      std::lock_guard lock(inner_mu_);
+      done = std::move(inner_);
+    }
+    done.reset();
     if (on_release_) std::exchange(on_release_, nullptr)();
   }
 
+  // Step and Release run on the session thread; Cancel on any thread.
   StepResult Step() override {
-    if (!inner_) {
-      inner_ = factory_(cancel_);
-      for (auto& op : pending_) op(*inner_);
+    if (!ready_) {
+      std::unique_ptr<SessionPipeline> made = factory_(cancel_);
+      for (auto& op : pending_) op(*made);
       pending_.clear();
+      std::lock_guard lock(inner_mu_);
+      inner_ = std::move(made);
       ready_ = true;
     }
     return inner_->Step();
   }
   void Cancel() override {
     cancel_ = true;
-    if (ready_) inner_->Cancel();
+    std::lock_guard lock(inner_mu_);
+    if (inner_) inner_->Cancel();
   }
   bool ready() const override { return ready_; }
   int64_t total_frames() const override { return total_; }
@@ -119,7 +129,10 @@ class DeferredPipeline : public SessionPipeline {
   void StopOutage() override { Do([](SessionPipeline& p) { p.StopOutage(); }); }
   void AddOutageWindow(double s, double d) override { Do([s, d](SessionPipeline& p) { p.AddOutageWindow(s, d); }); }
   void SetScenario(const fusion::Scenario& sc) override { Do([sc](SessionPipeline& p) { p.SetScenario(sc); }); }
-  bool origin(double* a, double* b, double* c) const override { return ready_ && inner_ && inner_->origin(a, b, c); }
+  bool origin(double* a, double* b, double* c) const override {
+    std::lock_guard lock(inner_mu_);
+    return inner_ && inner_->origin(a, b, c);
+  }
 
  private:
   void Do(std::function<void(SessionPipeline&)> op) {
@@ -130,6 +143,7 @@ class DeferredPipeline : public SessionPipeline {
   int64_t total_;
   std::function<void()> on_release_;
   std::atomic<bool> cancel_{false}, ready_{false};
+  mutable std::mutex inner_mu_;  // inner_ between Cancel (any thread) and Step / Release
   std::unique_ptr<SessionPipeline> inner_;
   std::vector<std::function<void(SessionPipeline&)>> pending_;
 };
