@@ -216,10 +216,14 @@ SourceItem LiveFrameSource::Next() {
         s.t_ns = item.t_ns;
         s.index = static_cast<int>(n);
         s.record = kitti::ParseOxtsLine(item.oxts_line, "pushed oxts record " + std::to_string(n));
-        if (!oxts_.empty() && s.t_ns <= oxts_.back().t_ns) {
+        // Against the last accepted record, not the buffer: the buffer is
+        // handed to the pipeline at every frame and may be empty.
+        if (last_oxts_t_ns_ && s.t_ns <= *last_oxts_t_ns_) {
           throw std::invalid_argument("pushed oxts record " + std::to_string(n) + ": t_ns " +
-                                      std::to_string(s.t_ns) + " not after the previous record");
+                                      std::to_string(s.t_ns) + " not after the previous record (" +
+                                      std::to_string(*last_oxts_t_ns_) + ")");
         }
+        last_oxts_t_ns_ = s.t_ns;
         oxts_.push_back(s);
       } catch (const std::exception& e) {
         ++bad_lines_;

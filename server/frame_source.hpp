@@ -112,6 +112,7 @@ class LiveFrameSource : public FrameSource {
   bool closed_ = false, cancelled_ = false, woken_ = false;
   // Consumer state.
   std::vector<kitti::OxtsSample> oxts_;
+  std::optional<int64_t> last_oxts_t_ns_;  // newest record accepted (ordering check)
   int bad_lines_ = 0;
   std::string last_error_;
   int64_t frames_ = 0, oxts_count_ = 0;

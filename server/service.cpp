@@ -289,8 +289,13 @@ class PushReactor final : public HubStream<grpc::ServerBidiReactor<v1::PushReque
           std::string mismatch = PngSizeMismatch(f.left(), live_->camera(), "left");
           if (mismatch.empty()) mismatch = PngSizeMismatch(f.right(), live_->camera(), "right");
           if (!mismatch.empty()) {
+            // Nothing more is read; the frames before this one are still in
+            // the pipeline: their poses are delivered first, then the stream
+            // ends with this status instead of OK.
             std::lock_guard lock(mu_);
-            FinishLocked(Invalid("frame " + std::to_string(index) + ": " + mismatch));
+            end_status_ = Invalid("frame " + std::to_string(index) + ": " + mismatch);
+            reads_done_ = true;
+            live_->CloseInput();
             return;
           }
         }
@@ -388,6 +393,7 @@ class PushReactor final : public HubStream<grpc::ServerBidiReactor<v1::PushReque
       *out->mutable_pose() = *item;
       out->mutable_pose()->set_dropped_for_subscriber(dropped);
     }
+    if (next == Next::kEnd && end->ok() && !end_status_.ok()) *end = end_status_;
     return next;
   }
 
@@ -396,6 +402,7 @@ class PushReactor final : public HubStream<grpc::ServerBidiReactor<v1::PushReque
   LiveFrameSource* live_ = nullptr;
   std::deque<v1::PushResponse> control_;
   bool reads_done_ = false;
+  Status end_status_;  // replaces OK at the end of the stream (a refused frame)
   int64_t frames_ = 0, oxts_ = 0;
 };
 
@@ -642,6 +649,18 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
         if (static_cast<size_t>(k.first_frame()) >= dataset->size()) {
           return Invalid("kitti.first_frame " + std::to_string(k.first_frame()) + ": the drive has " +
                          std::to_string(dataset->size()) + " frames");
+        }
+        // A drive without stereo pairs (no image_01/, say) would "finish"
+        // with no poses: refuse it now.
+        const size_t last = k.last_frame() <= 0 ? dataset->size() - 1
+                                                : std::min(dataset->size() - 1, static_cast<size_t>(k.last_frame()));
+        bool any_stereo = false;
+        for (size_t i = static_cast<size_t>(k.first_frame()); i <= last && !any_stereo; ++i)
+          any_stereo = dataset->has_stereo(i);
+        if (!any_stereo) {
+          return {StatusCode::FAILED_PRECONDITION, "kitti.path " + Quoted(k.path()) + ": no frame in [" +
+                                                       std::to_string(k.first_frame()) + ", " + std::to_string(last) +
+                                                       "] has both a left and a right image (image_00/, image_01/)"};
         }
         options.source = "kitti:" + k.path();
         source = std::make_unique<DatasetFrameSource>(std::move(dataset), k.first_frame(),

@@ -133,6 +133,14 @@ TEST(Contract, SessionReportsItsOriginIdsAreUniqueAcrossRestartsYamlScenarioIsNa
     // Synthetic drives are rendered around Karlsruhe (49 N, 8.4 E).
     EXPECT_NEAR(done.origin_latitude_deg(), 49.0, 1.0);
     EXPECT_NEAR(done.origin_longitude_deg(), 8.4, 1.0);
+    // Defect 16: synthetic t_ns is Unix time (UTC) on the render date, as
+    // the proto's header says.
+    PoseCollector poses(server.NewChannel(9), s.id(), true, 30);
+    ASSERT_TRUE(poses.WaitDone(30));
+    ASSERT_FALSE(poses.poses().empty());
+    constexpr int64_t k20240517 = 1715904000LL * 1000000000LL;
+    EXPECT_GE(poses.poses().front().t_ns(), k20240517);
+    EXPECT_LT(poses.poses().front().t_ns(), k20240517 + 86400LL * 1000000000LL);
   }
 }
 
@@ -229,6 +237,20 @@ TEST_F(ContractRequests, SyntheticOptionsAreValidatedBeforeOk) {
   const grpc::Status s = Start(too_many);
   EXPECT_EQ(s.error_code(), grpc::INVALID_ARGUMENT);
   EXPECT_NE(s.error_message().find("max_synthetic_frames=3000"), std::string::npos) << s.error_message();
+}
+
+// Defect 11: a KITTI drive without right images is refused at StartSession.
+TEST_F(ContractRequests, KittiDriveWithoutRightImagesIsFailedPrecondition) {
+  const fs::path dir = TestDir("no_image_01");
+  std::string error;
+  const fs::path drive = RenderSynthDrive(dir / "2024_05_17", 6, 1, 160, 64, &error);
+  ASSERT_FALSE(drive.empty()) << error;
+  fs::remove_all(drive / "image_01");
+  v1::StartSessionRequest req;
+  req.mutable_kitti()->set_path(drive.string());
+  const grpc::Status s = Start(req);
+  EXPECT_EQ(s.error_code(), grpc::FAILED_PRECONDITION) << s.error_message();
+  EXPECT_NE(s.error_message().find("has both a left and a right image"), std::string::npos) << s.error_message();
 }
 
 // Defect 10: controls of a stopped session are refused, not silently kept.

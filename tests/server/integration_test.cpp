@@ -534,6 +534,44 @@ TEST_F(ServerTest, PngDeclaringAnotherSizeEndsThePushWithInvalidArgument) {
   EXPECT_EQ(RunCli(port_, {"health"}).out, "SERVING\n");
 }
 
+TEST_F(ServerTest, FramesBeforeARefusedFrameAreStillPublished) {
+  // Issue 18, defect 13: frames 0-4 are good, frame 5 declares another size.
+  Pusher push(stub_.get(), "");
+  ASSERT_TRUE(push.ok());
+  for (int i = 0; i < 5; ++i) push.Write(Gray8Frame((i + 1) * kFramePeriodNs));
+  std::vector<uint8_t> buf;
+  ASSERT_TRUE(cv::imencode(".png", cv::Mat(48, 64, CV_8UC1, cv::Scalar(9)), buf));
+  v1::PushRequest bad = Gray8Frame(6 * kFramePeriodNs);
+  bad.mutable_frame()->set_encoding(v1::IMAGE_ENCODING_PNG);
+  bad.mutable_frame()->set_left(std::string(buf.begin(), buf.end()));
+  bad.mutable_frame()->set_right(std::string(buf.begin(), buf.end()));
+  push.Write(bad);
+  const grpc::Status s = push.Close();
+  EXPECT_EQ(s.error_code(), grpc::INVALID_ARGUMENT) << s.error_message();
+  EXPECT_NE(s.error_message().find("frame 5"), std::string::npos) << s.error_message();
+  const auto poses = push.poses();
+  ASSERT_EQ(poses.size(), 5u) << "the poses of frames 0-4 come before the status";
+  for (size_t k = 0; k < poses.size(); ++k) EXPECT_EQ(poses[k].frame_index(), static_cast<int64_t>(k));
+}
+
+TEST_F(ServerTest, OxtsOlderThanTheLastAcceptedIsCountedNotUsed) {
+  // Issue 18, defect 12: the record at 0.05 s arrives after the frame at
+  // 0.2 s consumed the one at 0.1 s (the buffer is empty then).
+  Pusher push(stub_.get(), "");
+  ASSERT_TRUE(push.ok());
+  push.Write(Oxts(kFramePeriodNs, OxtsLine()));
+  push.Write(Gray8Frame(2 * kFramePeriodNs));
+  push.Write(Oxts(kFramePeriodNs / 2, OxtsLine()));
+  push.Write(Gray8Frame(3 * kFramePeriodNs));
+  ASSERT_TRUE(push.WaitPoses(2));
+  const v1::SessionStats stats = Stats(push.session().id());
+  EXPECT_EQ(stats.oxts_bad_lines(), 1u);
+  EXPECT_NE(stats.last_input_error().find("not after the previous record"), std::string::npos)
+      << stats.last_input_error();
+  EXPECT_EQ(push.poses().back().gps_used(), 1u) << "the late record never reached the estimator";
+  EXPECT_TRUE(push.Close().ok());
+}
+
 TEST_F(ServerTest, OversizeMessageIsRejectedAndTheStreamEnds) {
   server_->Shutdown();
   ServerConfig c = LoopbackConfig();
