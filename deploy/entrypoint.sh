@@ -16,6 +16,8 @@
 #   LOCAID_LISTEN        listen address, overrides the YAML [0.0.0.0:50051]
 #   LOCAID_WORK_DIR      writable scratch (rendered drives) [/var/lib/locaid]
 #   LOCAID_TOKEN_FILE    bearer token file, passed to server and demo client
+#   LOCAID_METRICS_LISTEN  host:port of the Prometheus /metrics endpoint
+#                        (--metrics-listen), e.g. 0.0.0.0:9464 [off]
 #   LOCAID_DEMO_DRIVE    KITTI raw drive folder to play instead of rendering a
 #                        synthetic one, e.g. /data/kitti/2011_09_26/2011_09_26_drive_0001_sync
 #   LOCAID_DEMO_FRAMES [200]  LOCAID_DEMO_SEED [7]  (synthetic demo drive)
@@ -41,6 +43,7 @@ server_args() {
   local args=(--listen "$listen")
   if [[ -f "$config" ]]; then args+=(--config "$config"); fi
   if [[ -n "${LOCAID_TOKEN_FILE:-}" ]]; then args+=(--token-file "$LOCAID_TOKEN_FILE"); fi
+  if [[ -n "${LOCAID_METRICS_LISTEN:-}" ]]; then args+=(--metrics-listen "$LOCAID_METRICS_LISTEN"); fi
   printf '%s\0' "${args[@]}"
 }
 

@@ -3,6 +3,7 @@
 # packages only. Used by the README commands, .ci/run and deploy/Containerfile.
 #
 #   deploy/install-deps.sh            # build + test dependencies
+#   deploy/install-deps.sh --build    # build dependencies only (container build stage)
 #   deploy/install-deps.sh --runtime  # only the shared libraries the binaries need
 #   deploy/install-deps.sh --fuzz     # build + test dependencies and clang/libFuzzer (fuzz/)
 set -euo pipefail
@@ -13,18 +14,21 @@ build_pkgs=(
   libeigen3-dev libgeographiclib-dev
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc
   libgtest-dev libgmock-dev libbenchmark-dev
-  libyaml-cpp-dev nlohmann-json3-dev libcli11-dev
+  libyaml-cpp-dev nlohmann-json3-dev libcli11-dev prometheus-cpp-dev
   python3 python3-matplotlib python3-grpcio python3-protobuf python3-grpc-tools
 )
 runtime_pkgs=(
   libopencv-core406 libopencv-imgproc406 libopencv-imgcodecs406
   libopencv-features2d406 libopencv-calib3d406 libopencv-video406
   libgeographiclib23 libgrpc++1.51 libprotobuf32 libyaml-cpp0.7
+  libprometheus-cpp-pull1.0 libprometheus-cpp-core1.0
 )
 
 fuzz_pkgs=(clang libclang-rt-14-dev)  # optional: libFuzzer + sanitizer runtimes
+test_pkgs=(prometheus)  # promtool: the metrics test checks a live scrape with it
 
-pkgs=("${build_pkgs[@]}")
+pkgs=("${build_pkgs[@]}" "${test_pkgs[@]}")
+[[ "${1:-}" == "--build" ]] && pkgs=("${build_pkgs[@]}")
 [[ "${1:-}" == "--runtime" ]] && pkgs=("${runtime_pkgs[@]}")
 [[ "${1:-}" == "--fuzz" ]] && pkgs+=("${fuzz_pkgs[@]}")
 

@@ -520,6 +520,8 @@ FusedPose Ekf::Output(int64_t t_ns, bool vo_ok) const {
   out.gps_used = gps_used_;
   out.gps_rejected = gps_rejected_;
   out.gps_resets = gps_resets_;
+  out.last_gps_nis = last_nis_;
+  out.gps_gate = gate_h_;
   out.seconds_since_gps = last_gps_accepted_ns_ ? Seconds(t_ns, *last_gps_accepted_ns_)
                                                 : std::numeric_limits<double>::infinity();
   if (!initialized_) {

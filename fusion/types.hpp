@@ -46,6 +46,9 @@ struct FusedPose {
   double seconds_since_gps = 0;  // since the last accepted fix; +inf before the first
   int gps_used = 0, gps_rejected = 0;  // cumulative counts (a fix used in part counts as used)
   int gps_resets = 0;  // cumulative: position resets to GPS after a run of gate rejections
+  // Normalised innovation squared of the newest GPS fix's horizontal part and
+  // the gate it was held against (2 dof); 0 before the first gated fix.
+  double last_gps_nis = 0, gps_gate = 0;
 };
 
 }  // namespace locaid::fusion

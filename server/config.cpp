@@ -168,6 +168,7 @@ void ApplyYamlConfig(const std::filesystem::path& file, ServerConfig* c) {
       {"keepalive_timeout_s", real(&c->keepalive_timeout_s)},
       {"shutdown_grace_s", real(&c->shutdown_grace_s)},
       {"port_file", str(&c->port_file)},
+      {"metrics_listen", str(&c->metrics_listen)},
   };
   for (const auto& kv : root) {
     const std::string key = kv.first.as<std::string>();
@@ -191,6 +192,13 @@ void ApplyYamlConfig(const std::filesystem::path& file, ServerConfig* c) {
 void ValidateConfig(ServerConfig* c) {
   ParseListenPort(c->listen);
   if (!c->listen_unix.empty()) CheckListenUnixPath(c->listen_unix);
+  if (!c->metrics_listen.empty()) {
+    try {
+      ParseListenPort(c->metrics_listen);
+    } catch (const ConfigError& e) {
+      throw ConfigError(std::string("metrics_listen: ") + e.what());
+    }
+  }
   if (c->tls_cert_file.empty() != c->tls_key_file.empty()) {
     throw ConfigError("tls_cert_file and tls_key_file must be given together");
   }

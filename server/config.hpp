@@ -58,6 +58,9 @@ struct ServerConfig {
   double keepalive_timeout_s = 10;
   double shutdown_grace_s = 1.5;           // streams still open this long after SIGTERM are cancelled
   std::string port_file;                   // write the bound port here once listening
+  // host:port of the Prometheus /metrics endpoint; empty = off (default).
+  // Plain HTTP without the token: bind it to loopback or a pod network.
+  std::string metrics_listen;
   bool log_shutdown = false;               // print shutdown timings (locaid-server sets it)
 };
 

@@ -67,6 +67,8 @@ int main(int argc, char** argv) {
   app.add_option("--shutdown-grace-s", cli.shutdown_grace_s, "streams still open this long after SIGTERM are cancelled")
       ->capture_default_str();
   app.add_option("--port-file", cli.port_file, "write the bound port to this file once listening");
+  app.add_option("--metrics-listen", cli.metrics_listen,
+                 "serve Prometheus metrics on host:port (GET /metrics; off by default; no token)");
   CLI11_PARSE(app, argc, argv);
 
   ServerConfig config;
@@ -97,6 +99,7 @@ int main(int argc, char** argv) {
     take("--default-vo", &ServerConfig::default_vo_method);
     take("--shutdown-grace-s", &ServerConfig::shutdown_grace_s);
     take("--port-file", &ServerConfig::port_file);
+    take("--metrics-listen", &ServerConfig::metrics_listen);
     (void)defaults;
     locaid::server::ValidateConfig(&config);
     config.log_shutdown = true;
@@ -113,7 +116,12 @@ int main(int argc, char** argv) {
               << (config.listen_unix.empty() ? "" : " and " + server.unix_target() + " (mode 0660)")
               << (server.replaced_stale_socket() ? " (replaced a stale socket file)" : "")
               << (config.tls_cert_file.empty() ? "" : " (TLS)")
-              << (config.token.empty() ? "" : " (token)") << std::endl;
+              << (config.token.empty() ? "" : " (token)")
+              << (server.metrics_port() > 0 ? "; metrics on " + config.metrics_listen.substr(
+                                                  0, config.metrics_listen.rfind(':')) + ":" +
+                                                  std::to_string(server.metrics_port()) + "/metrics"
+                                            : "")
+              << std::endl;
     const int sig = WaitForSignal();
     std::cout << "locaid-server: signal " << sig << ", shutting down" << std::endl;
     server.Shutdown();

@@ -548,6 +548,24 @@ Status LocalizationService::ResolveScenario(const v1::Scenario& s, fusion::Scena
   return Status::OK;
 }
 
+std::vector<prometheus::MetricFamily> LocalizationService::CollectMetrics() const {
+  std::vector<std::shared_ptr<Session>> sessions;
+  {
+    std::lock_guard lock(mu_);
+    for (const auto& [id, e] : sessions_) sessions.push_back(e.session);
+  }
+  std::vector<SessionMetrics> snapshots;
+  ServerFigures figures;
+  for (const auto& s : sessions) {
+    snapshots.emplace_back(s->id(), s->Metrics());
+    figures.render_queue += snapshots.back().second.state == v1::SESSION_STATE_STARTING ? 1 : 0;
+  }
+  figures.max_concurrent_renders = config_.max_concurrent_renders;
+  figures.rendered_drive_bytes = DirectoryBytes(SyntheticRoot(config_.work_dir).string());
+  figures.resident_memory_bytes = ResidentMemoryBytes();
+  return BuildMetricFamilies(snapshots, figures);
+}
+
 std::vector<std::shared_ptr<Session>> LocalizationService::PruneEndedLocked() {
   const int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(
                           std::chrono::system_clock::now().time_since_epoch()).count();
@@ -1056,6 +1074,10 @@ LocalizationServer::LocalizationServer(ServerConfig config, EstimatorFactory est
   // Health answers for the server ("") and for the service by its full name.
   server_->GetHealthCheckService()->SetServingStatus(true);
   server_->GetHealthCheckService()->SetServingStatus(kServiceName, true);
+  if (!config_.metrics_listen.empty()) {
+    LocalizationService* service = service_.get();
+    metrics_ = std::make_unique<MetricsExporter>(config_.metrics_listen, [service] { return service->CollectMetrics(); });
+  }
   if (!config_.port_file.empty()) {
     std::ofstream(config_.port_file) << port_ << "\n";
   }
@@ -1071,6 +1093,7 @@ void LocalizationServer::Shutdown() {
     };
     server_->GetHealthCheckService()->SetServingStatus(false);
     server_->GetHealthCheckService()->SetServingStatus(kServiceName, false);
+    metrics_.reset();  // its threads stop before the sessions go
     service_->BeginShutdown();
     // Every stream was just told to end with UNAVAILABLE; once all have
     // delivered that status nothing is left to wait for, so idle client

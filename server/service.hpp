@@ -3,6 +3,7 @@
 
 #include "locaid/v1/localization.grpc.pb.h"
 #include "server/config.hpp"
+#include "server/metrics.hpp"
 #include "server/session.hpp"
 #include "server/source_pipeline.hpp"
 
@@ -139,6 +140,12 @@ class LocalizationService final
   grpc::Status ResolveScenario(const locaid::v1::Scenario& s, fusion::Scenario* out, std::string* name) const;
   grpc::Status AddSession(SessionOptions options, std::unique_ptr<SessionPipeline> pipeline,
                           LiveFrameSource* live, std::string* id);
+
+ public:
+  // Everything /metrics serves, read now (server/metrics.hpp).
+  std::vector<prometheus::MetricFamily> CollectMetrics() const;
+
+ private:
   // Takes ended sessions beyond max_ended_sessions or older than
   // ended_session_ttl_s out of the registry (mu_ held); the caller destroys
   // them after unlocking.
@@ -177,6 +184,8 @@ class LocalizationServer {
   std::string unix_target() const { return config_.listen_unix.empty() ? "" : "unix:" + config_.listen_unix; }
   // True when a stale socket file was at listen_unix and was replaced.
   bool replaced_stale_socket() const { return replaced_stale_socket_; }
+  // Port of the /metrics endpoint (0: metrics_listen not set).
+  int metrics_port() const { return metrics_ ? metrics_->port() : 0; }
   // Health NOT_SERVING, sessions stopped, streams ended with UNAVAILABLE,
   // grpc Shutdown with deadline now + shutdown_grace_s, sessions joined.
   void Shutdown();
@@ -186,6 +195,7 @@ class LocalizationServer {
   ServerConfig config_;
   std::unique_ptr<LocalizationService> service_;
   std::unique_ptr<grpc::Server> server_;
+  std::unique_ptr<MetricsExporter> metrics_;  // after service_: destroyed first
   int port_ = 0;
   bool replaced_stale_socket_ = false;
   std::once_flag shutdown_once_;

@@ -173,6 +173,20 @@ void Session::Record(const StepResult& r, double latency_ms) {
     if (!has_origin_) {
       has_origin_ = pipeline_->origin(&origin_[0], &origin_[1], &origin_[2]);
     }
+    const fusion::FusedPose& p = r.pose;
+    last_.has_pose = true;
+    last_.mode = p.mode;
+    last_.seconds_since_gps = p.seconds_since_gps;
+    last_.last_gps_nis = p.last_gps_nis;
+    last_.gps_gate = p.gps_gate;
+    last_.position_sigma_h_m = std::sqrt(std::max(0.0, p.covariance(0, 0) + p.covariance(1, 1)));
+    last_.vo_inliers = r.vo_inliers;
+    last_.gps_used = p.gps_used;
+    last_.gps_rejected = p.gps_rejected;
+    const double latency_s = latency_ms / 1000.0;
+    for (size_t b = 0; b < kLatencyBucketsS.size(); ++b) last_.latency_le[b] += latency_s <= kLatencyBucketsS[b] ? 1 : 0;
+    ++last_.latency_count;
+    last_.latency_sum_s += latency_s;
   }
 }
 
@@ -228,6 +242,17 @@ void Session::Run() {
   }
   ended_unix_ns_ = UnixNowNs();
   hub_.Close();
+}
+
+Session::MetricsSnapshot Session::Metrics() const {
+  MetricsSnapshot m;
+  {
+    std::lock_guard lock(stats_mu_);
+    m = last_;
+  }
+  m.stats = Stats();
+  m.state = state_.load();
+  return m;
 }
 
 locaid::v1::SessionStats Session::Stats() const {

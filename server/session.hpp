@@ -6,6 +6,7 @@
 #include "server/pose_hub.hpp"
 #include "server/session_pipeline.hpp"
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -55,6 +56,22 @@ class Session {
   Hub& hub() { return hub_; }
   locaid::v1::Session ToProto() const;
   locaid::v1::SessionStats Stats() const;
+
+  // What an operator scrapes (server/metrics.cpp): the newest pose's filter
+  // figures and a histogram of the per-frame processing latency.
+  static constexpr std::array<double, 8> kLatencyBucketsS = {0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0};
+  struct MetricsSnapshot {
+    locaid::v1::SessionStats stats;
+    locaid::v1::SessionState state = locaid::v1::SESSION_STATE_UNSPECIFIED;
+    bool has_pose = false;
+    fusion::Mode mode = fusion::Mode::kLost;
+    double seconds_since_gps = 0, last_gps_nis = 0, gps_gate = 0, position_sigma_h_m = 0;
+    int vo_inliers = 0, gps_used = 0, gps_rejected = 0;
+    std::array<uint64_t, kLatencyBucketsS.size()> latency_le{};  // cumulative counts per bucket
+    uint64_t latency_count = 0;
+    double latency_sum_s = 0;
+  };
+  MetricsSnapshot Metrics() const;
   locaid::v1::SessionState state() const { return state_.load(); }
   // Wall clock (ns) when the session's thread ended; 0 while it runs.
   int64_t ended_unix_ns() const { return ended_unix_ns_.load(); }
@@ -73,6 +90,7 @@ class Session {
   std::thread thread_;
   const int64_t created_unix_ns_;
   std::atomic<int64_t> ended_unix_ns_{0};  // when Run() returned; 0 while it runs
+  MetricsSnapshot last_;  // pose figures and latency histogram (stats_mu_)
   const int64_t total_frames_;
 
   std::atomic<locaid::v1::SessionState> state_{locaid::v1::SESSION_STATE_STARTING};

@@ -429,5 +429,64 @@ TEST(Contract, EndedSessionsAreCappedByCountAndAge) {
   EXPECT_EQ(list().sessions_size(), 0) << "ended_session_ttl_s 0 keeps nothing once it ended";
 }
 
+// Operator metrics: a live scrape passes Debian's promtool and carries the
+// session's figures; the endpoint is set by flag, YAML key or the container's
+// LOCAID_METRICS_LISTEN (entrypoint).
+int MetricsPortFromLog(const std::string& log) {
+  const auto at = log.find("metrics on 127.0.0.1:");
+  return at == std::string::npos ? 0 : std::atoi(log.c_str() + at + std::string("metrics on 127.0.0.1:").size());
+}
+
+std::string Scrape(int port) {
+  const CliResult r = RunShell("/usr/bin/python3 -c \"import urllib.request,sys; sys.stdout.write("
+                               "urllib.request.urlopen('http://127.0.0.1:" + std::to_string(port) +
+                               "/metrics', timeout=10).read().decode())\"");
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  return r.out;
+}
+
+TEST(Contract, MetricsScrapePassesPromtoolAndCarriesTheSession) {
+  if (RunShell("command -v promtool").exit_code != 0)
+    GTEST_SKIP() << "promtool not installed (deploy/install-deps.sh installs Debian's prometheus package)";
+  const fs::path dir = TestDir("metrics");
+  WriteFile(dir / "server.yaml", "metrics_listen: 127.0.0.1:0\n");
+  ServerProcess server(dir, {"--config", (dir / "server.yaml").string()});
+  ASSERT_GT(server.port(), 0) << server.log();
+  int port = 0;
+  for (int i = 0; i < 200 && port == 0; ++i) {
+    port = MetricsPortFromLog(server.log());
+    if (port == 0) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_GT(port, 0) << "no 'metrics on' in the log:\n" << server.log();
+  auto stub = v1::Localization::NewStub(server.NewChannel());
+  const v1::Session s = StartSynthetic(stub.get(), "", 40);
+  for (int i = 0; i < 600 && Get(stub.get(), s.id()).state() != v1::SESSION_STATE_FINISHED; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  const std::string text = Scrape(port);
+  WriteFile(dir / "scrape.txt", text);
+  const CliResult lint = RunShell("promtool check metrics < " + ShellQuote((dir / "scrape.txt").string()));
+  EXPECT_EQ(lint.exit_code, 0) << lint.out << lint.err << "\n" << text.substr(0, 2000);
+  const std::vector<std::string> expected_lines = {
+       std::string("locaid_sessions{state=\"finished\"} 1"),
+        "locaid_session_frames_total{session=\"" + s.id() + "\",kind=\"processed\"} 40",
+        "locaid_session_processing_latency_seconds_count{session=\"" + s.id() + "\"} 40",
+        "locaid_session_mode{session=\"" + s.id() + "\",mode=\"gps_fused\"}",
+        "locaid_session_gps_nis{session=\"" + s.id() + "\"}", "locaid_session_vo_inliers{session=\"",
+        "locaid_session_position_sigma_meters{", "locaid_render_queue 0", "locaid_resident_memory_bytes "};
+  for (const std::string& expected : expected_lines) {
+    EXPECT_NE(text.find(expected), std::string::npos) << "missing: " << expected << "\n" << text.substr(0, 3000);
+  }
+  // The flag and the container variable reach the same setting.
+  ServerProcess by_flag(dir / "flag", {"--metrics-listen", "127.0.0.1:0"});
+  ASSERT_GT(by_flag.port(), 0) << by_flag.log();
+  for (int i = 0; i < 200 && MetricsPortFromLog(by_flag.log()) == 0; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  EXPECT_NE(Scrape(MetricsPortFromLog(by_flag.log())).find("locaid_sessions{"), std::string::npos);
+  const CliResult entry = RunShell("PATH=" + std::string(LOCAID_BIN_DIR) + ":$PATH LOCAID_METRICS_LISTEN=127.0.0.1:0 "
+                                   "LOCAID_LISTEN=127.0.0.1:0 LOCAID_CONFIG=/nonexistent timeout 3 bash " +
+                                   std::string(LOCAID_SOURCE_DIR) + "/deploy/entrypoint.sh server");
+  EXPECT_NE(entry.out.find("metrics on 127.0.0.1:"), std::string::npos) << entry.out << entry.err;
+}
+
 }  // namespace
 }  // namespace locaid::server::testing
