@@ -122,7 +122,10 @@ bool Ekf::UpdateGps(const GpsFix& fix) {
     return false;
   }
   PropagateTo(fix.t_ns);
-  Vec3 predicted = x_.p_enu_m;
+  // The antenna, latency_s before the time stamp (lever arm and latency; both
+  // 0 by default).
+  Vec3 predicted = GpsAntennaPrediction(x_.p_enu_m, x_.v_enu_mps, x_.R_enu_body, config_.gps_lever_arm_body_m,
+                                        config_.gps_latency_s);
   Mat3 R = Mat3::Zero();
   R.diagonal() << fix.sigma_h_m * fix.sigma_h_m, fix.sigma_h_m * fix.sigma_h_m,
       fix.sigma_v_m * fix.sigma_v_m;
@@ -133,9 +136,10 @@ bool Ekf::UpdateGps(const GpsFix& fix) {
     R.diagonal().array() += std::pow(0.3 * dt, 2);
   }
   const Vec3 y = z - predicted;
+  const Eigen::MatrixXd H = GpsMeasurementJacobian();
   // Horizontal (E, N) and vertical (U) are gated on their own, so that a
   // vertical disagreement does not throw away the horizontal information.
-  const GpsGateResult gate = GateGps(y, R);
+  const GpsGateResult gate = GateGps(y, R, H);
   last_nis_ = gate.nis_h;
   last_nis_v_ = gate.nis_v;
   bool use_h = gate.h_ok, use_v = gate.v_ok;
@@ -149,7 +153,7 @@ bool Ekf::UpdateGps(const GpsFix& fix) {
   // The reset uses the fix for its component(s); a passing other component
   // gets the normal update (its innovation is unchanged by the reset).
   if (reset_h || reset_v) ResetPositionToGps(y, R, reset_h, reset_v);
-  if ((use_h && !reset_h) || (use_v && !reset_v)) ApplyGpsUpdate(y, R, use_h && !reset_h, use_v && !reset_v);
+  if ((use_h && !reset_h) || (use_v && !reset_v)) ApplyGpsUpdate(y, R, H, use_h && !reset_h, use_v && !reset_v);
   use_h = use_h || reset_h;
   use_v = use_v || reset_v;
   if (use_h) rejections_h_ = 0;
@@ -167,8 +171,22 @@ bool Ekf::UpdateGps(const GpsFix& fix) {
   return true;
 }
 
-Ekf::GpsGateResult Ekf::GateGps(const Vec3& y, const Mat3& R) const {
-  const Mat3 S = P_.topLeftCorner<3, 3>() + R;
+Eigen::MatrixXd Ekf::GpsMeasurementJacobian() const {
+  const int n = static_cast<int>(P_.rows());
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(3, n);
+  const auto J = GpsAntennaJacobian(x_.R_enu_body, config_.gps_lever_arm_body_m, config_.gps_latency_s);
+  H.middleCols<3>(0) = J.middleCols<3>(0);
+  if (config_.use_imu) {
+    H.middleCols<3>(kV) = J.middleCols<3>(3);
+    H.middleCols<3>(kTh) = J.middleCols<3>(6);
+  } else {
+    H.middleCols<3>(3) = J.middleCols<3>(6);  // [p, theta]; velocity is not a state
+  }
+  return H;
+}
+
+Ekf::GpsGateResult Ekf::GateGps(const Vec3& y, const Mat3& R, const Eigen::MatrixXd& H) const {
+  const Mat3 S = H * P_ * H.transpose() + R;
   GpsGateResult g;
   const Eigen::Vector2d y_h = y.head<2>();
   g.nis_h = y_h.dot(S.topLeftCorner<2, 2>().ldlt().solve(y_h));
@@ -207,17 +225,17 @@ void Ekf::ResetPositionToGps(const Vec3& y, const Mat3& R, bool horizontal, bool
   ++gps_resets_;
 }
 
-void Ekf::ApplyGpsUpdate(const Vec3& y, const Mat3& R, bool horizontal, bool vertical) {
+void Ekf::ApplyGpsUpdate(const Vec3& y, const Mat3& R, const Eigen::MatrixXd& H3, bool horizontal, bool vertical) {
   std::vector<int> rows;
   if (horizontal) rows = {0, 1};
   if (vertical) rows.push_back(2);
   const int m = static_cast<int>(rows.size());
   const int n = static_cast<int>(P_.rows());
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(m, n);
+  Eigen::MatrixXd H(m, n);
   Eigen::VectorXd ym(m);
   Eigen::MatrixXd Rm(m, m);
   for (int i = 0; i < m; ++i) {
-    H(i, rows[static_cast<size_t>(i)]) = 1.0;
+    H.row(i) = H3.row(rows[static_cast<size_t>(i)]);
     ym(i) = y(rows[static_cast<size_t>(i)]);
     for (int j = 0; j < m; ++j) Rm(i, j) = R(rows[static_cast<size_t>(i)], rows[static_cast<size_t>(j)]);
   }

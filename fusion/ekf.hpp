@@ -111,6 +111,14 @@ struct EkfConfig {
   // that component of the position (covariance grown by the innovation) and is
   // fused: the gate never locks GPS out. Counted in FusedPose::gps_resets.
   int gps_reset_after_rejections = 3;
+  // Where the GPS antenna sits in the body (IMU) frame, x forward / y left /
+  // z up, metres: fixes are of the antenna, not of the IMU. A receiver 1.5 m
+  // from the IMU otherwise biases the track by up to 1.5 m, turning with the
+  // car (docs/benchmarks.md, "GPS lever arm").
+  Vec3 gps_lever_arm_body_m = Vec3::Zero();
+  // The fix is where the antenna was this long before the fix's time stamp
+  // (receiver latency), s; 0 = the time stamp is the measurement time.
+  double gps_latency_s = 0.0;
   double degraded_hold_s = 3.0;       // GPS_DEGRADED while a rejection is this recent
   double vo_only_after_periods = 1.5; // VO_ONLY when no fix for this x GPS period
 };
@@ -173,9 +181,11 @@ class Ekf {
     double nis_h = 0, nis_v = 0;
     bool h_ok = false, v_ok = false;
   };
-  GpsGateResult GateGps(const Vec3& y, const Mat3& R) const;
+  // Measurement Jacobian of the fix (3 x n) for the current state.
+  Eigen::MatrixXd GpsMeasurementJacobian() const;
+  GpsGateResult GateGps(const Vec3& y, const Mat3& R, const Eigen::MatrixXd& H) const;
   void ResetPositionToGps(const Vec3& y, const Mat3& R, bool horizontal, bool vertical);
-  void ApplyGpsUpdate(const Vec3& y, const Mat3& R, bool horizontal, bool vertical);
+  void ApplyGpsUpdate(const Vec3& y, const Mat3& R, const Eigen::MatrixXd& H, bool horizontal, bool vertical);
 
   EkfConfig config_;
   EnuFrame enu_;

@@ -174,6 +174,19 @@ VoMeasurement CameraMotionToBody(const Eigen::Isometry3d& T_prev_curr_cam, const
   return m;
 }
 
+Vec3 GpsAntennaPrediction(const Vec3& p_enu, const Vec3& v_enu, const Mat3& R_enu_body, const Vec3& lever_body_m,
+                          double latency_s) {
+  return p_enu + R_enu_body * lever_body_m - v_enu * latency_s;
+}
+
+Eigen::Matrix<double, 3, 9> GpsAntennaJacobian(const Mat3& R_enu_body, const Vec3& lever_body_m, double latency_s) {
+  Eigen::Matrix<double, 3, 9> H;
+  H.block<3, 3>(0, 0) = Mat3::Identity();
+  H.block<3, 3>(0, 3) = -latency_s * Mat3::Identity();
+  H.block<3, 3>(0, 6) = -Skew(R_enu_body * lever_body_m);  // Exp(dtheta) R l ~= R l - [R l]x dtheta
+  return H;
+}
+
 Vec3 CorrectVoTranslation(const Vec3& t_measured, const Mat3& R_boresight, double scale_error) {
   return R_boresight.transpose() * t_measured / (1.0 + scale_error);
 }

@@ -87,6 +87,15 @@ Eigen::Matrix<double, 6, kVoCalibStates> VoCalibrationJacobian(const Mat3& R_mea
 // GPS position measurement z = p_enu (+ noise): H = [I3 0 ...] (3 x n).
 Eigen::MatrixXd GpsJacobian(int state_dim);
 
+// GPS antenna position measurement with a lever arm and a latency: the fix
+// is where the antenna (at lever_body_m in the body frame) was latency_s
+// before the fix's time stamp, predicted from the state at that time stamp:
+//   h = p + R lever - v latency
+// and its Jacobian w.r.t. [dp, dv, dtheta] (3 x 9, global attitude error).
+Vec3 GpsAntennaPrediction(const Vec3& p_enu, const Vec3& v_enu, const Mat3& R_enu_body, const Vec3& lever_body_m,
+                          double latency_s);
+Eigen::Matrix<double, 3, 9> GpsAntennaJacobian(const Mat3& R_enu_body, const Vec3& lever_body_m, double latency_s);
+
 // No-IMU mode: pose propagated by the body motion (t_b, R_b) measured by VO:
 //   p' = p + R t_b,  R' = R R_b.  F (6x6) w.r.t. [dp, dtheta], G (6x6) w.r.t.
 // the VO noise [n_t, n_theta] (convention of VoMeasurement::covariance).

@@ -31,6 +31,8 @@ const char* ToString(ImuGrade grade) {
 }
 
 void ValidateScenario(const Scenario& s) {
+  if (!s.gps_antenna_body_m.allFinite() || s.gps_antenna_body_m.norm() > 10.0)
+    Bad(s, "gps.antenna_body_m", "must be finite and within 10 m of the IMU");
   if (!(std::isfinite(s.gps_rate_hz) && s.gps_rate_hz > 0))
     Bad(s, "gps.rate_hz", "must be > 0, got " + std::to_string(s.gps_rate_hz));
   RequireNonNegative(s, "gps.sigma_h_m", s.gps_sigma_h_m);
@@ -124,7 +126,8 @@ int64_t FixSlot(int64_t t_since_start_ns, double rate_hz) {
   return static_cast<int64_t>(std::floor(periods + 0.5));
 }
 
-std::optional<GpsFix> GpsScenario::Apply(int64_t t_ns, double lat, double lon, double alt) {
+std::optional<GpsFix> GpsScenario::Apply(int64_t t_ns, double lat, double lon, double alt,
+                                         const Eigen::Matrix3d* R_enu_body) {
   if (!drive_start_ns_) SetDriveStart(t_ns);
   if (!bias_initialized_) {
     bias_initialized_ = true;
@@ -166,10 +169,13 @@ std::optional<GpsFix> GpsScenario::Apply(int64_t t_ns, double lat, double lon, d
   const Eigen::Vector3d err(scenario_.gps_sigma_h_m * n01(rng_) + bias_enu_m_.x() + jump.x(),
                             scenario_.gps_sigma_h_m * n01(rng_) + bias_enu_m_.y() + jump.y(),
                             scenario_.gps_sigma_v_m * n01(rng_) + bias_enu_m_.z());
+  const Eigen::Vector3d antenna =
+      R_enu_body ? Eigen::Vector3d(*R_enu_body * scenario_.gps_antenna_body_m) : Eigen::Vector3d::Zero();
   GeographicLib::LocalCartesian lc(lat, lon, alt);
   GpsFix fix;
   fix.t_ns = t_ns;
-  lc.Reverse(err.x(), err.y(), err.z(), fix.lat_deg, fix.lon_deg, fix.alt_m);
+  lc.Reverse(err.x() + antenna.x(), err.y() + antenna.y(), err.z() + antenna.z(), fix.lat_deg, fix.lon_deg,
+             fix.alt_m);
   // The receiver claims its white noise plus the bias it cannot see.
   fix.sigma_h_m = std::hypot(scenario_.gps_sigma_h_m, scenario_.gps_bias_sigma_m);
   fix.sigma_v_m = std::hypot(scenario_.gps_sigma_v_m, scenario_.gps_bias_sigma_m);

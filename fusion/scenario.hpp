@@ -41,6 +41,9 @@ struct Scenario {
   double jump_probability = 0.0;     // per fix: probability that a multipath jump starts
   double jump_size_m = 0.0;          // horizontal size of a jump (random direction)
   double jump_duration_s = 0.0;      // how long a jump lasts (0: one fix)
+  // Where the simulated receiver's antenna sits in the body (IMU) frame, m:
+  // the degraded fix is of that point (needs the attitude, see Apply).
+  Eigen::Vector3d gps_antenna_body_m = Eigen::Vector3d::Zero();
   // IMU.
   ImuGrade imu_grade = ImuGrade::kAsRecorded;
   double imu_accel_bias_sigma_mps2 = 0.05;      // kMems: turn-on bias, 1-sigma per axis
@@ -81,7 +84,10 @@ class GpsScenario {
 
   // Feed every OXTS position in time order; returns a degraded fix when one is
   // due and GPS is not in an outage. The first call fixes the drive start.
-  std::optional<GpsFix> Apply(int64_t t_ns, double lat_deg, double lon_deg, double alt_m);
+  // R_enu_body (the true attitude) places the antenna; without it the fix is
+  // of the given point whatever gps_antenna_body_m says.
+  std::optional<GpsFix> Apply(int64_t t_ns, double lat_deg, double lon_deg, double alt_m,
+                              const Eigen::Matrix3d* R_enu_body = nullptr);
   // Whether t_ns lies in a scheduled or run-time outage.
   bool InOutage(int64_t t_ns) const;
 

@@ -1,5 +1,7 @@
 #include "server/pipeline/localizer.hpp"
 
+#include "kitti/oxts_pose.hpp"
+
 #include <chrono>
 #include <stdexcept>
 
@@ -137,7 +139,9 @@ FrameResult Localizer::Fuse(const vo::RelativeMotion& vo_cam,
       ekf_->PropagateImu(imu_->Apply(imu));
       ++r.imu_samples;
     }
-    if (auto fix = gps_->Apply(s.t_ns, s.record.lat_deg, s.record.lon_deg, s.record.alt_m)) {
+    // The true attitude places a simulated antenna (Scenario::gps_antenna_body_m).
+    const Eigen::Matrix3d R_enu_imu = kitti::OxtsAttitude(s.record.roll_rad, s.record.pitch_rad, s.record.yaw_rad);
+    if (auto fix = gps_->Apply(s.t_ns, s.record.lat_deg, s.record.lon_deg, s.record.alt_m, &R_enu_imu)) {
       GpsFeed feed;
       feed.fix = *fix;
       const int rejected_before = ekf_->gps_rejected();

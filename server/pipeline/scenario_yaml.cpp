@@ -80,7 +80,12 @@ fusion::Scenario ParseScenarioYaml(const std::string& text, const std::string& w
   }
   if (const auto g = root["gps"]) {
     c.CheckKeys(g, "gps", {"rate_hz", "sigma_h_m", "sigma_v_m", "bias_sigma_m", "bias_tau_s",
-                           "jump_probability", "jump_size_m", "jump_duration_s"});
+                           "jump_probability", "jump_size_m", "jump_duration_s", "antenna_body_m"});
+    if (g["antenna_body_m"]) {
+      const auto a = g["antenna_body_m"];
+      if (!a.IsSequence() || a.size() != 3) c.Fail(a, "gps.antenna_body_m", "expected [x, y, z] in metres (body frame)");
+      for (int i = 0; i < 3; ++i) s.gps_antenna_body_m[i] = c.Number(a[i], "gps.antenna_body_m");
+    }
     if (g["rate_hz"]) s.gps_rate_hz = c.Positive(g["rate_hz"], "gps.rate_hz");
     if (g["sigma_h_m"]) s.gps_sigma_h_m = c.NonNegative(g["sigma_h_m"], "gps.sigma_h_m");
     if (g["sigma_v_m"]) s.gps_sigma_v_m = c.NonNegative(g["sigma_v_m"], "gps.sigma_v_m");

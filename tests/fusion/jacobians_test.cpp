@@ -111,6 +111,27 @@ TEST(VoCalibrationJacobian, MatchesFiniteDifferences) {
   }
 }
 
+TEST(GpsAntennaJacobian, MatchesFiniteDifferences) {
+  std::mt19937_64 rng(13);
+  std::normal_distribution<double> n01;
+  for (int trial = 0; trial < 10; ++trial) {
+    const NominalState x = RandomState(rng);
+    const Vec3 lever(1.5 * n01(rng), 1.5 * n01(rng), 0.5 * n01(rng));
+    const double latency = 0.2 * std::abs(n01(rng));
+    const auto H = GpsAntennaJacobian(x.R_enu_body, lever, latency);
+    Eigen::Matrix<double, 3, 9> H_num;
+    for (int j = 0; j < 9; ++j) {
+      Eigen::Matrix<double, 15, 1> d = Eigen::Matrix<double, 15, 1>::Zero();
+      d[j] = kStep;  // [dp, dv, dtheta] are the first 9 error states
+      const NominalState xp = BoxPlus(x, d), xm = BoxPlus(x, -d);
+      H_num.col(j) = (GpsAntennaPrediction(xp.p_enu_m, xp.v_enu_mps, xp.R_enu_body, lever, latency) -
+                      GpsAntennaPrediction(xm.p_enu_m, xm.v_enu_mps, xm.R_enu_body, lever, latency)) /
+                     (2 * kStep);
+    }
+    EXPECT_LT((H - H_num).cwiseAbs().maxCoeff(), kJacobianTol) << "H\n" << H << "\nnum\n" << H_num;
+  }
+}
+
 TEST(GpsJacobian, MatchesFiniteDifferences) {
   std::mt19937_64 rng(3);
   const NominalState x = RandomState(rng);
