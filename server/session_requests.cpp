@@ -1,0 +1,257 @@
+// Request translation for starting sessions: every field of a
+// StartSessionRequest (and a PushSensorData start) is checked here, before
+// the RPC answers OK, and turned into a session's pipeline.
+#include "server/service.hpp"
+
+#include "kitti/dataset.hpp"
+#include "kitti/raw_drive.hpp"
+#include "server/frame_source.hpp"
+#include "server/status.hpp"
+#include "server/synthetic_drive.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <climits>
+#include <cmath>
+#include <filesystem>
+#include <sstream>
+#include <string>
+#include <utility>
+
+namespace locaid::server {
+namespace {
+
+namespace v1 = locaid::v1;
+using grpc::Status;
+using grpc::StatusCode;
+
+bool Finite(double x) { return std::isfinite(x); }
+
+Status ParseLiveSource(const v1::LiveSource& l, LiveCameraSetup* out) {
+  for (const auto& [name, v] : {std::pair{"fx", l.fx()}, {"fy", l.fy()}, {"baseline_m", l.baseline_m()}}) {
+    if (!Finite(v) || v <= 0) return Invalid(std::string("live.") + name + ": must be finite and > 0, got " + std::to_string(v));
+  }
+  for (const auto& [name, v] : {std::pair{"cx", l.cx()}, {"cy", l.cy()}}) {
+    if (!Finite(v)) return Invalid(std::string("live.") + name + ": must be finite");
+  }
+  if (l.width() < 16 || l.height() < 16 || l.width() > 8192 || l.height() > 8192) {
+    return Invalid("live.width/height: must be in [16, 8192], got " + std::to_string(l.width()) + "x" +
+                   std::to_string(l.height()));
+  }
+  out->camera = kitti::StereoCamera{l.fx(), l.fy(), l.cx(), l.cy(), l.baseline_m(), l.width(), l.height()};
+  if (l.t_cam0_imu_size() == 0) {
+    out->T_cam0_imu = KittiRigTcam0Imu();
+  } else if (l.t_cam0_imu_size() == 12) {
+    Eigen::Matrix<double, 3, 4> m;
+    for (int i = 0; i < 12; ++i) {
+      if (!Finite(l.t_cam0_imu(i))) return Invalid("live.T_cam0_imu[" + std::to_string(i) + "]: not finite");
+      m(i / 4, i % 4) = l.t_cam0_imu(i);
+    }
+    const Eigen::Matrix3d R = m.leftCols<3>();
+    if ((R * R.transpose() - Eigen::Matrix3d::Identity()).norm() > 1e-6 || R.determinant() < 0) {
+      return Invalid("live.T_cam0_imu: rotation part is not orthonormal");
+    }
+    out->T_cam0_imu.linear() = R;
+    out->T_cam0_imu.translation() = m.col(3);
+  } else {
+    return Invalid("live.T_cam0_imu: expected 0 or 12 values, got " + std::to_string(l.t_cam0_imu_size()));
+  }
+  return Status::OK;
+}
+
+}  // namespace
+
+Status LocalizationService::ResolveScenario(const v1::Scenario& s, fusion::Scenario* out, std::string* name) const {
+  try {
+    switch (s.kind_case()) {
+      case v1::Scenario::kYaml:
+        *out = ScenarioFromYaml(s.yaml());
+        *name = out->name.empty() ? "yaml" : out->name;
+        break;
+      case v1::Scenario::kName:
+        *out = ScenarioFromName(s.name());
+        *name = s.name();
+        break;
+      case v1::Scenario::KIND_NOT_SET:
+        *out = ScenarioFromName(config_.default_scenario);
+        *name = config_.default_scenario;
+        break;
+    }
+  } catch (const std::exception& e) {
+    return Invalid(std::string("scenario: ") + e.what());
+  }
+  return Status::OK;
+}
+
+Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::string* id) {
+  // Pacing divides the sensor time by the rate: outside [1e-3, 1e3] it
+  // overflows or is meaningless (1e-300 played at full speed).
+  const double rate = req.playback_rate();
+  if (!Finite(rate) || (rate != 0 && (rate < kMinPlaybackRate || rate > kMaxPlaybackRate))) {
+    std::ostringstream got;
+    got << rate;
+    return Invalid("playback_rate: must be 0 (as fast as possible) or in [0.001, 1000], got " + got.str());
+  }
+  SessionOptions options;
+  options.playback_rate = req.playback_rate();
+  options.vo_method = req.vo_method().empty() ? config_.default_vo_method : req.vo_method();
+  options.history_size = req.history_size() == 0 ? config_.history_size
+                                                  : std::min<size_t>(req.history_size(), config_.max_history_size);
+  EstimatorSetup setup;
+  setup.vo_method = options.vo_method;
+  if (Status s = ResolveScenario(req.scenario(), &setup.scenario, &options.scenario); !s.ok()) return s;
+
+  std::unique_ptr<FrameSource> source;
+  LiveFrameSource* live = nullptr;
+  try {
+    switch (req.source_case()) {
+      case v1::StartSessionRequest::kKitti: {
+        const auto& k = req.kitti();
+        if (k.path().empty()) return Invalid("kitti.path: required");
+        if (k.path().size() > PATH_MAX) {
+          return Invalid("kitti.path: " + std::to_string(k.path().size()) + " bytes, longer than PATH_MAX (" +
+                         std::to_string(PATH_MAX) + ")");
+        }
+        std::error_code ec;
+        if (!std::filesystem::exists(k.path(), ec)) return Invalid("kitti.path " + Quoted(k.path()) + ": does not exist");
+        if (!std::filesystem::is_directory(k.path(), ec)) {
+          return Invalid("kitti.path " + Quoted(k.path()) + ": not a directory");
+        }
+        if (k.first_frame() < 0) return Invalid("kitti.first_frame: must be >= 0");
+        if (k.last_frame() > 0 && k.last_frame() < k.first_frame()) {
+          return Invalid("kitti.last_frame " + std::to_string(k.last_frame()) + ": before first_frame " +
+                         std::to_string(k.first_frame()) + " (last_frame <= 0 plays to the end)");
+        }
+        // A bad OXTS file mid-drive is skipped and counted (DatasetFrameSource
+        // reports it as bad OXTS lines), not a refused drive.
+        kitti::RawDriveOptions open_options;
+        open_options.skip_bad_oxts = true;
+        auto dataset = kitti::OpenDataset(k.path(), open_options);
+        if (dataset->size() == 0) return {StatusCode::FAILED_PRECONDITION, "kitti.path " + Quoted(k.path()) + ": no frames"};
+        if (static_cast<size_t>(k.first_frame()) >= dataset->size()) {
+          return Invalid("kitti.first_frame " + std::to_string(k.first_frame()) + ": the drive has " +
+                         std::to_string(dataset->size()) + " frames");
+        }
+        // A drive without stereo pairs (no image_01/, say) would "finish"
+        // with no poses: refuse it now.
+        const size_t last = k.last_frame() <= 0 ? dataset->size() - 1
+                                                : std::min(dataset->size() - 1, static_cast<size_t>(k.last_frame()));
+        bool any_stereo = false;
+        for (size_t i = static_cast<size_t>(k.first_frame()); i <= last && !any_stereo; ++i)
+          any_stereo = dataset->has_stereo(i);
+        if (!any_stereo) {
+          return {StatusCode::FAILED_PRECONDITION, "kitti.path " + Quoted(k.path()) + ": no frame in [" +
+                                                       std::to_string(k.first_frame()) + ", " + std::to_string(last) +
+                                                       "] has both a left and a right image (image_00/, image_01/)"};
+        }
+        options.source = "kitti:" + k.path();
+        source = std::make_unique<DatasetFrameSource>(std::move(dataset), k.first_frame(),
+                                                      k.last_frame() <= 0 ? -1 : k.last_frame());
+        break;
+      }
+      case v1::StartSessionRequest::kSynthetic: {
+        const auto& s = req.synthetic();
+        const size_t frames = s.frames() == 0 ? config_.synthetic_default_frames : s.frames();
+        if (frames < 2 || frames > config_.max_synthetic_frames) {
+          return Invalid("synthetic.frames: must be in [2, max_synthetic_frames=" +
+                         std::to_string(config_.max_synthetic_frames) + "], got " + std::to_string(frames));
+        }
+        try {
+          ValidateSyntheticRequest(s.seed(), frames, s.options_yaml(), config_.max_synthetic_frames);
+        } catch (const SyntheticError& e) {
+          return Invalid(e.what());
+        }
+        options.source = "synthetic:seed=" + std::to_string(s.seed()) + ",frames=" + std::to_string(frames);
+        // Rendered on the session thread (can take seconds); failures fail the session.
+        // Each session renders its own folder and deletes it when its
+        // pipeline ends, so rendered drives never outlive their sessions.
+        const std::filesystem::path drive_dir = SyntheticRoot(config_.work_dir) / RandomSessionId();
+        auto factory = [drive_dir, seed = s.seed(), frames, yaml = s.options_yaml(), setup,
+                        make = estimator_factory_](const std::atomic<bool>& cancel) mutable
+            -> std::unique_ptr<SessionPipeline> {
+          auto src = std::make_unique<DatasetFrameSource>(
+              MakeSyntheticDrive(drive_dir, seed, frames, yaml, &cancel), 0, -1);
+          setup.camera = src->camera();
+          setup.T_cam0_imu = src->T_cam0_imu();
+          if (src->duration_s() > 0) setup.scenario = PlaceScenarioOutages(setup.scenario, src->duration_s());
+          return std::make_unique<SourcePipeline>(std::move(src), make(setup));
+        };
+        auto remove_drive = [drive_dir] {
+          std::error_code ec;
+          std::filesystem::remove_all(drive_dir, ec);
+        };
+        return AddSession(std::move(options),
+                          std::make_unique<DeferredPipeline>(std::move(factory), static_cast<int64_t>(frames),
+                                                             std::move(remove_drive)),
+                          nullptr, id);
+      }
+      case v1::StartSessionRequest::kLive: {
+        LiveCameraSetup cam;
+        if (Status st = ParseLiveSource(req.live(), &cam); !st.ok()) return st;
+        auto src = std::make_unique<LiveFrameSource>(cam);
+        live = src.get();
+        options.source = "live";
+        source = std::move(src);
+        break;
+      }
+      case v1::StartSessionRequest::SOURCE_NOT_SET:
+        return Invalid("source: one of kitti, synthetic or live is required");
+    }
+  } catch (const kitti::Error& e) {
+    return {StatusCode::FAILED_PRECONDITION, std::string("cannot open input: ") + e.what()};
+  } catch (const SyntheticError& e) {
+    return {StatusCode::FAILED_PRECONDITION, std::string("synthetic drive: ") + e.what()};
+  } catch (const std::invalid_argument& e) {
+    return Invalid(e.what());
+  }
+  setup.camera = source->camera();
+  setup.T_cam0_imu = source->T_cam0_imu();
+  // Scenarios like "tunnel-30s" place their outage relative to the drive.
+  if (source->duration_s() > 0) setup.scenario = PlaceScenarioOutages(setup.scenario, source->duration_s());
+  std::unique_ptr<FrameEstimator> estimator;
+  try {
+    estimator = estimator_factory_(setup);
+  } catch (const std::exception& e) {
+    return Invalid(std::string("vo_method/scenario: ") + e.what());
+  }
+  return AddSession(std::move(options), std::make_unique<SourcePipeline>(std::move(source), std::move(estimator)),
+                    live, id);
+}
+
+Status LocalizationService::StartLive(const v1::PushStart& start, std::shared_ptr<Session>* session,
+                                      LiveFrameSource** live) {
+  if (!start.session_id().empty()) {
+    std::lock_guard lock(mu_);
+    auto it = sessions_.find(start.session_id());
+    if (it == sessions_.end()) return {StatusCode::NOT_FOUND, "session " + Quoted(start.session_id()) + " not found"};
+    if (!it->second.live) {
+      return {StatusCode::FAILED_PRECONDITION, "session " + Quoted(start.session_id()) + " is not a live session"};
+    }
+    if (it->second.live_attached) {
+      return {StatusCode::FAILED_PRECONDITION,
+              "session " + Quoted(start.session_id()) + " already has a PushSensorData stream"};
+    }
+    if (it->second.session->state() != v1::SESSION_STATE_RUNNING) {
+      return {StatusCode::FAILED_PRECONDITION, "session " + Quoted(start.session_id()) + " is not running"};
+    }
+    it->second.live_attached = true;
+    *session = it->second.session;
+    *live = it->second.live;
+    return Status::OK;
+  }
+  v1::StartSessionRequest req;
+  *req.mutable_live() = start.live();
+  *req.mutable_scenario() = start.scenario();
+  req.set_vo_method(start.vo_method());
+  req.set_history_size(start.history_size());
+  std::string id;
+  if (Status s = DoStart(req, &id); !s.ok()) return s;
+  std::lock_guard lock(mu_);
+  auto& e = sessions_.at(id);
+  e.live_attached = true;
+  *session = e.session;
+  *live = e.live;
+  return Status::OK;
+}
+
+}  // namespace locaid::server

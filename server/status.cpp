@@ -1,0 +1,57 @@
+#include "server/status.hpp"
+
+#include "locaid/v1/localization.grpc.pb.h"
+
+#include <cstdint>
+#include <cstdio>
+#include <mutex>
+#include <random>
+
+namespace locaid::server {
+
+namespace v1 = locaid::v1;
+using grpc::Status;
+using grpc::StatusCode;
+
+Status Bounded(const Status& s) {
+  if (s.error_message().size() <= kMaxStatusMessageBytes) return s;
+  return {s.error_code(), s.error_message().substr(0, kMaxStatusMessageBytes) + "... (message cut)"};
+}
+
+Status Invalid(const std::string& msg) { return {StatusCode::INVALID_ARGUMENT, msg}; }
+
+std::string Quoted(const std::string& input) {
+  constexpr size_t kMax = 200;
+  if (input.size() <= kMax) return "'" + input + "'";
+  return "'" + input.substr(0, kMax) + "...' (" + std::to_string(input.size()) + " bytes)";
+}
+
+Status RequireActive(const Session& session, const char* rpc) {
+  const auto state = session.state();
+  if (state == v1::SESSION_STATE_RUNNING || state == v1::SESSION_STATE_STARTING) return Status::OK;
+  return {StatusCode::FAILED_PRECONDITION, std::string(rpc) + ": session '" + session.id() + "' is " +
+                                               v1::SessionState_Name(state) + "; only a running session takes it"};
+}
+
+grpc::ServerUnaryReactor* Reply(grpc::CallbackServerContext* ctx, const Status& status) {
+  auto* reactor = ctx->DefaultReactor();
+  reactor->Finish(Bounded(status));
+  return reactor;
+}
+
+const std::string& ServiceName() {
+  static const std::string name = v1::Localization::service_full_name();
+  return name;
+}
+
+std::string RandomSessionId() {
+  static std::mutex mu;
+  static std::random_device device;
+  std::lock_guard lock(mu);
+  const uint64_t bits = (static_cast<uint64_t>(device()) << 32 | device()) & 0xffffffffffffULL;
+  char buf[16];
+  std::snprintf(buf, sizeof(buf), "s%012llx", static_cast<unsigned long long>(bits));
+  return buf;
+}
+
+}  // namespace locaid::server

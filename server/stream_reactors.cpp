@@ -1,0 +1,352 @@
+#include "server/stream_reactors.hpp"
+
+#include "server/frame_source.hpp"
+#include "server/status.hpp"
+
+#include <deque>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <utility>
+
+namespace locaid::server {
+namespace {
+
+namespace v1 = locaid::v1;
+using grpc::Status;
+using grpc::StatusCode;
+
+// ------------------------------------------------------- shared stream ---
+
+// A server stream that writes hub items (and, for PushSensorData, control
+// messages): one write in flight at a time, woken by the hub (through a Waker
+// registered with the service, so shutdown can abort it), finished exactly
+// once (after the write in flight, if any). Derived classes say what to write
+// next in NextLocked(); everything else (wake, abort, write completion,
+// cancel, unsubscribe, delete) is here, shared by PoseWriter and PushReactor.
+template <typename Reactor, typename Msg>
+class HubStream : public Reactor, public StreamTarget {
+ public:
+  void Wake() override {
+    std::lock_guard lock(mu_);
+    WriteNextLocked();
+  }
+  void Abort(const Status& status) override {
+    std::lock_guard lock(mu_);
+    FinishLocked(status);
+  }
+  void OnWriteDone(bool ok) override {
+    std::lock_guard lock(mu_);
+    writing_ = false;
+    if (!ok) {
+      FinishLocked(Status(StatusCode::UNAVAILABLE, "write failed (client gone)"));
+      return;
+    }
+    if (finish_) {
+      FinishLocked(*finish_);
+      return;
+    }
+    WriteNextLocked();
+  }
+  void OnCancel() override {
+    std::lock_guard lock(mu_);
+    FinishLocked(Status::CANCELLED);
+  }
+  void OnDone() override {
+    {
+      std::lock_guard lock(waker_->mu);
+      waker_->target = nullptr;
+    }
+    if (session_) session_->hub().Unsubscribe(sub_);
+    OnStreamEnded();
+    service_->Unregister(waker_);
+    delete this;
+  }
+
+ protected:
+  enum class Next { kWrite, kIdle, kEnd };
+
+  explicit HubStream(LocalizationService* service) : service_(service), waker_(std::make_shared<Waker>()) {
+    waker_->target = this;
+    service_->Register(waker_);
+  }
+
+  // With mu_ held: fills *out and returns kWrite, or sets *end and returns
+  // kEnd, or returns kIdle (nothing to write until the next wake).
+  virtual Next NextLocked(Msg* out, Status* end) = 0;
+  // Called once from OnDone() after the hub subscription is dropped.
+  virtual void OnStreamEnded() {}
+
+  // Subscribes this stream to `session`'s hub (the wake goes through the
+  // Waker so it never reaches a deleted reactor).
+  void Subscribe(std::shared_ptr<Session> session, size_t queue_size, bool from_start, std::string peer) {
+    session_ = std::move(session);
+    std::weak_ptr<Waker> weak = waker_;
+    sub_ = session_->hub().Subscribe(
+        queue_size, from_start,
+        [weak] {
+          if (auto w = weak.lock()) w->Wake();
+        },
+        std::move(peer));
+  }
+
+  // The next hub item of this stream: kWrite with *item and the subscriber's
+  // drop count, kEnd with the end status (OK, or ABORTED when the session
+  // failed), kIdle while the queue is empty. With mu_ held, after Subscribe().
+  Next PopLocked(Hub::Item* item, uint64_t* dropped, Status* end) {
+    switch (sub_->Pop(item, dropped)) {
+      case Hub::Subscriber::PopResult::kItem:
+        return Next::kWrite;
+      case Hub::Subscriber::PopResult::kEnd:
+        *end = session_->state() == v1::SESSION_STATE_FAILED
+                   ? Status(StatusCode::ABORTED,
+                            "session " + session_->id() + " failed: " + session_->ToProto().error())
+                   : Status::OK;
+        return Next::kEnd;
+      case Hub::Subscriber::PopResult::kEmpty:
+        break;
+    }
+    return Next::kIdle;
+  }
+
+  void WriteNextLocked() {
+    if (!open_locked() || writing_) return;
+    Status end;
+    switch (NextLocked(&out_, &end)) {
+      case Next::kWrite:
+        writing_ = true;
+        this->StartWrite(&out_);
+        return;
+      case Next::kEnd:
+        FinishLocked(end);
+        return;
+      case Next::kIdle:
+        return;
+    }
+  }
+  // Finish once; with a write in flight, after it completes.
+  void FinishLocked(const Status& status) {
+    if (finished_) return;
+    if (writing_) {
+      if (!finish_) finish_ = status;
+      return;
+    }
+    finished_ = true;
+    this->Finish(Bounded(status));
+  }
+  bool open_locked() const { return !finished_ && !finish_; }
+
+  LocalizationService* const service_;
+  const std::shared_ptr<Waker> waker_;
+  std::shared_ptr<Session> session_;  // set by Subscribe()
+  Hub::SubscriberPtr sub_;
+  std::mutex mu_;
+
+ private:
+  Msg out_;  // the message being written (alive until OnWriteDone)
+  bool writing_ = false, finished_ = false;
+  std::optional<Status> finish_;
+};
+
+// ------------------------------------------------------------ StreamPoses --
+
+// Raw (ByteBuffer) writer: every pose is serialized once per session
+// (PoseEncodings) and each subscriber's message is that shared slice plus,
+// when it has lost items, a few bytes for dropped_for_subscriber. The bytes
+// on the wire are an ordinary PoseUpdate.
+class PoseWriter final : public HubStream<grpc::ServerWriteReactor<grpc::ByteBuffer>, grpc::ByteBuffer> {
+ public:
+  PoseWriter(LocalizationService* service, std::shared_ptr<Session> session,
+             std::shared_ptr<PoseEncodings> encodings, bool from_start, std::string peer, size_t queue_size)
+      : HubStream(service), encodings_(std::move(encodings)) {
+    Subscribe(std::move(session), queue_size, from_start, std::move(peer));
+    Wake();
+  }
+
+ private:
+  Next NextLocked(grpc::ByteBuffer* out, Status* end) override {
+    Hub::Item item;
+    uint64_t dropped = 0;
+    const Next next = PopLocked(&item, &dropped, end);
+    if (next == Next::kWrite) *out = EncodePoseForSubscriber(encodings_->Get(item), dropped);
+    return next;
+  }
+
+  const std::shared_ptr<PoseEncodings> encodings_;
+};
+
+// --------------------------------------------------------- PushSensorData --
+
+class PushReactor final : public HubStream<grpc::ServerBidiReactor<v1::PushRequest, v1::PushResponse>,
+                                           v1::PushResponse> {
+ public:
+  PushReactor(LocalizationService* service, std::string peer) : HubStream(service), peer_(std::move(peer)) {
+    StartRead(&req_);
+  }
+
+  void OnReadDone(bool ok) override {
+    if (!ok) {  // client half-closed (or went away)
+      std::lock_guard lock(mu_);
+      reads_done_ = true;
+      if (live_) {
+        live_->CloseInput();
+      } else {
+        FinishLocked(Invalid("stream closed before a 'start' message"));
+      }
+      return;
+    }
+    if (!session_) {
+      OnStart();
+      return;
+    }
+    switch (req_.item_case()) {
+      case v1::PushRequest::kFrame: {
+        const v1::StereoFrame& f = req_.frame();
+        const int64_t index = frames_++;
+        if (f.encoding() != v1::IMAGE_ENCODING_PNG && f.encoding() != v1::IMAGE_ENCODING_GRAY8) {
+          Reject("frame", index, "encoding: must be IMAGE_ENCODING_PNG or IMAGE_ENCODING_GRAY8");
+          break;
+        }
+        LiveItem item;
+        item.kind = LiveItem::Kind::kFrame;
+        item.t_ns = f.t_ns();
+        item.png = f.encoding() == v1::IMAGE_ENCODING_PNG;
+        if (item.png) {
+          // A PNG declaring another size than the session camera is never
+          // decoded (a small file can declare 30000x30000 px): the stream
+          // ends with INVALID_ARGUMENT naming both sizes.
+          std::string mismatch = PngSizeMismatch(f.left(), live_->camera(), "left");
+          if (mismatch.empty()) mismatch = PngSizeMismatch(f.right(), live_->camera(), "right");
+          if (!mismatch.empty()) {
+            // Nothing more is read; the frames before this one are still in
+            // the pipeline: their poses are delivered first, then the stream
+            // ends with this status instead of OK.
+            std::lock_guard lock(mu_);
+            end_status_ = Invalid("frame " + std::to_string(index) + ": " + mismatch);
+            reads_done_ = true;
+            live_->CloseInput();
+            return;
+          }
+        }
+        item.left = std::move(*req_.mutable_frame()->mutable_left());
+        item.right = std::move(*req_.mutable_frame()->mutable_right());
+        PushToSession(std::move(item));
+        return;
+      }
+      case v1::PushRequest::kOxts: {
+        LiveItem item;
+        item.kind = LiveItem::Kind::kOxts;
+        item.t_ns = req_.oxts().t_ns();
+        item.oxts_line = req_.oxts().line();
+        ++oxts_;
+        PushToSession(std::move(item));
+        return;
+      }
+      case v1::PushRequest::kStart:
+        Reject("start", 0, "the stream already has a session; 'start' must be the first message only");
+        break;
+      case v1::PushRequest::ITEM_NOT_SET:
+        Reject("empty", 0, "message without frame or oxts");
+        break;
+    }
+    StartReadIfOpen();
+  }
+
+  void Resume() override { StartReadIfOpen(); }
+
+ private:
+  void OnStreamEnded() override {
+    if (live_ && !reads_done_) live_->CloseInput();
+  }
+
+  void OnStart() {
+    if (req_.item_case() != v1::PushRequest::kStart) {
+      std::lock_guard lock(mu_);
+      FinishLocked(Invalid("first message must be 'start' (got " +
+                           std::string(req_.item_case() == v1::PushRequest::kFrame ? "frame" : "oxts") + ")"));
+      return;
+    }
+    std::shared_ptr<Session> session;
+    LiveFrameSource* live = nullptr;
+    const Status status = service_->StartLive(req_.start(), &session, &live);
+    std::lock_guard lock(mu_);
+    if (!status.ok()) {
+      FinishLocked(status);
+      return;
+    }
+    live_ = live;
+    Subscribe(std::move(session), service_->config().queue_size, false, peer_);
+    v1::PushResponse first;
+    *first.mutable_session() = session_->ToProto();
+    control_.push_back(std::move(first));
+    WriteNextLocked();
+    if (open_locked()) StartRead(&req_);
+  }
+
+  void PushToSession(LiveItem item) {
+    std::weak_ptr<Waker> weak = waker_;
+    const bool room = live_->Push(std::move(item), [weak] {
+      if (auto w = weak.lock()) w->Resume();
+    });
+    if (room) StartReadIfOpen();
+  }
+
+  void StartReadIfOpen() {
+    std::lock_guard lock(mu_);
+    if (open_locked() && !reads_done_) StartRead(&req_);
+  }
+
+  void Reject(const std::string& kind, int64_t index, const std::string& reason) {
+    v1::PushResponse r;
+    r.mutable_rejected()->set_kind(kind);
+    r.mutable_rejected()->set_index(index);
+    r.mutable_rejected()->set_reason(reason);
+    std::lock_guard lock(mu_);
+    if (control_.size() < 64) control_.push_back(std::move(r));
+    WriteNextLocked();
+  }
+
+  // Control messages (session, rejections) first, then poses.
+  Next NextLocked(v1::PushResponse* out, Status* end) override {
+    if (!control_.empty()) {
+      *out = std::move(control_.front());
+      control_.pop_front();
+      return Next::kWrite;
+    }
+    if (!sub_) return Next::kIdle;
+    Hub::Item item;
+    uint64_t dropped = 0;
+    const Next next = PopLocked(&item, &dropped, end);
+    if (next == Next::kWrite) {
+      out->Clear();
+      *out->mutable_pose() = *item;
+      out->mutable_pose()->set_dropped_for_subscriber(dropped);
+    }
+    if (next == Next::kEnd && end->ok() && !end_status_.ok()) *end = end_status_;
+    return next;
+  }
+
+  const std::string peer_;
+  v1::PushRequest req_;
+  LiveFrameSource* live_ = nullptr;
+  std::deque<v1::PushResponse> control_;
+  bool reads_done_ = false;
+  Status end_status_;  // replaces OK at the end of the stream (a refused frame)
+  int64_t frames_ = 0, oxts_ = 0;
+};
+
+}  // namespace
+
+grpc::ServerWriteReactor<grpc::ByteBuffer>* NewPoseWriter(LocalizationService* service,
+                                                          std::shared_ptr<Session> session,
+                                                          std::shared_ptr<PoseEncodings> encodings, bool from_start,
+                                                          std::string peer, size_t queue_size) {
+  return new PoseWriter(service, std::move(session), std::move(encodings), from_start, std::move(peer), queue_size);
+}
+
+grpc::ServerBidiReactor<v1::PushRequest, v1::PushResponse>* NewPushReactor(LocalizationService* service,
+                                                                            std::string peer) {
+  return new PushReactor(service, std::move(peer));
+}
+
+}  // namespace locaid::server

@@ -1,0 +1,25 @@
+// The two streaming RPCs' reactors (gRPC callback API, one write in flight,
+// woken by the session's hub): StreamPoses (raw pose bytes, serialized once
+// per session) and PushSensorData (frames and OXTS in, poses and rejections
+// out). The handlers in service.cpp create them here.
+#pragma once
+
+#include "locaid/v1/localization.grpc.pb.h"
+#include "server/service.hpp"
+#include "server/session.hpp"
+
+#include <grpcpp/grpcpp.h>
+
+#include <memory>
+#include <string>
+
+namespace locaid::server {
+
+grpc::ServerWriteReactor<grpc::ByteBuffer>* NewPoseWriter(LocalizationService* service,
+                                                          std::shared_ptr<Session> session,
+                                                          std::shared_ptr<PoseEncodings> encodings, bool from_start,
+                                                          std::string peer, size_t queue_size);
+grpc::ServerBidiReactor<locaid::v1::PushRequest, locaid::v1::PushResponse>* NewPushReactor(
+    LocalizationService* service, std::string peer);
+
+}  // namespace locaid::server
