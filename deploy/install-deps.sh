@@ -25,7 +25,7 @@ runtime_pkgs=(
 )
 
 fuzz_pkgs=(clang libclang-rt-14-dev)  # optional: libFuzzer + sanitizer runtimes
-test_pkgs=(prometheus)  # promtool: the metrics test checks a live scrape with it
+test_pkgs=(prometheus gpsd gpsd-clients python3-gps)  # promtool (metrics test); gpsd + gpsfake (NMEA test)
 
 pkgs=("${build_pkgs[@]}" "${test_pkgs[@]}")
 [[ "${1:-}" == "--build" ]] && pkgs=("${build_pkgs[@]}")
