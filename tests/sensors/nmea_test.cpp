@@ -3,15 +3,15 @@
 // for a rendered drive with a scripted outage.
 #include "sensors/nmea.hpp"
 
+#include "fusion/cli_support.hpp"
+
 #include <gtest/gtest.h>
 
-#include <array>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
-#include <sys/wait.h>
 #include <unistd.h>
 
 namespace locaid::sensors {
@@ -58,21 +58,8 @@ TEST(Nmea, Iso8601UtcIsParsedAndBadTextNamed) {
   }
 }
 
-struct ShellResult {
-  int exit_code = -1;
-  std::string out;
-};
-
-ShellResult Shell(const std::string& cmd) {
-  ShellResult r;
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return r;
-  std::array<char, 4096> buf{};
-  while (fgets(buf.data(), buf.size(), p)) r.out += buf.data();
-  const int st = pclose(p);
-  r.exit_code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  return r;
-}
+// Shell commands run as a user runs them (tests/fusion/cli_support.hpp).
+test::CommandResult Shell(const std::string& cmd) { return test::RunCommand(cmd); }
 
 int Count(const std::string& text, const std::string& needle) {
   int n = 0;
@@ -94,7 +81,7 @@ TEST(NmeaGpsd, GpsdParsesTheReplayedDriveAndSeesTheOutage) {
     if (e.path().filename().string().find("_sync") != std::string::npos) drive = e.path().string();
   ASSERT_FALSE(drive.empty());
   std::ofstream(dir / "s.yaml") << "base: open-sky\ngps:\n  rate_hz: 5\noutages:\n  - {start_s: 3, duration_s: 2}\n";
-  const ShellResult made = Shell(bin + "/locaid-nmea --drive " + drive + " --scenario " + (dir / "s.yaml").string() +
+  const test::CommandResult made = Shell(bin + "/locaid-nmea --drive " + drive + " --scenario " + (dir / "s.yaml").string() +
                          " --start-utc 2024-05-17T12:00:00Z --out " + (dir / "d.nmea").string() + " 2>&1");
   ASSERT_EQ(made.exit_code, 0) << made.out;
   std::ifstream in(dir / "d.nmea");
@@ -111,7 +98,7 @@ TEST(NmeaGpsd, GpsdParsesTheReplayedDriveAndSeesTheOutage) {
   // gpsd as a user runs it: gpsfake feeds the file to a real gpsd on a
   // loopback port and prints what gpsd reports (-p).
   const int port = 30000 + getpid() % 20000;
-  const ShellResult gpsd = Shell("timeout 120 gpsfake -1 -p -q -c 0.005 -P " + std::to_string(port) + " " +
+  const test::CommandResult gpsd = Shell("timeout 120 gpsfake -1 -p -q -c 0.005 -P " + std::to_string(port) + " " +
                          (dir / "d.nmea").string() + " 2>/dev/null");
   const int fixed = Count(gpsd.out, "\"class\":\"TPV\",\"device\":") - Count(gpsd.out, "\"mode\":1");
   std::printf("[nmea] %d sentences; gpsd TPV with a 3-D fix %d, without a fix %d\n", sentences,
