@@ -50,10 +50,12 @@ void ValidateScenario(const Scenario& s) {
   RequireNonNegative(s, "imu.gyro_noise_radps_sqrt_hz", s.imu_gyro_noise_radps_sqrt_hz);
   for (size_t i = 0; i < s.outages.size(); ++i) {
     const std::string f = "outages[" + std::to_string(i) + "]";
-    if (!(std::isfinite(s.outages[i].start_s) && s.outages[i].start_s >= 0))
-      Bad(s, f + ".start_s", "must be >= 0, got " + std::to_string(s.outages[i].start_s));
-    if (!(std::isfinite(s.outages[i].duration_s) && s.outages[i].duration_s > 0))
-      Bad(s, f + ".duration_s", "must be > 0 (end after start), got " +
+    // Seconds become int64 nanoseconds: bounded at 1e6 s (11.6 days).
+    constexpr double kMaxS = 1e6;
+    if (!(std::isfinite(s.outages[i].start_s) && s.outages[i].start_s >= 0 && s.outages[i].start_s <= kMaxS))
+      Bad(s, f + ".start_s", "must be in [0, 1e6], got " + std::to_string(s.outages[i].start_s));
+    if (!(std::isfinite(s.outages[i].duration_s) && s.outages[i].duration_s > 0 && s.outages[i].duration_s <= kMaxS))
+      Bad(s, f + ".duration_s", "must be in (0, 1e6] (end after start), got " +
                                     std::to_string(s.outages[i].duration_s));
   }
 }

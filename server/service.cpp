@@ -284,8 +284,12 @@ grpc::ServerUnaryReactor* LocalizationService::InjectOutage(grpc::CallbackServer
   if (Status s = FindSession(req->session_id(), &session); !s.ok()) return Reply(ctx, s);
   if (Status s = RequireActive(*session, "InjectOutage"); !s.ok()) return Reply(ctx, s);
   const double start_s = req->start_s(), duration_s = req->duration_s();
-  if (!std::isfinite(start_s) || !std::isfinite(duration_s) || duration_s < 0) {
-    return Reply(ctx, Invalid("start_s/duration_s: must be finite, duration_s >= 0"));
+  // Seconds become int64 nanoseconds on the sensor clock: bounded so they
+  // cannot overflow (1e6 s is 11.6 days).
+  constexpr double kMaxOutageSeconds = 1e6;
+  if (!std::isfinite(start_s) || !std::isfinite(duration_s) || duration_s < 0 || duration_s > kMaxOutageSeconds ||
+      std::abs(start_s) > kMaxOutageSeconds) {
+    return Reply(ctx, Invalid("start_s/duration_s: must be finite, duration_s in [0, 1e6] s, |start_s| <= 1e6 s"));
   }
   switch (req->action()) {
     case v1::InjectOutageRequest::START_NOW:

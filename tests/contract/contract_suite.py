@@ -170,6 +170,10 @@ class Contract(unittest.TestCase):
             pb.StartSessionRequest(live=live_source(), scenario=pb.Scenario(name="no-such")),
             pb.StartSessionRequest(live=live_source(), scenario=pb.Scenario(yaml="gps: [")),
             pb.StartSessionRequest(live=live_source(), vo_method="no-such"),
+            pb.StartSessionRequest(live=live_source(), scenario=pb.Scenario(
+                yaml="base: open-sky\noutages:\n  - {start_s: 1e300, duration_s: 1}\n")),
+            pb.StartSessionRequest(live=live_source(), scenario=pb.Scenario(
+                yaml="base: open-sky\noutages:\n  - {start_s: 1, duration_s: 1e300}\n")),
             pb.StartSessionRequest(kitti=pb.KittiSource(path="")),
             pb.StartSessionRequest(kitti=pb.KittiSource(path="/nonexistent/drive")),
             pb.StartSessionRequest(kitti=pb.KittiSource(path="/" + "p" * (31 << 20))),
@@ -212,6 +216,13 @@ class Contract(unittest.TestCase):
         self.assertEqual(code, grpc.StatusCode.INVALID_ARGUMENT)
         code, _ = self.code(self.stub.InjectOutage, pb.InjectOutageRequest(
             session_id=s.id, action=pb.InjectOutageRequest.START_NOW, duration_s=math.nan))
+        self.assertEqual(code, grpc.StatusCode.INVALID_ARGUMENT)
+        for huge in (1e300, 1e7, -1e300):
+            code, _ = self.code(self.stub.InjectOutage, pb.InjectOutageRequest(
+                session_id=s.id, action=pb.InjectOutageRequest.WINDOW, start_s=1, duration_s=huge))
+            self.assertEqual(code, grpc.StatusCode.INVALID_ARGUMENT, huge)
+        code, _ = self.code(self.stub.InjectOutage, pb.InjectOutageRequest(
+            session_id=s.id, action=pb.InjectOutageRequest.WINDOW, start_s=1e300, duration_s=1))
         self.assertEqual(code, grpc.StatusCode.INVALID_ARGUMENT)
         code, _ = self.code(self.stub.SetScenario, pb.SetScenarioRequest(session_id=s.id))
         self.assertEqual(code, grpc.StatusCode.INVALID_ARGUMENT)
