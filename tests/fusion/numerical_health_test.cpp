@@ -207,8 +207,8 @@ std::vector<Case> WorstCases() {
     c.torture.vo_lost_s = 10;
     cases.push_back(c);
   }
-  {  // Bursts of 12 fixes 40 m off (more than gps_max_consecutive_rejections:
-     // the forced-acceptance path with inflated covariance runs too).
+  {  // Bursts of 12 fixes 40 m off (more than gps_reset_after_rejections:
+     // the reset-to-GPS path runs too, and the reset back when they end).
     Case c{"jump-bursts-12x40m", {}, {}};
     c.sim.duration_s = 150;
     c.sim.gps_rate_hz = 5;
