@@ -1,0 +1,174 @@
+// The EKF's GPS update: split horizontal / vertical gates, the reset after a
+// run of rejections, the antenna (lever arm, latency) model.
+#include "fusion/ekf.hpp"
+
+#include "fusion/ekf_internal.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+namespace locaid::fusion {
+
+using namespace detail;
+
+// ------------------------------------------------------------------ GPS
+
+Vec3 Ekf::GpsEnu(const GpsFix& fix) {
+  if (!enu_.has_origin()) enu_.SetOrigin(fix.lat_deg, fix.lon_deg, fix.alt_m);
+  return enu_.ToEnu(fix.lat_deg, fix.lon_deg, fix.alt_m);
+}
+
+bool Ekf::UpdateGps(const GpsFix& fix) {
+  // Non-finite fixes or sigmas are refused before they can set the ENU origin
+  // or reach the covariance.
+  if (!std::isfinite(fix.lat_deg) || !std::isfinite(fix.lon_deg) || !std::isfinite(fix.alt_m) ||
+      !std::isfinite(fix.sigma_h_m) || !std::isfinite(fix.sigma_v_m) || fix.sigma_h_m <= 0 ||
+      fix.sigma_v_m <= 0) {
+    ++gps_rejected_;
+    last_gps_rejected_ns_ = fix.t_ns;
+    return false;
+  }
+  const Vec3 z = GpsEnu(fix);
+  if (last_gps_received_ns_) {
+    const double interval = Seconds(fix.t_ns, *last_gps_received_ns_);
+    if (interval > 0) {
+      if (gps_used_ + gps_rejected_ <= 1) gps_period_s_ = interval;
+      else if (interval < 3 * gps_period_s_) gps_period_s_ = 0.8 * gps_period_s_ + 0.2 * interval;
+    }
+  }
+  last_gps_received_ns_ = fix.t_ns;
+  if (!initialized_) {
+    init_fixes_.push_back({fix.t_ns, z, fix.sigma_h_m, Eigen::Isometry3d::Identity()});
+    init_fixes_.back().T_start_body.matrix()(0, 0) = std::numeric_limits<double>::quiet_NaN();
+    return false;
+  }
+  PropagateTo(fix.t_ns);
+  // The antenna, latency_s before the time stamp (lever arm and latency; both
+  // 0 by default).
+  Vec3 predicted = GpsAntennaPrediction(x_.p_enu_m, x_.v_enu_mps, x_.R_enu_body, config_.gps_lever_arm_body_m,
+                                        config_.gps_latency_s);
+  Mat3 R = Mat3::Zero();
+  R.diagonal() << fix.sigma_h_m * fix.sigma_h_m, fix.sigma_h_m * fix.sigma_h_m,
+      fix.sigma_v_m * fix.sigma_v_m;
+  if (!config_.use_imu) {
+    // State lives at the last frame: extrapolate with the VO velocity.
+    const double dt = Seconds(fix.t_ns, t_ns_);
+    predicted += x_.v_enu_mps * dt;
+    R.diagonal().array() += std::pow(0.3 * dt, 2);
+  }
+  const Vec3 y = z - predicted;
+  const Eigen::MatrixXd H = GpsMeasurementJacobian();
+  // Horizontal (E, N) and vertical (U) are gated on their own, so that a
+  // vertical disagreement does not throw away the horizontal information.
+  const GpsGateResult gate = GateGps(y, R, H);
+  last_nis_ = gate.nis_h;
+  last_nis_v_ = gate.nis_v;
+  bool use_h = gate.h_ok, use_v = gate.v_ok;
+  // A run of rejections means the filter, not the GPS, is off (an open-sky
+  // receiver does not fail 3 times in a row at the 0.1 % gate): reset the
+  // rejected component's position covariance to cover the innovation, so the
+  // fix is taken and the state snaps back to GPS. Counted on the pose.
+  const int reset_after = std::max(1, config_.gps_reset_after_rejections);
+  const bool reset_h = !use_h && std::isfinite(gate.nis_h) && ++rejections_h_ > reset_after;
+  const bool reset_v = !use_v && std::isfinite(gate.nis_v) && ++rejections_v_ > reset_after;
+  // The reset uses the fix for its component(s); a passing other component
+  // gets the normal update (its innovation is unchanged by the reset).
+  if (reset_h || reset_v) ResetPositionToGps(y, R, reset_h, reset_v);
+  if ((use_h && !reset_h) || (use_v && !reset_v)) ApplyGpsUpdate(y, R, H, use_h && !reset_h, use_v && !reset_v);
+  use_h = use_h || reset_h;
+  use_v = use_v || reset_v;
+  if (use_h) rejections_h_ = 0;
+  if (use_v) rejections_v_ = 0;
+  // A fix counts as used when its horizontal part is fused (a vertical-only
+  // update is reported as a rejection); vertical rejections are counted apart.
+  if (!use_v) ++gps_rejected_vertical_;
+  if (!use_h || !use_v) last_gps_rejected_ns_ = fix.t_ns;  // GPS_DEGRADED for a while
+  if (!use_h) {
+    ++gps_rejected_;
+    return false;
+  }
+  ++gps_used_;
+  last_gps_accepted_ns_ = fix.t_ns;
+  return true;
+}
+
+Eigen::MatrixXd Ekf::GpsMeasurementJacobian() const {
+  const int n = static_cast<int>(P_.rows());
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(3, n);
+  const auto J = GpsAntennaJacobian(x_.R_enu_body, config_.gps_lever_arm_body_m, config_.gps_latency_s);
+  H.middleCols<3>(0) = J.middleCols<3>(0);
+  if (config_.use_imu) {
+    H.middleCols<3>(kV) = J.middleCols<3>(3);
+    H.middleCols<3>(kTh) = J.middleCols<3>(6);
+  } else {
+    H.middleCols<3>(3) = J.middleCols<3>(6);  // [p, theta]; velocity is not a state
+  }
+  return H;
+}
+
+Ekf::GpsGateResult Ekf::GateGps(const Vec3& y, const Mat3& R, const Eigen::MatrixXd& H) const {
+  const Mat3 S = H * P_ * H.transpose() + R;
+  GpsGateResult g;
+  const Eigen::Vector2d y_h = y.head<2>();
+  g.nis_h = y_h.dot(S.topLeftCorner<2, 2>().ldlt().solve(y_h));
+  g.nis_v = y.z() * y.z() / S(2, 2);
+  g.h_ok = std::isfinite(g.nis_h) && g.nis_h <= gate_h_;
+  g.v_ok = std::isfinite(g.nis_v) && g.nis_v <= gate_v_;
+  return g;
+}
+
+void Ekf::ResetPositionToGps(const Vec3& y, const Mat3& R, bool horizontal, bool vertical) {
+  // Hard reset of the rejected component(s) to the fix, as mature filters do
+  // after a run of rejections: the position jumps by the innovation, and so
+  // does the clone (a reset is not motion: the next VO update must not see
+  // it), the position covariance of those axes becomes the fix's, and the
+  // velocity (a state that drifted that far has a wrong velocity too) gets its
+  // start-up uncertainty back plus the drift rate since the last used fix.
+  const Vec3 mask(horizontal ? 1.0 : 0.0, horizontal ? 1.0 : 0.0, vertical ? 1.0 : 0.0);
+  const Vec3 jump = y.cwiseProduct(mask);
+  x_.p_enu_m += jump;
+  const bool clone = config_.use_imu;
+  if (clone) p_clone_ += jump;
+  const double gap_s = last_gps_accepted_ns_ ? std::max(1.0, Seconds(t_ns_, *last_gps_accepted_ns_)) : 1.0;
+  for (int i = 0; i < 3; ++i) {
+    if (mask[i] == 0.0) continue;
+    P_.row(i).setZero();
+    P_.col(i).setZero();
+    P_(i, i) = R(i, i);
+    if (clone) {
+      P_.row(kPc + i).setZero();
+      P_.col(kPc + i).setZero();
+      P_(kPc + i, kPc + i) = P_(i, kPc + i) = P_(kPc + i, i) = R(i, i);
+      P_(kV + i, kV + i) += std::pow(config_.init_velocity_sigma_mps, 2) + std::pow(jump[i] / gap_s, 2);
+    }
+  }
+  Symmetrize(P_);
+  ++gps_resets_;
+}
+
+void Ekf::ApplyGpsUpdate(const Vec3& y, const Mat3& R, const Eigen::MatrixXd& H3, bool horizontal, bool vertical) {
+  std::vector<int> rows;
+  if (horizontal) rows = {0, 1};
+  if (vertical) rows.push_back(2);
+  const int m = static_cast<int>(rows.size());
+  const int n = static_cast<int>(P_.rows());
+  Eigen::MatrixXd H(m, n);
+  Eigen::VectorXd ym(m);
+  Eigen::MatrixXd Rm(m, m);
+  for (int i = 0; i < m; ++i) {
+    H.row(i) = H3.row(rows[static_cast<size_t>(i)]);
+    ym(i) = y(rows[static_cast<size_t>(i)]);
+    for (int j = 0; j < m; ++j) Rm(i, j) = R(rows[static_cast<size_t>(i)], rows[static_cast<size_t>(j)]);
+  }
+  const Eigen::MatrixXd PHt = P_ * H.transpose();
+  const Eigen::MatrixXd S = H * PHt + Rm;
+  const Eigen::MatrixXd K = PHt * S.inverse();
+  const Eigen::MatrixXd IKH = Eigen::MatrixXd::Identity(n, n) - K * H;
+  P_ = IKH * P_ * IKH.transpose() + K * Rm * K.transpose();
+  Symmetrize(P_);
+  Correct(K * ym);
+}
+
+}  // namespace locaid::fusion
