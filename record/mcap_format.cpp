@@ -1,0 +1,104 @@
+#include "record/mcap_format.hpp"
+
+#include <array>
+#include <limits>
+#include <stdexcept>
+
+namespace locaid::record::mcap {
+namespace {
+
+// One table entry per byte value: the usual byte-at-a-time CRC-32.
+constexpr std::array<uint32_t, 256> MakeCrcTable() {
+  std::array<uint32_t, 256> table{};
+  for (uint32_t i = 0; i < 256; ++i) {
+    uint32_t c = i;
+    for (int bit = 0; bit < 8; ++bit) c = (c & 1u) ? (0xEDB88320u ^ (c >> 1)) : (c >> 1);
+    table[i] = c;
+  }
+  return table;
+}
+constexpr std::array<uint32_t, 256> kCrcTable = MakeCrcTable();
+
+void PutLittleEndian(std::string& out, uint64_t value, int bytes) {
+  for (int i = 0; i < bytes; ++i) out.push_back(static_cast<char>((value >> (8 * i)) & 0xFFu));
+}
+
+// Overwrites `bytes` bytes at `at` (a length placeholder written earlier).
+void PatchLittleEndian(std::string& out, size_t at, uint64_t value, int bytes) {
+  for (int i = 0; i < bytes; ++i) out[at + i] = static_cast<char>((value >> (8 * i)) & 0xFFu);
+}
+
+// Every String, Map and Array length in the format is a uint32.
+uint32_t CheckedU32Length(size_t length, const char* what) {
+  if (length > std::numeric_limits<uint32_t>::max()) {
+    throw std::length_error(std::string("MCAP ") + what + " of " + std::to_string(length) +
+                            " bytes exceeds the format's 4 GiB limit");
+  }
+  return static_cast<uint32_t>(length);
+}
+
+// Writes the uint32 byte length of everything appended since `length_at`.
+void PatchU32Length(std::string& out, size_t length_at, const char* what) {
+  PatchLittleEndian(out, length_at, CheckedU32Length(out.size() - length_at - 4, what), 4);
+}
+
+// A Map is its entries behind their uint32 byte length.
+template <typename Map, typename PutEntry>
+void PutMap(std::string& out, const Map& map, PutEntry put_entry) {
+  const size_t length_at = out.size();
+  PutU32(out, 0);
+  for (const auto& [key, value] : map) put_entry(key, value);
+  PatchU32Length(out, length_at, "map");
+}
+
+}  // namespace
+
+void Crc32::Update(std::string_view bytes) {
+  uint32_t c = state_;
+  for (unsigned char b : bytes) c = kCrcTable[(c ^ b) & 0xFFu] ^ (c >> 8);
+  state_ = c;
+}
+
+uint32_t ComputeCrc32(std::string_view bytes) {
+  Crc32 crc;
+  crc.Update(bytes);
+  return crc.Value();
+}
+
+void PutU8(std::string& out, uint8_t value) { out.push_back(static_cast<char>(value)); }
+void PutU16(std::string& out, uint16_t value) { PutLittleEndian(out, value, 2); }
+void PutU32(std::string& out, uint32_t value) { PutLittleEndian(out, value, 4); }
+void PutU64(std::string& out, uint64_t value) { PutLittleEndian(out, value, 8); }
+
+void PutString(std::string& out, std::string_view value) {
+  PutU32(out, CheckedU32Length(value.size(), "string"));
+  out.append(value);
+}
+
+void PutStringMap(std::string& out, const std::map<std::string, std::string>& map) {
+  PutMap(out, map, [&out](const std::string& key, const std::string& value) {
+    PutString(out, key);
+    PutString(out, value);
+  });
+}
+
+void PutU16U64Map(std::string& out, const std::map<uint16_t, uint64_t>& map) {
+  PutMap(out, map, [&out](uint16_t key, uint64_t value) {
+    PutU16(out, key);
+    PutU64(out, value);
+  });
+}
+
+size_t BeginRecord(std::string& out, Op op) {
+  const size_t record_start = out.size();
+  PutU8(out, static_cast<uint8_t>(op));
+  PutU64(out, 0);
+  return record_start;
+}
+
+void EndRecord(std::string& out, size_t record_start, uint64_t content_bytes_elsewhere) {
+  const uint64_t content_length = out.size() - record_start - kRecordPrefixBytes + content_bytes_elsewhere;
+  PatchLittleEndian(out, record_start + 1, content_length, 8);
+}
+
+}  // namespace locaid::record::mcap
