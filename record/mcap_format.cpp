@@ -101,4 +101,25 @@ void EndRecord(std::string& out, size_t record_start, uint64_t content_bytes_els
   PatchLittleEndian(out, record_start + 1, content_length, 8);
 }
 
+void AppendSchemaRecord(std::string& out, uint16_t id, const std::string& name, const std::string& encoding,
+                        const std::string& data) {
+  const size_t start = BeginRecord(out, Op::kSchema);
+  PutU16(out, id);
+  PutString(out, name);
+  PutString(out, encoding);
+  PutString(out, data);  // Bytes with a uint32 length: the same layout as a String
+  EndRecord(out, start);
+}
+
+void AppendChannelRecord(std::string& out, uint16_t id, uint16_t schema_id, const std::string& topic,
+                         const std::string& message_encoding, const std::map<std::string, std::string>& metadata) {
+  const size_t start = BeginRecord(out, Op::kChannel);
+  PutU16(out, id);
+  PutU16(out, schema_id);
+  PutString(out, topic);
+  PutString(out, message_encoding);
+  PutStringMap(out, metadata);
+  EndRecord(out, start);
+}
+
 }  // namespace locaid::record::mcap

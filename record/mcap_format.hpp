@@ -60,4 +60,10 @@ void PutU16U64Map(std::string& out, const std::map<uint16_t, uint64_t>& map);
 size_t BeginRecord(std::string& out, Op op);
 void EndRecord(std::string& out, size_t record_start, uint64_t content_bytes_elsewhere = 0);
 
+// Whole Schema and Channel records: they go both into chunks and into the summary.
+void AppendSchemaRecord(std::string& out, uint16_t id, const std::string& name, const std::string& encoding,
+                        const std::string& data);
+void AppendChannelRecord(std::string& out, uint16_t id, uint16_t schema_id, const std::string& topic,
+                         const std::string& message_encoding, const std::map<std::string, std::string>& metadata);
+
 }  // namespace locaid::record::mcap
