@@ -31,6 +31,7 @@ Mat6 VoNoiseModel(const EkfConfig& config, const Mat6& reported, const Eigen::Is
 Ekf::Ekf(EkfConfig config) : config_(config) {
   gate_h_ = ChiSquareQuantile(config_.gps_gate_probability, 2);
   gate_v_ = ChiSquareQuantile(config_.gps_gate_probability, 1);
+  gate_vel_ = ChiSquareQuantile(config_.gps_gate_probability, 3);
   vo_gate_ = ChiSquareQuantile(config_.vo_gate_probability, 6);
 }
 
@@ -67,12 +68,18 @@ void Ekf::PropagateTo(int64_t t_ns) {
   const Vec3 g(0, 0, -config_.gravity_mps2);
   // Long gaps: the held sample is stale; inflate the noise accordingly.
   const double gap_scale = total > config_.max_imu_gap_s ? total / config_.max_imu_gap_s : 1.0;
+  // The IMU's own noise densities when its samples state them.
+  const double accel_noise = last_imu_ && last_imu_->accel_noise_mps2_sqrt_hz > 0
+                                 ? last_imu_->accel_noise_mps2_sqrt_hz
+                                 : config_.accel_noise_mps2_sqrt_hz;
+  const double gyro_noise = last_imu_ && last_imu_->gyro_noise_radps_sqrt_hz > 0
+                                ? last_imu_->gyro_noise_radps_sqrt_hz
+                                : config_.gyro_noise_radps_sqrt_hz;
   const int steps = std::max(1, static_cast<int>(std::ceil(total / kMaxImuStepS)));
   const double dt = total / steps;
   for (int i = 0; i < steps; ++i) {
     const Mat15 F = ImuTransitionJacobian(x_, f, w, dt);
-    const Mat15 Q = ImuProcessNoise(x_, dt, config_.accel_noise_mps2_sqrt_hz * gap_scale,
-                                    config_.gyro_noise_radps_sqrt_hz * gap_scale,
+    const Mat15 Q = ImuProcessNoise(x_, dt, accel_noise * gap_scale, gyro_noise * gap_scale,
                                     config_.accel_bias_walk_mps3_sqrt_hz,
                                     config_.gyro_bias_walk_radps2_sqrt_hz);
     x_ = fusion::PropagateImu(x_, f, w, dt, g);

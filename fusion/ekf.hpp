@@ -137,6 +137,10 @@ class Ekf {
   void PropagateImu(const ImuSample& sample);
   // Returns true if the fix was accepted: its horizontal part fused (false:
   // horizontal part rejected by the gate, or buffered before initialisation).
+  // A fix older than the state (IMU mode) is compared with the antenna's
+  // position at the fix time; its velocity, when given, is fused too (IMU
+  // mode). Non-finite values or a covariance that is not positive definite:
+  // refused and counted as rejected.
   bool UpdateGps(const GpsFix& fix);
   // body_motion: VO relative motion in body axes (CameraMotionToBody).
   // vo_ok false (VO lost): skip the update (IMU) or coast (no IMU).
@@ -169,6 +173,9 @@ class Ekf {
   int gps_rejected_vertical() const { return gps_rejected_vertical_; }
   int gps_used() const { return gps_used_; }
   int gps_rejected() const { return gps_rejected_; }
+  // GPS velocities fused / refused by their gate (3 dof, IMU mode only).
+  int gps_velocity_used() const { return gps_velocity_used_; }
+  int gps_velocity_rejected() const { return gps_velocity_rejected_; }
 
  private:
   void TryInitialize(int64_t t_ns);
@@ -182,7 +189,9 @@ class Ekf {
     bool h_ok = false, v_ok = false;
   };
   // Measurement Jacobian of the fix (3 x n) for the current state.
-  Eigen::MatrixXd GpsMeasurementJacobian() const;
+  Eigen::MatrixXd GpsMeasurementJacobian(double latency_s) const;
+  static bool GpsFixUsable(const GpsFix& fix);
+  void UpdateGpsVelocity(const GpsFix& fix, double late_s);
   GpsGateResult GateGps(const Vec3& y, const Mat3& R, const Eigen::MatrixXd& H) const;
   void ResetPositionToGps(const Vec3& y, const Mat3& R, bool horizontal, bool vertical);
   void ApplyGpsUpdate(const Vec3& y, const Mat3& R, const Eigen::MatrixXd& H, bool horizontal, bool vertical);
@@ -219,7 +228,8 @@ class Ekf {
   double vo_gate_ = 0;
   int vo_consecutive_rejections_ = 0;
   // Bookkeeping.
-  double gate_h_ = 0, gate_v_ = 0;
+  double gate_h_ = 0, gate_v_ = 0, gate_vel_ = 0;
+  int gps_velocity_used_ = 0, gps_velocity_rejected_ = 0;
   double last_nis_ = 0, last_nis_v_ = 0, last_vo_nis_ = 0;
   int vo_rejected_ = 0;
   int imu_rejected_ = 0;

@@ -9,6 +9,8 @@
 #include <limits>
 #include <vector>
 
+#include <Eigen/Eigenvalues>
+
 namespace locaid::fusion {
 
 using namespace detail;
@@ -23,9 +25,7 @@ Vec3 Ekf::GpsEnu(const GpsFix& fix) {
 bool Ekf::UpdateGps(const GpsFix& fix) {
   // Non-finite fixes or sigmas are refused before they can set the ENU origin
   // or reach the covariance.
-  if (!std::isfinite(fix.lat_deg) || !std::isfinite(fix.lon_deg) || !std::isfinite(fix.alt_m) ||
-      !std::isfinite(fix.sigma_h_m) || !std::isfinite(fix.sigma_v_m) || fix.sigma_h_m <= 0 ||
-      fix.sigma_v_m <= 0) {
+  if (!GpsFixUsable(fix)) {
     ++gps_rejected_;
     last_gps_rejected_ns_ = fix.t_ns;
     return false;
@@ -40,18 +40,29 @@ bool Ekf::UpdateGps(const GpsFix& fix) {
   }
   last_gps_received_ns_ = fix.t_ns;
   if (!initialized_) {
-    init_fixes_.push_back({fix.t_ns, z, fix.sigma_h_m, Eigen::Isometry3d::Identity()});
+    // The start-up fit weighs fixes by their horizontal sigma (the larger
+    // axis of a covariance).
+    const double sigma_h =
+        fix.cov_enu_m2 ? std::sqrt(std::max((*fix.cov_enu_m2)(0, 0), (*fix.cov_enu_m2)(1, 1))) : fix.sigma_h_m;
+    init_fixes_.push_back({fix.t_ns, z, sigma_h, Eigen::Isometry3d::Identity()});
     init_fixes_.back().T_start_body.matrix()(0, 0) = std::numeric_limits<double>::quiet_NaN();
     return false;
   }
   PropagateTo(fix.t_ns);
-  // The antenna, latency_s before the time stamp (lever arm and latency; both
-  // 0 by default).
-  Vec3 predicted = GpsAntennaPrediction(x_.p_enu_m, x_.v_enu_mps, x_.R_enu_body, config_.gps_lever_arm_body_m,
-                                        config_.gps_latency_s);
+  // The antenna, latency before the state time (lever arm and latency; both
+  // 0 by default). A fix older than the state (it arrived after later IMU
+  // data, as live fixes do) is compared with where the antenna was then.
+  const double late_s = config_.use_imu ? std::max(0.0, Seconds(t_ns_, fix.t_ns)) : 0.0;
+  const double latency_s = config_.gps_latency_s + late_s;
+  Vec3 predicted =
+      GpsAntennaPrediction(x_.p_enu_m, x_.v_enu_mps, x_.R_enu_body, config_.gps_lever_arm_body_m, latency_s);
   Mat3 R = Mat3::Zero();
-  R.diagonal() << fix.sigma_h_m * fix.sigma_h_m, fix.sigma_h_m * fix.sigma_h_m,
-      fix.sigma_v_m * fix.sigma_v_m;
+  if (fix.cov_enu_m2) {
+    R = *fix.cov_enu_m2;
+  } else {
+    R.diagonal() << fix.sigma_h_m * fix.sigma_h_m, fix.sigma_h_m * fix.sigma_h_m,
+        fix.sigma_v_m * fix.sigma_v_m;
+  }
   if (!config_.use_imu) {
     // State lives at the last frame: extrapolate with the VO velocity.
     const double dt = Seconds(fix.t_ns, t_ns_);
@@ -59,20 +70,22 @@ bool Ekf::UpdateGps(const GpsFix& fix) {
     R.diagonal().array() += std::pow(0.3 * dt, 2);
   }
   const Vec3 y = z - predicted;
-  const Eigen::MatrixXd H = GpsMeasurementJacobian();
+  const Eigen::MatrixXd H = GpsMeasurementJacobian(latency_s);
   // Horizontal (E, N) and vertical (U) are gated on their own, so that a
   // vertical disagreement does not throw away the horizontal information.
   const GpsGateResult gate = GateGps(y, R, H);
   last_nis_ = gate.nis_h;
   last_nis_v_ = gate.nis_v;
-  bool use_h = gate.h_ok, use_v = gate.v_ok;
+  // A 2-D fix has no altitude to fuse (not a rejection either).
+  const bool fuse_v = fix.has_altitude;
+  bool use_h = gate.h_ok, use_v = gate.v_ok && fuse_v;
   // A run of rejections means the filter, not the GPS, is off (an open-sky
   // receiver does not fail 3 times in a row at the 0.1 % gate): reset the
   // rejected component's position covariance to cover the innovation, so the
   // fix is taken and the state snaps back to GPS. Counted on the pose.
   const int reset_after = std::max(1, config_.gps_reset_after_rejections);
   const bool reset_h = !use_h && std::isfinite(gate.nis_h) && ++rejections_h_ > reset_after;
-  const bool reset_v = !use_v && std::isfinite(gate.nis_v) && ++rejections_v_ > reset_after;
+  const bool reset_v = fuse_v && !use_v && std::isfinite(gate.nis_v) && ++rejections_v_ > reset_after;
   // The reset uses the fix for its component(s); a passing other component
   // gets the normal update (its innovation is unchanged by the reset).
   if (reset_h || reset_v) ResetPositionToGps(y, R, reset_h, reset_v);
@@ -83,21 +96,65 @@ bool Ekf::UpdateGps(const GpsFix& fix) {
   if (use_v) rejections_v_ = 0;
   // A fix counts as used when its horizontal part is fused (a vertical-only
   // update is reported as a rejection); vertical rejections are counted apart.
-  if (!use_v) ++gps_rejected_vertical_;
-  if (!use_h || !use_v) last_gps_rejected_ns_ = fix.t_ns;  // GPS_DEGRADED for a while
+  if (fuse_v && !use_v) ++gps_rejected_vertical_;
+  if (!use_h || (fuse_v && !use_v)) last_gps_rejected_ns_ = fix.t_ns;  // GPS_DEGRADED for a while
   if (!use_h) {
     ++gps_rejected_;
     return false;
   }
   ++gps_used_;
   last_gps_accepted_ns_ = fix.t_ns;
+  if (fix.v_enu_mps) UpdateGpsVelocity(fix, late_s);
   return true;
 }
 
-Eigen::MatrixXd Ekf::GpsMeasurementJacobian() const {
+bool Ekf::GpsFixUsable(const GpsFix& fix) {
+  const bool position_ok = std::isfinite(fix.lat_deg) && std::isfinite(fix.lon_deg) && std::isfinite(fix.alt_m);
+  if (!position_ok) return false;
+  if (fix.cov_enu_m2) {
+    const Mat3& C = *fix.cov_enu_m2;
+    if (!C.allFinite() || !C.isApprox(C.transpose(), 1e-9)) return false;
+    const Eigen::SelfAdjointEigenSolver<Mat3> eig(C);
+    if (eig.info() != Eigen::Success || eig.eigenvalues().minCoeff() <= 0) return false;
+  } else if (!std::isfinite(fix.sigma_h_m) || !std::isfinite(fix.sigma_v_m) || fix.sigma_h_m <= 0 ||
+             fix.sigma_v_m <= 0) {
+    return false;
+  }
+  return !fix.v_enu_mps || (fix.v_enu_mps->allFinite() && std::isfinite(fix.sigma_v_enu_mps) && fix.sigma_v_enu_mps > 0);
+}
+
+void Ekf::UpdateGpsVelocity(const GpsFix& fix, double late_s) {
+  // Velocity is a state only with IMU. The antenna moves with the body plus
+  // the lever arm's rotation; the gyro's rate (bias removed) gives that part.
+  if (!config_.use_imu || !initialized_) return;
+  const Vec3 w = last_imu_ ? Vec3(last_imu_->gyro_radps - x_.gyro_bias_radps) : Vec3::Zero();
+  const Vec3 predicted = x_.v_enu_mps + x_.R_enu_body * w.cross(config_.gps_lever_arm_body_m);
+  const Vec3 y = *fix.v_enu_mps - predicted;
   const int n = static_cast<int>(P_.rows());
   Eigen::MatrixXd H = Eigen::MatrixXd::Zero(3, n);
-  const auto J = GpsAntennaJacobian(x_.R_enu_body, config_.gps_lever_arm_body_m, config_.gps_latency_s);
+  H.middleCols<3>(kV).setIdentity();
+  // A late fix's velocity is compared with the current one: the acceleration
+  // since then is noise.
+  const Mat3 R = Mat3::Identity() * (std::pow(fix.sigma_v_enu_mps, 2) + std::pow(0.5 * late_s, 2));
+  const Mat3 S = H * P_ * H.transpose() + R;
+  const double nis = y.dot(S.ldlt().solve(y));
+  if (!std::isfinite(nis) || nis > gate_vel_) {
+    ++gps_velocity_rejected_;
+    return;
+  }
+  const Eigen::MatrixXd PHt = P_ * H.transpose();
+  const Eigen::MatrixXd K = PHt * S.inverse();
+  const Eigen::MatrixXd IKH = Eigen::MatrixXd::Identity(n, n) - K * H;
+  P_ = IKH * P_ * IKH.transpose() + K * R * K.transpose();
+  Symmetrize(P_);
+  Correct(K * y);
+  ++gps_velocity_used_;
+}
+
+Eigen::MatrixXd Ekf::GpsMeasurementJacobian(double latency_s) const {
+  const int n = static_cast<int>(P_.rows());
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(3, n);
+  const auto J = GpsAntennaJacobian(x_.R_enu_body, config_.gps_lever_arm_body_m, latency_s);
   H.middleCols<3>(0) = J.middleCols<3>(0);
   if (config_.use_imu) {
     H.middleCols<3>(kV) = J.middleCols<3>(3);

@@ -5,6 +5,7 @@
 #include <Eigen/Geometry>
 
 #include <cstdint>
+#include <optional>
 
 namespace locaid::fusion {
 
@@ -14,6 +15,13 @@ struct GpsFix {
   double lat_deg = 0, lon_deg = 0, alt_m = 0;
   double sigma_h_m = 3.0;  // 1-sigma horizontal noise the receiver claims
   double sigma_v_m = 5.0;  // 1-sigma vertical noise
+  // False for a 2-D fix: the altitude is not a measurement, only E/N are fused.
+  bool has_altitude = true;
+  // Full ENU position covariance (m^2); replaces the sigmas when set.
+  std::optional<Eigen::Matrix3d> cov_enu_m2;
+  // Velocity over ground in ENU (m/s) with a 1-sigma per axis; fused with IMU.
+  std::optional<Eigen::Vector3d> v_enu_mps;
+  double sigma_v_enu_mps = 0.5;
 };
 
 // IMU sample in the body frame (x forward, y left, z up), as OXTS reports it:
@@ -22,6 +30,9 @@ struct ImuSample {
   int64_t t_ns = 0;
   Eigen::Vector3d accel_mps2 = Eigen::Vector3d::Zero();
   Eigen::Vector3d gyro_radps = Eigen::Vector3d::Zero();
+  // Noise densities of this IMU when it states them; 0 = EkfConfig's.
+  double accel_noise_mps2_sqrt_hz = 0;
+  double gyro_noise_radps_sqrt_hz = 0;
 };
 
 // Relative motion of the body between two VO frames: p_prev = T_prev_curr * p_curr,

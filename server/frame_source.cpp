@@ -151,6 +151,83 @@ bool LiveFrameSource::Push(LiveItem item, std::function<void()> resume) {
   return false;
 }
 
+void LiveFrameSource::PushAsyncFix(LiveItem fix) {
+  std::lock_guard lock(mu_);
+  if (closed_ || cancelled_) return;
+  if (async_fixes_.size() >= kMaxAsyncFixes) {
+    async_fixes_.pop_front();
+    std::lock_guard s(stats_mu_);
+    ++stats_.gps_fixes_late;
+  }
+  async_fixes_.push_back(std::move(fix));
+  cv_.notify_one();
+}
+
+LiveInputStats LiveFrameSource::input_stats() const {
+  std::lock_guard lock(stats_mu_);
+  return stats_;
+}
+
+void LiveFrameSource::TakeImu(const LiveItem& item) {
+  std::lock_guard s(stats_mu_);
+  ++stats_.imu_samples;
+  if (last_imu_ns_ && item.t_ns <= *last_imu_ns_) {
+    ++stats_.sensor_rejected;
+    stats_.last_error = "pushed imu sample: t_ns " + std::to_string(item.t_ns) + " not after the previous sample (" +
+                        std::to_string(*last_imu_ns_) + ")";
+    return;
+  }
+  last_imu_ns_ = item.t_ns;
+  imu_.push_back(item.imu);
+  sensor_time_ns_ = std::max(sensor_time_ns_, item.t_ns);
+}
+
+void LiveFrameSource::TakeGps(LiveItem item) {
+  std::lock_guard s(stats_mu_);
+  ++stats_.gps_fixes_in;
+  if (item.gps_no_fix) {
+    ++stats_.gps_no_fix;
+    receiver_has_fix_ = false;
+    return;
+  }
+  const auto max_delay_ns = static_cast<int64_t>(setup_.max_gps_delay_s * 1e9);
+  // Fused out of order a fix would pull the state back in time: too old
+  // against the newest frame, or not after the previous fix, it is dropped.
+  const bool stale = last_frame_ns_ != INT64_MIN && item.t_ns < last_frame_ns_ - max_delay_ns;
+  const bool repeated = last_gps_ns_ && item.t_ns <= *last_gps_ns_;
+  if (stale || repeated) {
+    ++stats_.gps_fixes_late;
+    stats_.last_error = "gps fix at t_ns " + std::to_string(item.t_ns) +
+                        (stale ? " older than the newest frame (" + std::to_string(last_frame_ns_) +
+                                     ") by more than max_gps_delay_s"
+                               : " not after the previous fix (" + std::to_string(*last_gps_ns_) + ")");
+    return;
+  }
+  last_gps_ns_ = item.t_ns;
+  receiver_has_fix_ = true;
+  if (held_gps_.size() >= kMaxAsyncFixes) {
+    held_gps_.pop_front();
+    ++stats_.gps_fixes_late;
+  }
+  held_gps_.push_back({item.gps, item.arrival_steady_ns, item.from_gpsd});
+}
+
+bool LiveFrameSource::HasReleasable() const {
+  return !imu_.empty() || receiver_has_fix_.has_value() ||
+         (!held_gps_.empty() && held_gps_.front().fix.t_ns <= sensor_time_ns_);
+}
+
+void LiveFrameSource::Release(int64_t t_ns, SourceItem& out) {
+  auto imu_end = std::find_if(imu_.begin(), imu_.end(), [&](const fusion::ImuSample& s) { return s.t_ns > t_ns; });
+  out.imu.assign(imu_.begin(), imu_end);
+  imu_.erase(imu_.begin(), imu_end);
+  while (!held_gps_.empty() && held_gps_.front().fix.t_ns <= t_ns) {
+    out.gps.push_back(held_gps_.front());
+    held_gps_.pop_front();
+  }
+  out.receiver_has_fix = std::exchange(receiver_has_fix_, std::nullopt);
+}
+
 void LiveFrameSource::CloseInput() {
   std::lock_guard lock(mu_);
   closed_ = true;
@@ -182,8 +259,12 @@ SourceItem LiveFrameSource::Next() {
     std::function<void()> resume;
     {
       std::unique_lock lock(mu_);
-      if (queue_.empty() && !closed_ && !cancelled_ && !woken_) {
+      if (queue_.empty() && async_fixes_.empty() && !closed_ && !cancelled_ && !woken_ && !HasReleasable()) {
         cv_.wait_for(lock, std::chrono::milliseconds(50));
+      }
+      while (!async_fixes_.empty()) {
+        TakeGps(std::move(async_fixes_.front()));
+        async_fixes_.pop_front();
       }
       if (std::exchange(woken_, false)) {
         out.kind = SourceItem::Kind::kIdle;
@@ -191,6 +272,13 @@ SourceItem LiveFrameSource::Next() {
       }
       if (cancelled_ || (queue_.empty() && closed_)) {
         out.kind = SourceItem::Kind::kEnd;
+        return out;
+      }
+      if (queue_.empty() && HasReleasable()) {
+        // Typed data between frames is fused now, not at the next frame.
+        out.kind = SourceItem::Kind::kSensors;
+        out.t_ns = sensor_time_ns_;
+        Release(sensor_time_ns_, out);
         return out;
       }
       if (queue_.empty()) {
@@ -209,6 +297,14 @@ SourceItem LiveFrameSource::Next() {
     }
     if (resume) resume();
 
+    if (item.kind == LiveItem::Kind::kImu) {
+      TakeImu(item);
+      continue;
+    }
+    if (item.kind == LiveItem::Kind::kGps) {
+      TakeGps(std::move(item));
+      continue;
+    }
     if (item.kind == LiveItem::Kind::kOxts) {
       const int64_t n = oxts_count_++;
       try {
@@ -241,6 +337,8 @@ SourceItem LiveFrameSource::Next() {
                               [&](const kitti::OxtsSample& s) { return s.t_ns > item.t_ns; });
     out.oxts.assign(oxts_.begin(), split);
     oxts_.erase(oxts_.begin(), split);
+    if (item.t_ns > last_frame_ns_) sensor_time_ns_ = std::max(sensor_time_ns_, item.t_ns);
+    Release(item.t_ns, out);
     if (item.t_ns <= last_frame_ns_) {
       out.kind = SourceItem::Kind::kCorrupt;
       out.error = "pushed frame " + std::to_string(out.index) + ": t_ns " + std::to_string(item.t_ns) +

@@ -4,7 +4,9 @@
 // Both turn bad input into counted, skipped items instead of errors.
 #pragma once
 
+#include "fusion/types.hpp"
 #include "kitti/dataset.hpp"
+#include "server/session_pipeline.hpp"
 #include "kitti/types.hpp"
 
 #include <opencv2/core.hpp>
@@ -21,13 +23,25 @@
 
 namespace locaid::server {
 
+// A GPS fix of a live session, with the steady-clock time it reached the
+// server (for the latency from arrival to use).
+struct ArrivedFix {
+  fusion::GpsFix fix;
+  int64_t arrival_steady_ns = 0;
+  bool from_gpsd = false;
+};
+
 struct SourceItem {
-  enum class Kind { kFrame, kSkipped, kCorrupt, kIdle, kEnd };
+  // kSensors: typed IMU / GPS data between frames, to fuse now (live input).
+  enum class Kind { kFrame, kSkipped, kCorrupt, kIdle, kEnd, kSensors };
   Kind kind = Kind::kIdle;
   int64_t index = -1;
   int64_t t_ns = 0;
   cv::Mat left, right;                         // kFrame: CV_8UC1, camera size
   std::vector<kitti::OxtsSample> oxts;         // t_prev_frame < t <= t_ns
+  std::vector<fusion::ImuSample> imu;          // typed IMU, time order, t <= t_ns for frames
+  std::vector<ArrivedFix> gps;                 // typed / gpsd fixes, time order, t <= sensor time
+  std::optional<bool> receiver_has_fix;        // the receiver's newest no-fix / fix state
   int oxts_bad_lines = 0;
   std::string error;                           // why skipped/corrupt, last bad OXTS line
 };
@@ -42,6 +56,8 @@ class FrameSource {
   virtual double duration_s() const { return 0; }  // sensor time span, 0 = unknown
   virtual const kitti::StereoCamera& camera() const = 0;
   virtual Eigen::Isometry3d T_cam0_imu() const = 0;
+  // Counters of typed live input (any thread).
+  virtual LiveInputStats input_stats() const { return {}; }
 };
 
 // Frames [first, last] of a dataset (last < 0: to the end). A frame whose
@@ -67,19 +83,27 @@ class DatasetFrameSource : public FrameSource {
   int64_t last_frame_ns_ = INT64_MIN;  // time of the last frame delivered
 };
 
-// One item pushed by a client.
+// One item pushed by a client (values already validated, see
+// session_requests.cpp; ordering is checked here).
 struct LiveItem {
-  enum class Kind { kFrame, kOxts };
+  enum class Kind { kFrame, kOxts, kImu, kGps };
   Kind kind = Kind::kFrame;
   int64_t t_ns = 0;
   bool png = true;          // frames: PNG/encoded bytes, else raw GRAY8
   std::string left, right;  // frames
   std::string oxts_line;    // OXTS: the 30 fields
+  fusion::ImuSample imu;    // kImu
+  fusion::GpsFix gps;       // kGps (gps.t_ns == t_ns)
+  bool gps_no_fix = false;  // kGps: a no-fix report (position meaningless)
+  int64_t arrival_steady_ns = 0;
+  bool from_gpsd = false;   // kGps: read by the server from gpsd (not pushed)
 };
 
 struct LiveCameraSetup {
   kitti::StereoCamera camera;
   Eigen::Isometry3d T_cam0_imu = Eigen::Isometry3d::Identity();
+  // A fix older than the newest frame by more than this is dropped (counted).
+  double max_gps_delay_s = 0.5;
 };
 
 // Bounded queue between a PushSensorData stream and the session thread, with
@@ -92,6 +116,10 @@ class LiveFrameSource : public FrameSource {
 
   // Producer side (any thread).
   bool Push(LiveItem item, std::function<void()> resume);
+  // A fix from a receiver the server reads itself (gpsd): never blocks; at
+  // most kMaxAsyncFixes wait, the oldest is dropped (counted late) beyond.
+  static constexpr size_t kMaxAsyncFixes = 64;
+  void PushAsyncFix(LiveItem fix);
   void CloseInput();  // half-close: Next() returns kEnd once drained
 
   // Consumer side (session thread). Waits up to ~50 ms for input.
@@ -100,8 +128,16 @@ class LiveFrameSource : public FrameSource {
   void Wake() override;
   const kitti::StereoCamera& camera() const override { return setup_.camera; }
   Eigen::Isometry3d T_cam0_imu() const override { return setup_.T_cam0_imu; }
+  LiveInputStats input_stats() const override;
 
  private:
+  // Consumer side: typed items go to the pending lists (false: refused).
+  void TakeImu(const LiveItem& item);
+  void TakeGps(LiveItem item);
+  // Moves the pending typed data up to t_ns into `out`.
+  void Release(int64_t t_ns, SourceItem& out);
+  bool HasReleasable() const;
+
   LiveCameraSetup setup_;
   const size_t capacity_;
   std::mutex mu_;
@@ -117,6 +153,16 @@ class LiveFrameSource : public FrameSource {
   std::string last_error_;
   int64_t frames_ = 0, oxts_count_ = 0;
   int64_t last_frame_ns_ = INT64_MIN;
+  // Typed input (consumer state): samples and fixes wait here until the
+  // sensor time (newest frame / IMU sample) reaches them.
+  std::deque<LiveItem> async_fixes_;  // mu_: from PushAsyncFix
+  std::vector<fusion::ImuSample> imu_;
+  std::deque<ArrivedFix> held_gps_;   // time order, at most kMaxAsyncFixes
+  std::optional<bool> receiver_has_fix_;
+  std::optional<int64_t> last_imu_ns_, last_gps_ns_;
+  int64_t sensor_time_ns_ = INT64_MIN;  // newest frame or IMU time seen
+  mutable std::mutex stats_mu_;
+  LiveInputStats stats_;
 };
 
 // Width and height a PNG declares in its IHDR chunk (bytes 16..23, big

@@ -1,16 +1,13 @@
 // The server's only contact with locaid_pipeline / locaid_fusion.
 #include "server/source_pipeline.hpp"
 
-#ifdef LOCAID_HAVE_PIPELINE
 #include "server/pipeline/localizer.hpp"
 #include "server/pipeline/scenario_yaml.hpp"
-#endif
 
 #include <stdexcept>
 
 namespace locaid::server {
 
-#ifdef LOCAID_HAVE_PIPELINE
 namespace {
 
 class LocalizerEstimator : public FrameEstimator {
@@ -21,6 +18,7 @@ class LocalizerEstimator : public FrameEstimator {
   static pipeline::LocalizerOptions Options(const EstimatorSetup& setup) {
     pipeline::LocalizerOptions options;
     options.vo_method = setup.vo_method;
+    options.ekf.gps_lever_arm_body_m = setup.gps_antenna_body_m;
     return options;
   }
 
@@ -33,6 +31,7 @@ class LocalizerEstimator : public FrameEstimator {
     e.in_outage = r.in_outage;
     return e;
   }
+  void FuseSensors(const pipeline::SensorBatch& batch) override { localizer_.FuseSensors(batch); }
   void ScheduleOutage(int64_t start_ns, int64_t end_ns) override { localizer_.ScheduleOutage(start_ns, end_ns); }
   void StartOutageNow() override { localizer_.StartOutageNow(); }
   void StopOutageNow() override { localizer_.StopOutageNow(); }
@@ -77,20 +76,5 @@ fusion::Scenario PlaceScenarioOutages(fusion::Scenario scenario, double drive_du
   return fusion::PlaceOutagesForDrive(std::move(scenario), drive_duration_s);
 }
 
-#else  // Built before locaid_pipeline exists: sessions cannot localize.
-
-std::unique_ptr<FrameEstimator> MakeLocalizerEstimator(const EstimatorSetup&) {
-  throw std::invalid_argument("this server was built without locaid_pipeline (server/pipeline)");
-}
-fusion::Scenario ScenarioFromName(const std::string& name) {
-  if (name != "open-sky") throw std::invalid_argument("unknown scenario '" + name + "' (known: open-sky)");
-  return fusion::Scenario{};
-}
-fusion::Scenario ScenarioFromYaml(const std::string&) {
-  throw std::invalid_argument("YAML scenarios need locaid_pipeline");
-}
-fusion::Scenario PlaceScenarioOutages(fusion::Scenario scenario, double) { return scenario; }
-
-#endif
 
 }  // namespace locaid::server

@@ -155,7 +155,7 @@ bool Session::Pace(int64_t t_ns) {
 
 void Session::Record(const StepResult& r, double latency_ms) {
   std::lock_guard lock(stats_mu_);
-  if (r.kind != StepResult::Kind::kIdle && r.kind != StepResult::Kind::kEnd) {
+  if (r.kind != StepResult::Kind::kIdle && r.kind != StepResult::Kind::kEnd && r.kind != StepResult::Kind::kFused) {
     stats_.set_frames_in(stats_.frames_in() + 1);
   }
   stats_.set_oxts_bad_lines(stats_.oxts_bad_lines() + static_cast<uint64_t>(std::max(0, r.oxts_bad_lines)));
@@ -203,7 +203,7 @@ void Session::Run() {
         if (!stop_) state_ = locaid::v1::SESSION_STATE_FINISHED;
         break;
       }
-      if (r.kind == StepResult::Kind::kIdle) {
+      if (r.kind == StepResult::Kind::kIdle || r.kind == StepResult::Kind::kFused) {
         if (r.oxts_bad_lines > 0) Record(r, 0);
         continue;
       }
@@ -267,6 +267,25 @@ locaid::v1::SessionStats Session::Stats() const {
       const double span_s = std::chrono::duration<double>(recent_.back() - recent_[recent_.size() - n]).count();
       s.set_fps(span_s > 0 ? static_cast<double>(n - 1) / span_s : 0.0);
     }
+  }
+  const LiveInputStats in = pipeline_->input_stats();
+  s.set_imu_samples(in.imu_samples);
+  s.set_gps_fixes_in(in.gps_fixes_in);
+  s.set_gps_fixes_late(in.gps_fixes_late);
+  s.set_gps_no_fix(in.gps_no_fix);
+  s.set_sensor_items_rejected(in.sensor_rejected);
+  if (!in.last_error.empty() && s.last_input_error().empty()) s.set_last_input_error(in.last_error);
+  if (in.has_gpsd) {
+    auto* g = s.mutable_gpsd();
+    g->set_connected(in.gpsd_connected);
+    g->set_connects(in.gpsd_connects);
+    g->set_connection_losses(in.gpsd_losses);
+    g->set_last_error(in.gpsd_error);
+  }
+  if (in.fix_latency_max_ms > 0) {
+    auto* g = s.mutable_gpsd();
+    g->set_fix_latency_median_ms(in.fix_latency_median_ms);
+    g->set_fix_latency_max_ms(in.fix_latency_max_ms);
   }
   const HubStats h = hub_.stats();
   s.set_poses_published(h.published);

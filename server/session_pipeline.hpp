@@ -15,6 +15,18 @@
 
 namespace locaid::server {
 
+// Counters of a live session's typed input and GPS receiver (all zero for
+// file sources).
+struct LiveInputStats {
+  uint64_t imu_samples = 0, gps_fixes_in = 0, gps_fixes_late = 0, gps_no_fix = 0;
+  uint64_t sensor_rejected = 0;  // typed items refused (out of order); last_error says why
+  std::string last_error;
+  bool has_gpsd = false, gpsd_connected = false;
+  uint64_t gpsd_connects = 0, gpsd_losses = 0;
+  std::string gpsd_error;
+  double fix_latency_median_ms = 0, fix_latency_max_ms = 0;
+};
+
 struct StepResult {
   enum class Kind {
     kPose,     // `pose` is valid
@@ -22,6 +34,7 @@ struct StepResult {
     kCorrupt,  // frame could not be decoded / wrong size: skipped
     kIdle,     // nothing available yet (live input): call again
     kEnd,      // input exhausted
+    kFused,    // sensor data between frames fused (live input): no pose
   };
   Kind kind = Kind::kIdle;
   int64_t frame_index = -1;
@@ -64,6 +77,8 @@ class SessionPipeline {
   virtual void SetScenario(const fusion::Scenario& scenario) = 0;
   // ENU origin once known.
   virtual bool origin(double* lat_deg, double* lon_deg, double* alt_m) const = 0;
+  // Typed live input and GPS receiver counters. Any thread.
+  virtual LiveInputStats input_stats() const { return {}; }
 };
 
 }  // namespace locaid::server

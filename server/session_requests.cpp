@@ -6,6 +6,7 @@
 #include "kitti/dataset.hpp"
 #include "kitti/raw_drive.hpp"
 #include "server/frame_source.hpp"
+#include "server/gps_receiver.hpp"
 #include "server/status.hpp"
 #include "server/synthetic_drive.hpp"
 
@@ -14,6 +15,7 @@
 #include <climits>
 #include <cmath>
 #include <filesystem>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <utility>
@@ -56,6 +58,45 @@ Status ParseLiveSource(const v1::LiveSource& l, LiveCameraSetup* out) {
   } else {
     return Invalid("live.T_cam0_imu: expected 0 or 12 values, got " + std::to_string(l.t_cam0_imu_size()));
   }
+  const double delay = l.max_gps_delay_s();
+  if (!Finite(delay) || delay < 0 || delay > kMaxGpsDelayS) {
+    std::ostringstream got;
+    got << delay;
+    return Invalid("live.max_gps_delay_s: must be in [0, 10] (0 = 0.5 s), got " + got.str());
+  }
+  out->max_gps_delay_s = delay == 0 ? kDefaultGpsDelayS : delay;
+  return Status::OK;
+}
+
+// The GPS antenna's lever arm (live.gps_antenna_body_m): 0 or 3 finite values
+// within 10 m of the IMU.
+Status ParseLeverArm(const v1::LiveSource& l, Eigen::Vector3d* out) {
+  out->setZero();
+  if (l.gps_antenna_body_m_size() == 0) return Status::OK;
+  if (l.gps_antenna_body_m_size() != 3)
+    return Invalid("live.gps_antenna_body_m: expected 0 or 3 values (x, y, z), got " +
+                   std::to_string(l.gps_antenna_body_m_size()));
+  for (int i = 0; i < 3; ++i) {
+    const double v = l.gps_antenna_body_m(i);
+    if (!Finite(v) || std::abs(v) > 10)
+      return Invalid("live.gps_antenna_body_m[" + std::to_string(i) + "]: must be finite and within 10 m of the IMU");
+    (*out)[i] = v;
+  }
+  return Status::OK;
+}
+
+Status ParseGpsdSource(const v1::LiveSource& l, std::optional<GpsdEndpoint>* out) {
+  if (!l.has_gps_source() || l.gps_source().kind_case() == v1::GpsSource::KIND_NOT_SET) return Status::OK;
+  const auto& g = l.gps_source().gpsd();
+  GpsdEndpoint e;
+  if (!g.host().empty()) {
+    if (g.host().size() > 253 || g.host().find_first_of(" \t\r\n/") != std::string::npos)
+      return Invalid("live.gps_source.gpsd.host " + Quoted(g.host()) + ": not a host name or address");
+    e.host = g.host();
+  }
+  if (g.port() > 65535) return Invalid("live.gps_source.gpsd.port: must be in [1, 65535], got " + std::to_string(g.port()));
+  if (g.port() != 0) e.port = static_cast<uint16_t>(g.port());
+  *out = e;
   return Status::OK;
 }
 
@@ -103,6 +144,7 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
 
   std::unique_ptr<FrameSource> source;
   LiveFrameSource* live = nullptr;
+  std::optional<GpsdEndpoint> gpsd;
   try {
     switch (req.source_case()) {
       case v1::StartSessionRequest::kKitti: {
@@ -188,9 +230,11 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
       case v1::StartSessionRequest::kLive: {
         LiveCameraSetup cam;
         if (Status st = ParseLiveSource(req.live(), &cam); !st.ok()) return st;
+        if (Status st = ParseLeverArm(req.live(), &setup.gps_antenna_body_m); !st.ok()) return st;
+        if (Status st = ParseGpsdSource(req.live(), &gpsd); !st.ok()) return st;
         auto src = std::make_unique<LiveFrameSource>(cam);
         live = src.get();
-        options.source = "live";
+        options.source = gpsd ? "live+gpsd:" + gpsd->host + ":" + std::to_string(gpsd->port) : "live";
         source = std::move(src);
         break;
       }
@@ -214,8 +258,9 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
   } catch (const std::exception& e) {
     return Invalid(std::string("vo_method/scenario: ") + e.what());
   }
-  return AddSession(std::move(options), std::make_unique<SourcePipeline>(std::move(source), std::move(estimator)),
-                    live, id);
+  auto pipeline = std::make_unique<SourcePipeline>(std::move(source), std::move(estimator));
+  if (gpsd) pipeline->set_receiver(std::make_unique<GpsdReceiver>(*gpsd, live));
+  return AddSession(std::move(options), std::move(pipeline), live, id);
 }
 
 Status LocalizationService::StartLive(const v1::PushStart& start, std::shared_ptr<Session>* session,

@@ -1,5 +1,6 @@
 #include "server/source_pipeline.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 
@@ -17,7 +18,11 @@ StepResult SourcePipeline::Step() {
     item.oxts.insert(item.oxts.begin(), carried_oxts_.begin(), carried_oxts_.end());
     carried_oxts_.clear();
   }
+  const bool typed = !item.imu.empty() || !item.gps.empty() || item.receiver_has_fix.has_value();
+  // Typed data first: a fix reaches the filter before VO runs on the frame.
+  if (typed) FuseTyped(item);
   switch (item.kind) {
+    case SourceItem::Kind::kSensors: r.kind = StepResult::Kind::kFused; return r;
     case SourceItem::Kind::kEnd: r.kind = StepResult::Kind::kEnd; return r;
     case SourceItem::Kind::kIdle: r.kind = StepResult::Kind::kIdle; return r;
     case SourceItem::Kind::kSkipped: r.kind = StepResult::Kind::kSkipped; return r;
@@ -40,6 +45,39 @@ StepResult SourcePipeline::Step() {
   r.gps_outage_active = e.in_outage;
   r.processing_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   return r;
+}
+
+void SourcePipeline::FuseTyped(const SourceItem& item) {
+  pipeline::SensorBatch batch;
+  batch.imu = item.imu;
+  batch.gps.reserve(item.gps.size());
+  for (const ArrivedFix& f : item.gps) batch.gps.push_back(f.fix);
+  batch.receiver_has_fix = item.receiver_has_fix;
+  estimator_->FuseSensors(batch);
+  const auto now = std::chrono::steady_clock::now().time_since_epoch();
+  const auto now_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(now).count();
+  std::lock_guard lock(latency_mu_);
+  for (const ArrivedFix& f : item.gps) {
+    if (f.arrival_steady_ns == 0) continue;
+    fix_latency_ms_.push_back(static_cast<double>(now_ns - f.arrival_steady_ns) / 1e6);
+    if (fix_latency_ms_.size() > kLatencyWindow) fix_latency_ms_.pop_front();
+  }
+}
+
+LiveInputStats SourcePipeline::input_stats() const {
+  LiveInputStats stats = source_->input_stats();
+  if (receiver_) receiver_->AddStats(stats);
+  std::vector<double> ms;
+  {
+    std::lock_guard lock(latency_mu_);
+    ms.assign(fix_latency_ms_.begin(), fix_latency_ms_.end());
+  }
+  if (!ms.empty()) {
+    std::sort(ms.begin(), ms.end());
+    stats.fix_latency_median_ms = ms[ms.size() / 2];
+    stats.fix_latency_max_ms = ms.back();
+  }
+  return stats;
 }
 
 void SourcePipeline::StartOutageNow(double duration_s) {

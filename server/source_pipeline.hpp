@@ -3,9 +3,12 @@
 #pragma once
 
 #include "server/frame_source.hpp"
+#include "server/gps_receiver.hpp"
+#include "server/pipeline/localizer.hpp"
 #include "server/session_pipeline.hpp"
 
 #include <atomic>
+#include <deque>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -27,6 +30,9 @@ class FrameEstimator {
  public:
   virtual ~FrameEstimator() = default;
   virtual Estimate Process(const vo::StereoFrame& frame, std::span<const kitti::OxtsSample> oxts) = 0;
+  // Typed live input (IMU samples, fixes), fused as it comes, before the
+  // frame it arrived with. Estimators without typed input ignore it.
+  virtual void FuseSensors(const pipeline::SensorBatch& /*batch*/) {}
   virtual void ScheduleOutage(int64_t start_ns, int64_t end_ns) = 0;
   virtual void StartOutageNow() = 0;
   virtual void StopOutageNow() = 0;
@@ -39,6 +45,7 @@ struct EstimatorSetup {
   Eigen::Isometry3d T_cam0_imu = Eigen::Isometry3d::Identity();
   fusion::Scenario scenario;
   std::string vo_method = "default";
+  Eigen::Vector3d gps_antenna_body_m = Eigen::Vector3d::Zero();  // lever arm (LiveSource)
 };
 // Throws std::invalid_argument (unknown VO method, bad scenario).
 using EstimatorFactory = std::function<std::unique_ptr<FrameEstimator>(const EstimatorSetup&)>;
@@ -68,10 +75,21 @@ class SourcePipeline : public SessionPipeline {
   bool origin(double* lat_deg, double* lon_deg, double* alt_m) const override {
     return estimator_->origin(lat_deg, lon_deg, alt_m);
   }
+  LiveInputStats input_stats() const override;
+  // A GPS receiver feeding the (live) source; stopped before the source goes.
+  void set_receiver(std::unique_ptr<GpsdReceiver> receiver) { receiver_ = std::move(receiver); }
 
  private:
+  // Fuses typed data, then records each fix's time from arrival to use.
+  void FuseTyped(const SourceItem& item);
+
   std::unique_ptr<FrameSource> source_;
   std::unique_ptr<FrameEstimator> estimator_;
+  std::unique_ptr<GpsdReceiver> receiver_;  // after source_: destroyed first
+  // Arrival-to-use times of the last kLatencyWindow received fixes, ms.
+  static constexpr size_t kLatencyWindow = 256;
+  mutable std::mutex latency_mu_;
+  std::deque<double> fix_latency_ms_;
   std::optional<int64_t> first_t_ns_;
   int64_t last_t_ns_ = 0;
   std::vector<std::pair<double, double>> early_windows_;  // before the first frame
@@ -132,6 +150,10 @@ class DeferredPipeline : public SessionPipeline {
   bool origin(double* a, double* b, double* c) const override {
     std::lock_guard lock(inner_mu_);
     return inner_ && inner_->origin(a, b, c);
+  }
+  LiveInputStats input_stats() const override {
+    std::lock_guard lock(inner_mu_);
+    return inner_ ? inner_->input_stats() : LiveInputStats{};
   }
 
  private:

@@ -18,6 +18,8 @@ namespace locaid::server {
 inline constexpr size_t kMaxStatusMessageBytes = 1024;
 // StartSessionRequest.playback_rate: 0 or within these (pacing divides by it).
 inline constexpr double kMinPlaybackRate = 1e-3, kMaxPlaybackRate = 1e3;
+// LiveSource.max_gps_delay_s: default (for 0) and upper bound, seconds.
+inline constexpr double kDefaultGpsDelayS = 0.5, kMaxGpsDelayS = 10.0;
 
 grpc::Status Bounded(const grpc::Status& s);
 grpc::Status Invalid(const std::string& msg);

@@ -1,6 +1,7 @@
 #include "server/stream_reactors.hpp"
 
 #include "server/frame_source.hpp"
+#include "server/sensor_requests.hpp"
 #include "server/status.hpp"
 
 #include <deque>
@@ -15,6 +16,18 @@ namespace {
 namespace v1 = locaid::v1;
 using grpc::Status;
 using grpc::StatusCode;
+
+std::string ItemName(v1::PushRequest::ItemCase c) {
+  switch (c) {
+    case v1::PushRequest::kStart: return "start";
+    case v1::PushRequest::kFrame: return "frame";
+    case v1::PushRequest::kOxts: return "oxts";
+    case v1::PushRequest::kImu: return "imu";
+    case v1::PushRequest::kGps: return "gps";
+    case v1::PushRequest::ITEM_NOT_SET: break;
+  }
+  return "an empty message";
+}
 
 // ------------------------------------------------------- shared stream ---
 
@@ -242,11 +255,24 @@ class PushReactor final : public HubStream<grpc::ServerBidiReactor<v1::PushReque
         PushToSession(std::move(item));
         return;
       }
+      case v1::PushRequest::kImu:
+      case v1::PushRequest::kGps: {
+        const bool imu = req_.item_case() == v1::PushRequest::kImu;
+        const int64_t index = imu ? imu_++ : gps_++;
+        LiveItem item;
+        const std::string error = imu ? ImuItemFromProto(req_.imu(), &item) : GpsItemFromProto(req_.gps(), &item);
+        if (!error.empty()) {
+          Reject(imu ? "imu" : "gps", index, error);
+          break;
+        }
+        PushToSession(std::move(item));
+        return;
+      }
       case v1::PushRequest::kStart:
         Reject("start", 0, "the stream already has a session; 'start' must be the first message only");
         break;
       case v1::PushRequest::ITEM_NOT_SET:
-        Reject("empty", 0, "message without frame or oxts");
+        Reject("empty", 0, "message without frame, oxts, imu or gps");
         break;
     }
     StartReadIfOpen();
@@ -262,8 +288,7 @@ class PushReactor final : public HubStream<grpc::ServerBidiReactor<v1::PushReque
   void OnStart() {
     if (req_.item_case() != v1::PushRequest::kStart) {
       std::lock_guard lock(mu_);
-      FinishLocked(Invalid("first message must be 'start' (got " +
-                           std::string(req_.item_case() == v1::PushRequest::kFrame ? "frame" : "oxts") + ")"));
+      FinishLocked(Invalid("first message must be 'start' (got " + ItemName(req_.item_case()) + ")"));
       return;
     }
     std::shared_ptr<Session> session;
@@ -332,7 +357,7 @@ class PushReactor final : public HubStream<grpc::ServerBidiReactor<v1::PushReque
   std::deque<v1::PushResponse> control_;
   bool reads_done_ = false;
   Status end_status_;  // replaces OK at the end of the stream (a refused frame)
-  int64_t frames_ = 0, oxts_ = 0;
+  int64_t frames_ = 0, oxts_ = 0, imu_ = 0, gps_ = 0;
 };
 
 }  // namespace

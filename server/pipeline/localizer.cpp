@@ -2,7 +2,9 @@
 
 #include "kitti/oxts_pose.hpp"
 
+#include <algorithm>
 #include <chrono>
+#include <tuple>
 #include <stdexcept>
 
 namespace locaid::pipeline {
@@ -122,41 +124,84 @@ FrameResult Localizer::Process(const vo::StereoFrame& frame,
   return r;
 }
 
-FrameResult Localizer::Fuse(const vo::RelativeMotion& vo_cam,
-                            std::span<const kitti::OxtsSample> oxts) {
+FrameResult Localizer::Fuse(const vo::RelativeMotion& vo_cam, std::span<const kitti::OxtsSample> oxts) {
+  SensorBatch batch;
+  batch.oxts.assign(oxts.begin(), oxts.end());
+  return Fuse(vo_cam, batch);
+}
+
+FrameResult Localizer::FuseSensors(const SensorBatch& batch) {
+  const auto t0 = std::chrono::steady_clock::now();
+  ApplyPendingControls();
+  FrameResult r;
+  FeedSensors(batch, r);
+  r.fusion_ms = MsSince(t0);
+  return r;
+}
+
+void Localizer::FeedImu(const fusion::ImuSample& imu, FrameResult& r) {
+  if (!options_.use_imu) return;
+  ekf_->PropagateImu(imu);
+  ++r.imu_samples;
+}
+
+void Localizer::FeedGps(const fusion::GpsFix& fix, FrameResult& r) {
+  GpsFeed feed;
+  feed.fix = fix;
+  const int rejected_before = ekf_->gps_rejected();
+  const int rejected_v_before = ekf_->gps_rejected_vertical();
+  const int resets_before = ekf_->gps_resets();
+  feed.accepted = ekf_->UpdateGps(fix);
+  feed.rejected = ekf_->gps_rejected() > rejected_before;
+  feed.rejected_vertical = ekf_->gps_rejected_vertical() > rejected_v_before;
+  r.gps_reset = r.gps_reset || ekf_->gps_resets() > resets_before;
+  if (ekf_->enu().has_origin()) feed.p_enu_m = ekf_->enu().ToEnu(fix.lat_deg, fix.lon_deg, fix.alt_m);
+  r.gps_rejected = r.gps_rejected || feed.rejected;
+  r.gps_fix_fed = fix;
+  r.gps_feeds.push_back(feed);
+}
+
+void Localizer::FeedSensors(const SensorBatch& batch, FrameResult& r) {
+  if (batch.receiver_has_fix) receiver_has_fix_ = *batch.receiver_has_fix;
+  // One time line over the three lists; at equal times IMU comes first, so a
+  // fix is compared with the state propagated to its time.
+  enum Kind { kOxts, kImu, kGps };
+  std::vector<std::tuple<int64_t, int, size_t>> events;
+  events.reserve(batch.oxts.size() + batch.imu.size() + batch.gps.size());
+  for (size_t i = 0; i < batch.oxts.size(); ++i) events.emplace_back(batch.oxts[i].t_ns, kOxts, i);
+  for (size_t i = 0; i < batch.imu.size(); ++i) events.emplace_back(batch.imu[i].t_ns, kImu, i);
+  for (size_t i = 0; i < batch.gps.size(); ++i) events.emplace_back(batch.gps[i].t_ns, kGps, i);
+  std::stable_sort(events.begin(), events.end());
+  for (const auto& [t_ns, kind, i] : events) {
+    if (kind == kOxts) {
+      const kitti::OxtsSample& s = batch.oxts[i];
+      fusion::ImuSample imu;
+      imu.t_ns = s.t_ns;
+      imu.accel_mps2 = {s.record.ax_mps2, s.record.ay_mps2, s.record.az_mps2};
+      imu.gyro_radps = {s.record.wx_radps, s.record.wy_radps, s.record.wz_radps};
+      if (options_.use_imu) FeedImu(imu_->Apply(imu), r);
+      // The true attitude places a simulated antenna (Scenario::gps_antenna_body_m).
+      const Eigen::Matrix3d R_enu_imu =
+          kitti::OxtsAttitude(s.record.roll_rad, s.record.pitch_rad, s.record.yaw_rad);
+      if (auto fix = gps_->Apply(s.t_ns, s.record.lat_deg, s.record.lon_deg, s.record.alt_m, &R_enu_imu))
+        FeedGps(*fix, r);
+    } else if (kind == kImu) {
+      FeedImu(batch.imu[i], r);
+    } else if (!gps_->InOutage(t_ns)) {
+      FeedGps(batch.gps[i], r);
+    }
+  }
+}
+
+FrameResult Localizer::Fuse(const vo::RelativeMotion& vo_cam, const SensorBatch& batch) {
   const auto t0 = std::chrono::steady_clock::now();
   ApplyPendingControls();
   FrameResult r;
   r.vo = vo_cam;
   const int64_t t_ns = vo_cam.t_ns;
-  // OXTS -> IMU (accelerations, angular rates) and degraded GPS, in time order.
-  for (const auto& s : oxts) {
-    if (options_.use_imu) {
-      fusion::ImuSample imu;
-      imu.t_ns = s.t_ns;
-      imu.accel_mps2 = {s.record.ax_mps2, s.record.ay_mps2, s.record.az_mps2};
-      imu.gyro_radps = {s.record.wx_radps, s.record.wy_radps, s.record.wz_radps};
-      ekf_->PropagateImu(imu_->Apply(imu));
-      ++r.imu_samples;
-    }
-    // The true attitude places a simulated antenna (Scenario::gps_antenna_body_m).
-    const Eigen::Matrix3d R_enu_imu = kitti::OxtsAttitude(s.record.roll_rad, s.record.pitch_rad, s.record.yaw_rad);
-    if (auto fix = gps_->Apply(s.t_ns, s.record.lat_deg, s.record.lon_deg, s.record.alt_m, &R_enu_imu)) {
-      GpsFeed feed;
-      feed.fix = *fix;
-      const int rejected_before = ekf_->gps_rejected();
-      const int rejected_v_before = ekf_->gps_rejected_vertical();
-      const int resets_before = ekf_->gps_resets();
-      feed.accepted = ekf_->UpdateGps(*fix);
-      feed.rejected = ekf_->gps_rejected() > rejected_before;
-      feed.rejected_vertical = ekf_->gps_rejected_vertical() > rejected_v_before;
-      r.gps_reset = r.gps_reset || ekf_->gps_resets() > resets_before;
-      feed.p_enu_m = ekf_->enu().ToEnu(fix->lat_deg, fix->lon_deg, fix->alt_m);
-      r.gps_rejected = r.gps_rejected || feed.rejected;
-      r.gps_fix_fed = *fix;
-      r.gps_feeds.push_back(feed);
-    }
-  }
+  // Without OXTS the scenario's drive clock starts at the first frame.
+  if (!gps_->drive_start_ns() && batch.oxts.empty()) gps_->SetDriveStart(t_ns);
+  FeedSensors(batch, r);
   // VO: cam0 motion -> body motion (the filter works in body axes).
   const bool vo_ok = vo_cam.status != vo::Status::kLost && last_frame_ns_.has_value();
   const Eigen::Isometry3d T_cam_body = T_cam0_imu_;
@@ -167,7 +212,7 @@ FrameResult Localizer::Fuse(const vo::RelativeMotion& vo_cam,
   r.vo_body.t_ns = t_ns;
   ekf_->ProcessVo(r.vo_body, vo_ok);
   r.pose = ekf_->Output(t_ns, vo_cam.status != vo::Status::kLost);
-  r.in_outage = gps_->InOutage(t_ns);
+  r.in_outage = gps_->InOutage(t_ns) || !receiver_has_fix_;
   last_frame_ns_ = t_ns;
   r.fusion_ms = MsSince(t0);
   return r;

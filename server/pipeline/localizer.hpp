@@ -43,6 +43,17 @@ struct GpsFeed {
   bool rejected_vertical = false;  // vertical part refused by its gate
 };
 
+// Sensor data that arrived since the previous call, each list in time order.
+struct SensorBatch {
+  std::vector<kitti::OxtsSample> oxts;  // IMU part used as IMU, position degraded by the scenario
+  std::vector<fusion::ImuSample> imu;   // measured IMU samples (typed input): used as they are
+  std::vector<fusion::GpsFix> gps;      // measured fixes: scenario outages apply, its noise does not
+  // The receiver's latest state when it reported one: false after a no-fix
+  // report (an outage until a fix comes), true after a fix.
+  std::optional<bool> receiver_has_fix;
+  bool empty() const { return oxts.empty() && imu.empty() && gps.empty() && !receiver_has_fix; }
+};
+
 struct FrameResult {
   fusion::FusedPose pose;             // fused pose at the frame time
   vo::RelativeMotion vo;              // raw VO output (cam0 axes)
@@ -74,6 +85,10 @@ class Localizer {
   vo::RelativeMotion TrackVo(const vo::StereoFrame& frame);
   FrameResult Fuse(const vo::RelativeMotion& vo_cam,
                    std::span<const kitti::OxtsSample> oxts_since_last_frame);
+  FrameResult Fuse(const vo::RelativeMotion& vo_cam, const SensorBatch& since_last_frame);
+  // Sensor data between frames (live input), fused now in time order; the
+  // result has no pose, only the GPS feeds and IMU count.
+  FrameResult FuseSensors(const SensorBatch& batch);
 
   // Run-time outages, absolute times on the frame clock.
   void ScheduleOutage(int64_t start_ns, int64_t end_ns);
@@ -95,6 +110,10 @@ class Localizer {
 
  private:
   void ApplyPendingControls();
+  void FeedSensors(const SensorBatch& batch, FrameResult& r);
+  void FeedImu(const fusion::ImuSample& imu, FrameResult& r);
+  void FeedGps(const fusion::GpsFix& fix, FrameResult& r);
+  bool receiver_has_fix_ = true;
 
   kitti::StereoCamera camera_;
   Eigen::Isometry3d T_cam0_imu_;

@@ -56,13 +56,19 @@ class FakeEstimator : public FrameEstimator {
     e.pose.lon_deg = 8.4;
     gps_used_ += static_cast<int>(oxts.size());
     e.pose.gps_used = gps_used_;
-    e.in_outage = forced_;
+    e.in_outage = forced_ || !receiver_has_fix_;
     for (const auto& [a, b] : windows_) e.in_outage = e.in_outage || (frame.t_ns >= a && frame.t_ns < b);
     e.pose.mode = e.in_outage ? fusion::Mode::kVoOnly : fusion::Mode::kGpsFused;
     e.pose.seconds_since_gps = e.in_outage ? 1.0 : 0.0;
     e.vo_inliers = 100;
     e.vo_status = vo::Status::kOk;
     return e;
+  }
+  // Typed fixes count as used GPS too; a no-fix report is an outage until
+  // the next fix.
+  void FuseSensors(const pipeline::SensorBatch& batch) override {
+    gps_used_ += static_cast<int>(batch.gps.size());
+    if (batch.receiver_has_fix) receiver_has_fix_ = *batch.receiver_has_fix;
   }
   void ScheduleOutage(int64_t start_ns, int64_t end_ns) override { windows_.emplace_back(start_ns, end_ns); }
   void StartOutageNow() override { forced_ = true; }
@@ -77,7 +83,7 @@ class FakeEstimator : public FrameEstimator {
   int fail_at_ = -1;
   int frames_ = 0;
   int gps_used_ = 0;
-  bool forced_ = false;
+  bool forced_ = false, receiver_has_fix_ = true;
   std::vector<std::pair<int64_t, int64_t>> windows_;
 };
 
@@ -497,5 +503,76 @@ inline std::filesystem::path FreshTestDir(const std::string& name) {
   std::filesystem::create_directories(dir);
   return dir;
 }
+
+// A push stream attached to (or creating) a live session.
+class Pusher {
+ public:
+  Pusher(v1::Localization::Stub* stub, const std::string& session_id, const v1::LiveSource& live = SmallCamera()) {
+    SetDeadline(&ctx_, 60);
+    stream_ = stub->PushSensorData(&ctx_);
+    v1::PushRequest start;
+    start.mutable_start()->set_session_id(session_id);
+    *start.mutable_start()->mutable_live() = live;
+    ok_ = stream_->Write(start);
+    v1::PushResponse first;
+    ok_ = ok_ && stream_->Read(&first) && first.has_session();
+    session_ = first.session();
+    reader_ = std::thread([this] {
+      v1::PushResponse r;
+      while (stream_->Read(&r)) {
+        std::lock_guard lock(mu_);
+        if (r.has_pose()) poses_.push_back(r.pose());
+        if (r.has_rejected()) rejected_.push_back(r.rejected());
+        cv_.notify_all();
+      }
+    });
+  }
+  ~Pusher() {
+    if (reader_.joinable()) {
+      ctx_.TryCancel();
+      reader_.join();
+    }
+  }
+  bool ok() const { return ok_; }
+  const v1::Session& session() const { return session_; }
+  bool Write(const v1::PushRequest& r) { return stream_->Write(r); }
+  // Waits (bounded) until n poses arrived.
+  bool WaitPoses(size_t n) {
+    std::unique_lock lock(mu_);
+    return cv_.wait_for(lock, std::chrono::seconds(30), [&] { return poses_.size() >= n; });
+  }
+  // Waits (bounded) until the pose with this sequence number (or a later one)
+  // arrived. Unlike WaitPoses it does not need every pose: this stream has the
+  // server's default queue, and under load it may drop older poses.
+  bool WaitSequence(uint64_t sequence) {
+    std::unique_lock lock(mu_);
+    return cv_.wait_for(lock, std::chrono::seconds(30),
+                        [&] { return !poses_.empty() && poses_.back().sequence() >= sequence; });
+  }
+  grpc::Status Close() {
+    stream_->WritesDone();
+    reader_.join();
+    return stream_->Finish();
+  }
+  std::vector<v1::PoseUpdate> poses() {
+    std::lock_guard lock(mu_);
+    return poses_;
+  }
+  std::vector<v1::PushRejected> rejected() {
+    std::lock_guard lock(mu_);
+    return rejected_;
+  }
+
+ private:
+  grpc::ClientContext ctx_;
+  std::unique_ptr<grpc::ClientReaderWriter<v1::PushRequest, v1::PushResponse>> stream_;
+  bool ok_ = false;
+  v1::Session session_;
+  std::thread reader_;
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::vector<v1::PoseUpdate> poses_;
+  std::vector<v1::PushRejected> rejected_;
+};
 
 }  // namespace locaid::server::testing

@@ -1,0 +1,104 @@
+#include "server/gps_receiver.hpp"
+
+#include "sensors/gpsd_client.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <exception>
+#include <memory>
+
+namespace locaid::server {
+namespace {
+
+int64_t SteadyNowNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+}  // namespace
+
+GpsdReceiver::GpsdReceiver(GpsdEndpoint endpoint, LiveFrameSource* sink)
+    : endpoint_(std::move(endpoint)), sink_(sink), thread_([this] { Run(); }) {}
+
+GpsdReceiver::~GpsdReceiver() {
+  {
+    std::lock_guard lock(mu_);
+    stop_ = true;
+  }
+  cv_.notify_all();
+  thread_.join();
+}
+
+void GpsdReceiver::AddStats(LiveInputStats& stats) const {
+  std::lock_guard lock(mu_);
+  stats.has_gpsd = true;
+  stats.gpsd_connected = connected_;
+  stats.gpsd_connects = connects_;
+  stats.gpsd_losses = losses_;
+  stats.gpsd_error = error_;
+}
+
+bool GpsdReceiver::SleepFor(double seconds) {
+  std::unique_lock lock(mu_);
+  return !cv_.wait_for(lock, std::chrono::duration<double>(seconds), [this] { return stop_; });
+}
+
+void GpsdReceiver::Run() {
+  double backoff_s = kFirstBackoffS;
+  for (;;) {
+    {
+      std::lock_guard lock(mu_);
+      if (stop_) return;
+    }
+    std::unique_ptr<sensors::GpsdClient> client;
+    try {
+      client = std::make_unique<sensors::GpsdClient>(endpoint_.host, endpoint_.port);
+    } catch (const std::exception& e) {
+      {
+        std::lock_guard lock(mu_);
+        error_ = e.what();
+      }
+      if (!SleepFor(backoff_s)) return;
+      backoff_s = std::min(kMaxBackoffS, 2 * backoff_s);
+      continue;
+    }
+    {
+      std::lock_guard lock(mu_);
+      connected_ = true;
+      ++connects_;
+    }
+    backoff_s = kFirstBackoffS;
+    try {
+      // Short reads so that a stop is noticed within ~100 ms.
+      for (;;) {
+        {
+          std::lock_guard lock(mu_);
+          if (stop_) return;
+        }
+        for (const sensors::GpsdReport& report : client->Read(std::chrono::milliseconds(100))) {
+          LiveItem item;
+          item.kind = LiveItem::Kind::kGps;
+          item.arrival_steady_ns = SteadyNowNs();
+          item.from_gpsd = true;
+          if (auto fix = sensors::FixFromGpsd(report)) {
+            item.t_ns = fix->t_ns;
+            item.gps = *fix;
+          } else {
+            item.t_ns = report.t_ns;
+            item.gps_no_fix = true;
+          }
+          sink_->PushAsyncFix(std::move(item));
+        }
+      }
+    } catch (const std::exception& e) {
+      std::lock_guard lock(mu_);
+      connected_ = false;
+      ++losses_;
+      error_ = e.what();
+    }
+    client.reset();
+    if (!SleepFor(backoff_s)) return;
+  }
+}
+
+}  // namespace locaid::server

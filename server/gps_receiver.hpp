@@ -1,0 +1,51 @@
+// A live session's GPS receiver read by the server itself: a gpsd daemon
+// watched on one thread of its own (owned by the session's pipeline). Fixes go
+// to the session's LiveFrameSource without blocking; a lost connection is
+// counted and retried with backoff.
+#pragma once
+
+#include "server/frame_source.hpp"
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <mutex>
+#include <string>
+#include <thread>
+
+namespace locaid::server {
+
+struct GpsdEndpoint {
+  std::string host = "127.0.0.1";
+  uint16_t port = 2947;
+};
+
+class GpsdReceiver {
+ public:
+  // Backoff between connection attempts: 0.5 s, doubling up to 5 s.
+  static constexpr double kFirstBackoffS = 0.5, kMaxBackoffS = 5.0;
+  // `sink` must outlive the receiver.
+  GpsdReceiver(GpsdEndpoint endpoint, LiveFrameSource* sink);
+  ~GpsdReceiver();  // stops and joins the thread
+  GpsdReceiver(const GpsdReceiver&) = delete;
+  GpsdReceiver& operator=(const GpsdReceiver&) = delete;
+
+  // Connection figures, merged into the session's LiveInputStats. Any thread.
+  void AddStats(LiveInputStats& stats) const;
+
+ private:
+  void Run();
+  bool SleepFor(double seconds);  // false when stopping
+
+  const GpsdEndpoint endpoint_;
+  LiveFrameSource* const sink_;
+  mutable std::mutex mu_;
+  std::condition_variable cv_;
+  bool stop_ = false;
+  bool connected_ = false;
+  uint64_t connects_ = 0, losses_ = 0;
+  std::string error_;
+  std::thread thread_;
+};
+
+}  // namespace locaid::server

@@ -1,0 +1,98 @@
+#include "server/sensor_requests.hpp"
+
+#include <Eigen/Eigenvalues>
+
+#include <cmath>
+#include <sstream>
+
+namespace locaid::server {
+namespace {
+
+namespace v1 = locaid::v1;
+
+// Defaults of the API for what a receiver does not state (1-sigma).
+constexpr double kDefaultSigmaH = 5.0, kDefaultSigmaV = 10.0, kDefaultSigmaVel = 0.5;
+
+std::string Number(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+bool Vec(const v1::Vector3& v, Eigen::Vector3d* out) {
+  *out = Eigen::Vector3d(v.x(), v.y(), v.z());
+  return out->allFinite();
+}
+
+// 0 or NaN = not stated; otherwise finite and > 0.
+std::string Sigma(const char* field, double v, double fallback, double* out) {
+  if (v == 0 || std::isnan(v)) {
+    *out = fallback;
+    return "";
+  }
+  if (!std::isfinite(v) || v < 0) return std::string(field) + ": must be > 0 (or 0 for the default), got " + Number(v);
+  *out = v;
+  return "";
+}
+
+}  // namespace
+
+std::string ImuItemFromProto(const v1::ImuSample& in, LiveItem* out) {
+  out->kind = LiveItem::Kind::kImu;
+  out->t_ns = in.t_ns();
+  out->imu.t_ns = in.t_ns();
+  if (!Vec(in.accel_mps2(), &out->imu.accel_mps2)) return "accel_mps2: not finite";
+  if (!Vec(in.gyro_radps(), &out->imu.gyro_radps)) return "gyro_radps: not finite";
+  // A car's IMU saturates long before these: larger values are corrupt.
+  if (out->imu.accel_mps2.norm() > 2000) return "accel_mps2: |a| = " + Number(out->imu.accel_mps2.norm()) + " > 2000";
+  if (out->imu.gyro_radps.norm() > 100) return "gyro_radps: |w| = " + Number(out->imu.gyro_radps.norm()) + " > 100";
+  if (auto e = Sigma("accel_noise_mps2_sqrt_hz", in.accel_noise_mps2_sqrt_hz(), 0, &out->imu.accel_noise_mps2_sqrt_hz);
+      !e.empty())
+    return e;
+  return Sigma("gyro_noise_radps_sqrt_hz", in.gyro_noise_radps_sqrt_hz(), 0, &out->imu.gyro_noise_radps_sqrt_hz);
+}
+
+std::string GpsItemFromProto(const v1::GpsFix& in, LiveItem* out) {
+  out->kind = LiveItem::Kind::kGps;
+  out->t_ns = in.t_ns();
+  fusion::GpsFix& f = out->gps;
+  f.t_ns = in.t_ns();
+  if (in.fix_type() == v1::GPS_FIX_NONE) {
+    out->gps_no_fix = true;  // position fields are ignored
+    return "";
+  }
+  if (!v1::GpsFixType_IsValid(in.fix_type())) return "fix_type: unknown value " + std::to_string(in.fix_type());
+  const double lat = in.latitude_deg(), lon = in.longitude_deg(), alt = in.altitude_m();
+  if (!std::isfinite(lat) || lat < -90 || lat > 90) return "latitude_deg: must be in [-90, 90], got " + Number(lat);
+  if (!std::isfinite(lon) || lon < -180 || lon > 180) return "longitude_deg: must be in [-180, 180], got " + Number(lon);
+  f.lat_deg = lat;
+  f.lon_deg = lon;
+  f.has_altitude = in.fix_type() != v1::GPS_FIX_2D;
+  if (f.has_altitude && (!std::isfinite(alt) || alt < -1000 || alt > 100000))
+    return "altitude_m: must be in [-1000, 100000], got " + Number(alt);
+  f.alt_m = f.has_altitude ? alt : 0.0;
+  if (auto e = Sigma("sigma_horizontal_m", in.sigma_horizontal_m(), kDefaultSigmaH, &f.sigma_h_m); !e.empty()) return e;
+  if (auto e = Sigma("sigma_vertical_m", in.sigma_vertical_m(), kDefaultSigmaV, &f.sigma_v_m); !e.empty()) return e;
+  if (in.covariance_enu_m2_size() != 0) {
+    if (in.covariance_enu_m2_size() != 9)
+      return "covariance_enu_m2: expected 0 or 9 values, got " + std::to_string(in.covariance_enu_m2_size());
+    Eigen::Matrix3d C;
+    for (int i = 0; i < 9; ++i) C(i / 3, i % 3) = in.covariance_enu_m2(i);
+    if (!C.allFinite()) return "covariance_enu_m2: not finite";
+    if (!C.isApprox(C.transpose(), 1e-9)) return "covariance_enu_m2: not symmetric";
+    if (Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(C).eigenvalues().minCoeff() <= 0)
+      return "covariance_enu_m2: not positive definite";
+    f.cov_enu_m2 = C;
+    if (!f.has_altitude) (*f.cov_enu_m2)(2, 2) = std::max(C(2, 2), 1.0);
+  }
+  if (in.has_velocity()) {
+    Eigen::Vector3d v;
+    if (!Vec(in.velocity_enu_mps(), &v) || v.norm() > 200) return "velocity_enu_mps: must be finite, |v| <= 200 m/s";
+    f.v_enu_mps = v;
+    if (auto e = Sigma("sigma_velocity_mps", in.sigma_velocity_mps(), kDefaultSigmaVel, &f.sigma_v_enu_mps); !e.empty())
+      return e;
+  }
+  return "";
+}
+
+}  // namespace locaid::server

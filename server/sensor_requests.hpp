@@ -1,0 +1,18 @@
+// Typed live input (PushRequest.imu / .gps) translated into the items a live
+// session queues, with every value checked here. Defaults for what a client
+// may leave out are documented in docs/api.md ("Typed sensor input").
+#pragma once
+
+#include "locaid/v1/localization.pb.h"
+#include "server/frame_source.hpp"
+
+#include <string>
+
+namespace locaid::server {
+
+// Both return "" and fill `out`, or the reason the message is refused (the
+// stream answers it with PushRejected and goes on).
+std::string ImuItemFromProto(const locaid::v1::ImuSample& in, LiveItem* out);
+std::string GpsItemFromProto(const locaid::v1::GpsFix& in, LiveItem* out);
+
+}  // namespace locaid::server
