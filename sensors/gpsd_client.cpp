@@ -27,22 +27,28 @@ std::optional<fusion::GpsFix> FixFromGpsd(const GpsdReport& r) {
   fix.alt_m = fix.has_altitude ? r.alt_hae_m : 0.0;
   // Per-axis estimates when gpsd has them (epx/epy are 1-D 95 % figures),
   // else its horizontal radius.
+  const bool gst = std::isfinite(r.gst_lat_m) && std::isfinite(r.gst_lon_m) && r.gst_lat_m > 0 && r.gst_lon_m > 0;
   const bool per_axis = std::isfinite(r.epx_m) && std::isfinite(r.epy_m) && r.epx_m > 0 && r.epy_m > 0;
-  fix.sigma_h_m = per_axis ? std::max(r.epx_m, r.epy_m) / k95OneD : Finite(r.eph_m, kDefaultSigmaH * k95Radius2d) / k95Radius2d;
-  fix.sigma_v_m = Finite(r.epv_m, kDefaultSigmaV * k95OneD) / k95OneD;
-  if (std::isfinite(r.speed_mps) && std::isfinite(r.track_deg)) {
-    const double track = r.track_deg * M_PI / 180.0;  // from north, clockwise
-    const double climb = std::isfinite(r.climb_mps) ? r.climb_mps : 0.0;
-    fix.v_enu_mps = Eigen::Vector3d(r.speed_mps * std::sin(track), r.speed_mps * std::cos(track), climb);
-    fix.sigma_v_enu_mps = Finite(r.eps_mps, 0.5 * k95OneD) / k95OneD;
-  }
+  if (gst) fix.sigma_h_m = std::max(r.gst_lat_m, r.gst_lon_m);
+  else if (per_axis) fix.sigma_h_m = std::max(r.epx_m, r.epy_m) / k95OneD;
+  else fix.sigma_h_m = Finite(r.eph_m, kDefaultSigmaH * k95Radius2d) / k95Radius2d;
+  fix.sigma_v_m = gst && std::isfinite(r.gst_alt_m) && r.gst_alt_m > 0 ? r.gst_alt_m
+                                                                         : Finite(r.epv_m, kDefaultSigmaV * k95OneD) / k95OneD;
   return fix;
 }
 
 struct GpsdClient::Impl {
   struct gps_data_t data{};
   std::string where;
+  // The newest GST report: 1-sigma lat, lon, alt errors and its time.
+  int64_t gst_t_ns = 0;
+  double gst[3] = {NAN, NAN, NAN};
 };
+
+namespace {
+int64_t Ns(const timespec& t) { return static_cast<int64_t>(t.tv_sec) * 1000000000LL + t.tv_nsec; }
+constexpr int64_t kGstMaxAgeNs = 5'000'000'000LL;
+}  // namespace
 
 GpsdClient::GpsdClient(const std::string& host, uint16_t port) : impl_(std::make_unique<Impl>()) {
   impl_->where = "gpsd at " + host + ":" + std::to_string(port);
@@ -72,13 +78,30 @@ std::vector<GpsdReport> GpsdClient::Read(std::chrono::milliseconds timeout) {
     impl_->data.set = 0;
     const int n = gps_read(&impl_->data, nullptr, 0);
     if (n < 0) throw std::runtime_error(impl_->where + ": connection lost");
-    if (n == 0 || !(impl_->data.set & MODE_SET)) continue;  // not a TPV (SKY, DEVICE, VERSION...)
+    if (n == 0) continue;
+    if (impl_->data.set & GST_SET) {
+      const struct gst_t& g = impl_->data.gst;
+      impl_->gst_t_ns = Ns(g.utctime);
+      impl_->gst[0] = g.lat_err_deviation;
+      impl_->gst[1] = g.lon_err_deviation;
+      impl_->gst[2] = g.alt_err_deviation;
+      continue;
+    }
+    // A TPV carries the mode; SKY, DEVICE, VERSION... do not.
+    if (!(impl_->data.set & MODE_SET)) continue;
     const struct gps_fix_t& f = impl_->data.fix;
+    // Without a time the report cannot be paired with frames (gpsd's first
+    // report of a device may lack it): skipped.
+    if (!(impl_->data.set & TIME_SET) || f.time.tv_sec <= 0) continue;
     GpsdReport r;
     r.mode = f.mode;
     r.status = f.status;
-    if ((impl_->data.set & TIME_SET) && f.time.tv_sec > 0)
-      r.t_ns = static_cast<int64_t>(f.time.tv_sec) * 1000000000LL + f.time.tv_nsec;
+    r.t_ns = Ns(f.time);
+    if (impl_->gst_t_ns != 0 && std::abs(r.t_ns - impl_->gst_t_ns) <= kGstMaxAgeNs) {
+      r.gst_lat_m = impl_->gst[0];
+      r.gst_lon_m = impl_->gst[1];
+      r.gst_alt_m = impl_->gst[2];
+    }
     r.lat_deg = f.latitude;
     r.lon_deg = f.longitude;
     r.alt_hae_m = f.altHAE;
@@ -86,10 +109,6 @@ std::vector<GpsdReport> GpsdClient::Read(std::chrono::milliseconds timeout) {
     r.epy_m = f.epy;
     r.epv_m = f.epv;
     r.eph_m = f.eph;
-    r.speed_mps = f.speed;
-    r.track_deg = f.track;
-    r.climb_mps = f.climb;
-    r.eps_mps = f.eps;
     reports.push_back(r);
   }
   // A closed socket is readable: gps_read then fails and throws above.

@@ -7,6 +7,7 @@
 #include "fusion/types.hpp"
 
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -22,14 +23,18 @@ struct GpsdReport {
   int64_t t_ns = 0;  // UTC of the fix, Unix epoch; 0 when the report had no time
   double lat_deg = 0, lon_deg = 0, alt_hae_m = 0;
   double epx_m = 0, epy_m = 0, epv_m = 0, eph_m = 0;  // gpsd's error estimates
-  double speed_mps = 0, track_deg = 0, climb_mps = 0, eps_mps = 0;
+  // 1-sigma errors from the receiver's newest GST report (NMEA $--GST) of
+  // the last 5 s, NaN without one: what the receiver says of itself.
+  double gst_lat_m = NAN, gst_lon_m = NAN, gst_alt_m = NAN;
 };
 
-// The filter's view of a report. nullopt for a report without time or
-// position (mode < 2): the receiver has no fix. gpsd states its error
-// estimates at 95 % confidence; they are turned into 1-sigma (/ 2.45 for the
-// 2-D horizontal, / 1.96 vertical). Missing estimates: 5 m / 10 m 1-sigma.
-// A 2-D fix does not measure altitude. Speed/track/climb give the velocity.
+// The filter's view of a report; nullopt when it has no position (mode < 2:
+// the receiver has no fix). Sigma: the receiver's own GST figures when it
+// sends them; else gpsd's estimates, which are 95 % figures (gpsd's error
+// model), turned into 1-sigma (/ 1.96 per axis, / 2.45 for the horizontal
+// radius eph); else 5 m / 10 m. A 2-D fix does not measure altitude. The
+// velocity is not taken: gpsd derives climb from successive altitudes of an
+// NMEA receiver, which is noise, not a measurement.
 std::optional<fusion::GpsFix> FixFromGpsd(const GpsdReport& report);
 
 class GpsdClient {
@@ -41,8 +46,9 @@ class GpsdClient {
   GpsdClient(const GpsdClient&) = delete;
   GpsdClient& operator=(const GpsdClient&) = delete;
 
-  // Waits up to `timeout` for data and returns the TPV reports read (none on
-  // timeout). Throws std::runtime_error when the connection is lost.
+  // Waits up to `timeout` for data and returns the time-stamped TPV reports
+  // read (none on timeout). Throws std::runtime_error when the connection is
+  // lost.
   std::vector<GpsdReport> Read(std::chrono::milliseconds timeout);
 
  private:

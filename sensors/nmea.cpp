@@ -87,6 +87,11 @@ std::string GstSentence(const NmeaFix& f) {
   return Sentence(buf);
 }
 
+std::string GsaSentence(const NmeaFix& f) {
+  // Auto 2-D/3-D selection; mode 1 (no fix) or 3 (3-D), no satellite list.
+  return Sentence(std::string("GPGSA,A,") + (f.valid ? "3" : "1") + ",,,,,,,,,,,,,,,");
+}
+
 int64_t ParseIso8601Utc(const std::string& text) {
   static const std::regex re(R"((\d{4})-(\d{2})-(\d{2})T(\d{2}):(\d{2}):(\d{2})(\.\d{1,9})?Z?)");
   std::smatch m;

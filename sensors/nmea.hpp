@@ -27,6 +27,9 @@ std::string NmeaChecksum(const std::string& body);
 std::string GgaSentence(const NmeaFix& fix);
 std::string RmcSentence(const NmeaFix& fix);
 std::string GstSentence(const NmeaFix& fix);
+// GSA without satellites: the fix mode only (what a receiver without a fix
+// still prints every epoch).
+std::string GsaSentence(const NmeaFix& fix);
 
 // Parses "YYYY-MM-DDTHH:MM:SS[.fff]Z" (UTC; the Z may be left out) into ns
 // since the Unix epoch; throws std::invalid_argument naming what is wrong.

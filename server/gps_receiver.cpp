@@ -45,6 +45,7 @@ bool GpsdReceiver::SleepFor(double seconds) {
 
 void GpsdReceiver::Run() {
   double backoff_s = kFirstBackoffS;
+  int64_t last_t_ns = 0;
   for (;;) {
     {
       std::lock_guard lock(mu_);
@@ -76,6 +77,10 @@ void GpsdReceiver::Run() {
           if (stop_) return;
         }
         for (const sensors::GpsdReport& report : client->Read(std::chrono::milliseconds(100))) {
+          // gpsd may report an epoch more than once (one TPV per sentence
+          // that completes it); the first report of an epoch is the fix.
+          if (report.t_ns <= last_t_ns) continue;
+          last_t_ns = report.t_ns;
           LiveItem item;
           item.kind = LiveItem::Kind::kGps;
           item.arrival_steady_ns = SteadyNowNs();

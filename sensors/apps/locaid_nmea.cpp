@@ -1,7 +1,8 @@
 // locaid-nmea: a drive's OXTS, degraded by a GPS scenario, as the NMEA 0183
-// a consumer receiver prints (GGA, RMC, GST per fix; GGA quality 0 and RMC
-// status V once per fix slot inside an outage), so any KITTI or synthetic
-// drive can be replayed through a real gpsd (gpsfake).
+// a consumer receiver prints: one epoch per receiver period on an even grid
+// (the true position interpolated to it), GGA, RMC and GST per fix, and GGA
+// quality 0, a no-fix GSA and RMC status V per epoch inside an outage. Any
+// KITTI or synthetic drive can so be replayed through a real gpsd (gpsfake).
 //
 //   locaid-nmea --drive DIR [--scenario NAME|FILE] [--seed N] [--start-utc 2024-05-17T12:00:00Z] --out F.nmea
 #include "fusion/scenario.hpp"
@@ -45,13 +46,25 @@ int main(int argc, char** argv) {
     std::ofstream out(out_path, std::ios::binary);
     if (!out) throw std::runtime_error(out_path + ": cannot write");
     int fixes = 0, outage_epochs = 0;
-    std::optional<int64_t> last_outage_slot;
-    for (const auto& s : oxts) {
-      const kitti::OxtsRecord& r = s.record;
+    // One epoch per receiver period on the drive's clock (t0 + k / rate), as
+    // a receiver reports on its UTC grid: the true position is interpolated
+    // to the epoch, so that the sentences' times are evenly spaced (a player
+    // pacing per sentence, gpsfake -c, then keeps the receiver's time line).
+    const auto period_ns = static_cast<int64_t>(std::llround(1e9 / scenario.gps_rate_hz));
+    size_t j = 0;
+    for (int64_t t = t0; t <= oxts.back().t_ns; t += period_ns) {
+      while (j + 1 < oxts.size() && oxts[j + 1].t_ns <= t) ++j;
+      const kitti::OxtsRecord& a = oxts[j].record;
+      const kitti::OxtsRecord& b = oxts[std::min(j + 1, oxts.size() - 1)].record;
+      const int64_t span = oxts[std::min(j + 1, oxts.size() - 1)].t_ns - oxts[j].t_ns;
+      const double w = span > 0 ? static_cast<double>(t - oxts[j].t_ns) / static_cast<double>(span) : 0.0;
+      const double lat = a.lat_deg + w * (b.lat_deg - a.lat_deg), lon = a.lon_deg + w * (b.lon_deg - a.lon_deg);
+      const double alt = a.alt_m + w * (b.alt_m - a.alt_m);
+      const kitti::OxtsRecord& r = w < 0.5 ? a : b;  // attitude and velocity of the nearer record
       const Eigen::Matrix3d R_enu_imu = kitti::OxtsAttitude(r.roll_rad, r.pitch_rad, r.yaw_rad);
       sensors::NmeaFix nmea;
-      nmea.utc_ns = utc0 + (s.t_ns - t0);
-      if (const auto fix = gps.Apply(s.t_ns, r.lat_deg, r.lon_deg, r.alt_m, &R_enu_imu)) {
+      nmea.utc_ns = utc0 + (t - t0);
+      if (const auto fix = gps.Apply(t, lat, lon, alt, &R_enu_imu)) {
         nmea.valid = true;
         nmea.lat_deg = fix->lat_deg;
         nmea.lon_deg = fix->lon_deg;
@@ -62,12 +75,10 @@ int main(int argc, char** argv) {
         nmea.sigma_alt_m = fix->sigma_v_m;
         out << sensors::GgaSentence(nmea) << sensors::RmcSentence(nmea) << sensors::GstSentence(nmea);
         ++fixes;
-      } else if (gps.InOutage(s.t_ns)) {
-        // No fix: what a receiver prints once per epoch while it has none.
-        const int64_t slot = fusion::FixSlot(s.t_ns - t0, scenario.gps_rate_hz);
-        if (last_outage_slot && slot <= *last_outage_slot) continue;
-        last_outage_slot = slot;
-        out << sensors::GgaSentence(nmea) << sensors::RmcSentence(nmea);
+      } else if (gps.InOutage(t)) {
+        // No fix: what a receiver prints each epoch while it has none; three
+        // sentences as in a fix epoch, for the same pacing.
+        out << sensors::GgaSentence(nmea) << sensors::GsaSentence(nmea) << sensors::RmcSentence(nmea);
         ++outage_epochs;
       }
     }

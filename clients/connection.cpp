@@ -1,0 +1,50 @@
+#include "clients/connection.hpp"
+
+#include <chrono>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+namespace locaid::clients {
+namespace {
+
+std::string ReadFile(const std::string& path, const char* what) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(std::string(what) + " " + path + ": cannot read");
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+}  // namespace
+
+void ResolveToken(Connection& c) {
+  if (c.token_file.empty()) return;
+  std::string t = ReadFile(c.token_file, "--token-file");
+  while (!t.empty() && std::isspace(static_cast<unsigned char>(t.back()))) t.pop_back();
+  if (t.empty()) throw std::runtime_error("--token-file " + c.token_file + ": empty");
+  c.token = t;
+}
+
+std::shared_ptr<grpc::Channel> MakeChannel(const Connection& c) {
+  grpc::ChannelArguments args;
+  args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, 30000);
+  args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
+  args.SetMaxReceiveMessageSize(64 * 1024 * 1024);
+  std::shared_ptr<grpc::ChannelCredentials> creds = grpc::InsecureChannelCredentials();
+  if (!c.tls_ca.empty()) {
+    grpc::SslCredentialsOptions ssl;
+    ssl.pem_root_certs = ReadFile(c.tls_ca, "--tls-ca");
+    creds = grpc::SslCredentials(ssl);
+  }
+  return grpc::CreateCustomChannel(c.server, creds, args);
+}
+
+void Prepare(const Connection& c, grpc::ClientContext* ctx, double timeout_s) {
+  if (timeout_s > 0)
+    ctx->set_deadline(std::chrono::system_clock::now() +
+                      std::chrono::milliseconds(static_cast<int64_t>(timeout_s * 1000)));
+  if (!c.token.empty()) ctx->AddMetadata("authorization", "Bearer " + c.token);
+}
+
+}  // namespace locaid::clients
