@@ -56,6 +56,18 @@ SourceItem DatasetFrameSource::Next() {
   while (next_oxts_ < oxts.size() && oxts[next_oxts_].t_ns <= item.t_ns) {
     item.oxts.push_back(oxts[next_oxts_++]);
   }
+  // Ground truth at the frame time: OXTS is the reference (design.md).
+  if (next_oxts_ > 0) {
+    const auto& a = oxts[next_oxts_ - 1];
+    const auto& b = oxts[std::min(next_oxts_, oxts.size() - 1)];
+    const double w =
+        b.t_ns > a.t_ns ? static_cast<double>(item.t_ns - a.t_ns) / static_cast<double>(b.t_ns - a.t_ns) : 0.0;
+    kitti::OxtsRecord truth = w < 0.5 ? a.record : b.record;  // attitude of the nearer record
+    truth.lat_deg = a.record.lat_deg + w * (b.record.lat_deg - a.record.lat_deg);
+    truth.lon_deg = a.record.lon_deg + w * (b.record.lon_deg - a.record.lon_deg);
+    truth.alt_m = a.record.alt_m + w * (b.record.alt_m - a.record.alt_m);
+    item.truth = truth;
+  }
   if (!dataset_->has_stereo(i)) {
     item.kind = SourceItem::Kind::kSkipped;
     item.error = "frame " + std::to_string(i) + ": left or right image missing";

@@ -42,6 +42,7 @@ struct SourceItem {
   std::vector<fusion::ImuSample> imu;          // typed IMU, time order, t <= t_ns for frames
   std::vector<ArrivedFix> gps;                 // typed / gpsd fixes, time order, t <= sensor time
   std::optional<bool> receiver_has_fix;        // the receiver's newest no-fix / fix state
+  std::optional<kitti::OxtsRecord> truth;      // dataset sources: OXTS at the frame time (interpolated)
   int oxts_bad_lines = 0;
   std::string error;                           // why skipped/corrupt, last bad OXTS line
 };

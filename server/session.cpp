@@ -73,6 +73,38 @@ void FillPoseUpdate(const StepResult& r, double latency_ms, PoseMessage* out) {
   out->set_gps_resets(static_cast<uint32_t>(std::max(0, p.gps_resets)));
   out->set_gps_outage_active(r.gps_outage_active);
   out->set_processing_latency_ms(latency_ms);
+  for (const FixSeen& f : r.gps_fixes) {
+    auto* g = out->add_gps_fixes();
+    g->set_t_ns(f.fix.t_ns);
+    g->set_latitude_deg(f.fix.lat_deg);
+    g->set_longitude_deg(f.fix.lon_deg);
+    g->set_altitude_m(f.fix.alt_m);
+    g->set_sigma_horizontal_m(f.fix.cov_enu_m2 ? std::sqrt(std::max((*f.fix.cov_enu_m2)(0, 0), (*f.fix.cov_enu_m2)(1, 1)))
+                                                : f.fix.sigma_h_m);
+    g->set_sigma_vertical_m(f.fix.cov_enu_m2 ? std::sqrt((*f.fix.cov_enu_m2)(2, 2)) : f.fix.sigma_v_m);
+    g->set_used(f.used);
+    g->set_rejected_vertical(f.rejected_vertical);
+    g->set_nis(f.nis);
+    g->set_gate(f.gate);
+  }
+  if (r.truth && r.truth->T_enu_body) {
+    const Eigen::Isometry3d& T = *r.truth->T_enu_body;
+    out->set_has_truth(true);
+    auto* tp = out->mutable_truth_position_enu_m();
+    tp->set_x(T.translation().x());
+    tp->set_y(T.translation().y());
+    tp->set_z(T.translation().z());
+    const Eigen::Quaterniond tq(T.rotation());
+    auto* to = out->mutable_truth_orientation_enu_body();
+    to->set_w(tq.w());
+    to->set_x(tq.x());
+    to->set_y(tq.y());
+    to->set_z(tq.z());
+    out->set_truth_latitude_deg(r.truth->lat_deg);
+    out->set_truth_longitude_deg(r.truth->lon_deg);
+    out->set_truth_altitude_m(r.truth->alt_m);
+    out->set_horizontal_error_m((t - T.translation()).head<2>().norm());
+  }
 }
 
 Session::Session(SessionOptions options, std::unique_ptr<SessionPipeline> pipeline)

@@ -11,7 +11,9 @@
 #include "vo/stereo_odometry.hpp"
 
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <vector>
 
 namespace locaid::server {
 
@@ -25,6 +27,19 @@ struct LiveInputStats {
   uint64_t gpsd_connects = 0, gpsd_losses = 0;
   std::string gpsd_error;
   double fix_latency_median_ms = 0, fix_latency_max_ms = 0;
+};
+
+// A GPS fix the filter received, and what its gate did with it.
+struct FixSeen {
+  fusion::GpsFix fix;
+  bool used = false, rejected_vertical = false;
+  double nis = 0, gate = 0;
+};
+
+// Ground truth at a pose's time (dataset sources).
+struct TruthPose {
+  double lat_deg = 0, lon_deg = 0, alt_m = 0;
+  std::optional<Eigen::Isometry3d> T_enu_body;  // once the filter's ENU origin is known
 };
 
 struct StepResult {
@@ -43,6 +58,8 @@ struct StepResult {
   int vo_inliers = 0;
   vo::Status vo_status = vo::Status::kLost;
   bool gps_outage_active = false;
+  std::vector<FixSeen> gps_fixes;     // received since the previous pose
+  std::optional<TruthPose> truth;
   int oxts_bad_lines = 0;  // bad OXTS records met while producing this result
   std::string error;       // kSkipped / kCorrupt / bad OXTS: file and reason
   // Wall time spent on this frame (decode, VO, EKF), ms. < 0: the session

@@ -1,5 +1,7 @@
 #include "server/source_pipeline.hpp"
 
+#include "kitti/oxts_pose.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -39,6 +41,10 @@ StepResult SourcePipeline::Step() {
   vo::StereoFrame frame{item.t_ns, std::move(item.left), std::move(item.right)};
   const Estimate e = estimator_->Process(frame, item.oxts);
   r.kind = StepResult::Kind::kPose;
+  r.gps_fixes = std::move(fixes_seen_);
+  fixes_seen_.clear();
+  r.gps_fixes.insert(r.gps_fixes.end(), e.gps_fixes.begin(), e.gps_fixes.end());
+  if (item.truth) r.truth = Truth(*item.truth);
   r.pose = e.pose;
   r.vo_inliers = e.vo_inliers;
   r.vo_status = e.vo_status;
@@ -53,7 +59,7 @@ void SourcePipeline::FuseTyped(const SourceItem& item) {
   batch.gps.reserve(item.gps.size());
   for (const ArrivedFix& f : item.gps) batch.gps.push_back(f.fix);
   batch.receiver_has_fix = item.receiver_has_fix;
-  estimator_->FuseSensors(batch);
+  for (FixSeen& f : estimator_->FuseSensors(batch)) fixes_seen_.push_back(std::move(f));
   const auto now = std::chrono::steady_clock::now().time_since_epoch();
   const auto now_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(now).count();
   std::lock_guard lock(latency_mu_);
@@ -62,6 +68,22 @@ void SourcePipeline::FuseTyped(const SourceItem& item) {
     fix_latency_ms_.push_back(static_cast<double>(now_ns - f.arrival_steady_ns) / 1e6);
     if (fix_latency_ms_.size() > kLatencyWindow) fix_latency_ms_.pop_front();
   }
+}
+
+std::optional<TruthPose> SourcePipeline::Truth(const kitti::OxtsRecord& oxts) const {
+  TruthPose t{oxts.lat_deg, oxts.lon_deg, oxts.alt_m, std::nullopt};
+  double lat0 = 0, lon0 = 0, alt0 = 0;
+  if (estimator_->origin(&lat0, &lon0, &alt0)) {
+    if (!enu_ || enu_->origin_lat_deg() != lat0 || enu_->origin_lon_deg() != lon0 || enu_->origin_alt_m() != alt0) {
+      enu_.emplace();
+      enu_->SetOrigin(lat0, lon0, alt0);
+    }
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = kitti::OxtsAttitude(oxts.roll_rad, oxts.pitch_rad, oxts.yaw_rad);
+    T.translation() = enu_->ToEnu(oxts.lat_deg, oxts.lon_deg, oxts.alt_m);
+    t.T_enu_body = T;
+  }
+  return t;
 }
 
 LiveInputStats SourcePipeline::input_stats() const {

@@ -4,6 +4,7 @@
 
 #include "server/frame_source.hpp"
 #include "server/gps_receiver.hpp"
+#include "fusion/geodesy.hpp"
 #include "server/pipeline/localizer.hpp"
 #include "server/session_pipeline.hpp"
 
@@ -21,6 +22,7 @@ namespace locaid::server {
 
 struct Estimate {
   fusion::FusedPose pose;
+  std::vector<FixSeen> gps_fixes;  // fixes fed with this frame
   int vo_inliers = 0;
   vo::Status vo_status = vo::Status::kLost;
   bool in_outage = false;
@@ -32,7 +34,7 @@ class FrameEstimator {
   virtual Estimate Process(const vo::StereoFrame& frame, std::span<const kitti::OxtsSample> oxts) = 0;
   // Typed live input (IMU samples, fixes), fused as it comes, before the
   // frame it arrived with. Estimators without typed input ignore it.
-  virtual void FuseSensors(const pipeline::SensorBatch& /*batch*/) {}
+  virtual std::vector<FixSeen> FuseSensors(const pipeline::SensorBatch& /*batch*/) { return {}; }
   virtual void ScheduleOutage(int64_t start_ns, int64_t end_ns) = 0;
   virtual void StartOutageNow() = 0;
   virtual void StopOutageNow() = 0;
@@ -76,6 +78,8 @@ class SourcePipeline : public SessionPipeline {
     return estimator_->origin(lat_deg, lon_deg, alt_m);
   }
   LiveInputStats input_stats() const override;
+  // The truth pose in the filter's ENU frame (null before it has an origin).
+  std::optional<TruthPose> Truth(const kitti::OxtsRecord& oxts) const;
   // A GPS receiver feeding the (live) source; stopped before the source goes.
   void set_receiver(std::unique_ptr<GpsdReceiver> receiver) { receiver_ = std::move(receiver); }
 
@@ -96,6 +100,8 @@ class SourcePipeline : public SessionPipeline {
   // OXTS samples that came with skipped / corrupt items: given to the
   // estimator with the next good frame instead of being lost.
   std::vector<kitti::OxtsSample> carried_oxts_;
+  std::vector<FixSeen> fixes_seen_;  // typed fixes fused since the last pose
+  mutable std::optional<fusion::EnuFrame> enu_;  // the filter's ENU frame, for the truth
 };
 
 }  // namespace locaid::server

@@ -155,6 +155,10 @@ void Localizer::FeedGps(const fusion::GpsFix& fix, FrameResult& r) {
   feed.rejected = ekf_->gps_rejected() > rejected_before;
   feed.rejected_vertical = ekf_->gps_rejected_vertical() > rejected_v_before;
   r.gps_reset = r.gps_reset || ekf_->gps_resets() > resets_before;
+  if (ekf_->initialized()) {
+    feed.nis = ekf_->last_gps_nis();
+    feed.gate = ekf_->gps_gate();
+  }
   if (ekf_->enu().has_origin()) feed.p_enu_m = ekf_->enu().ToEnu(fix.lat_deg, fix.lon_deg, fix.alt_m);
   r.gps_rejected = r.gps_rejected || feed.rejected;
   r.gps_fix_fed = fix;

@@ -41,6 +41,7 @@ struct GpsFeed {
   bool accepted = false;   // used by the filter
   bool rejected = false;   // horizontal part refused by the chi-square gate (false while buffered for init)
   bool rejected_vertical = false;  // vertical part refused by its gate
+  double nis = 0, gate = 0;        // horizontal NIS (2 dof) and its gate; 0 before the filter runs
 };
 
 // Sensor data that arrived since the previous call, each list in time order.

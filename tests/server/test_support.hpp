@@ -66,9 +66,12 @@ class FakeEstimator : public FrameEstimator {
   }
   // Typed fixes count as used GPS too; a no-fix report is an outage until
   // the next fix.
-  void FuseSensors(const pipeline::SensorBatch& batch) override {
+  std::vector<FixSeen> FuseSensors(const pipeline::SensorBatch& batch) override {
     gps_used_ += static_cast<int>(batch.gps.size());
     if (batch.receiver_has_fix) receiver_has_fix_ = *batch.receiver_has_fix;
+    std::vector<FixSeen> seen;
+    for (const auto& f : batch.gps) seen.push_back({f, true, false, 1.0, 9.21});
+    return seen;
   }
   void ScheduleOutage(int64_t start_ns, int64_t end_ns) override { windows_.emplace_back(start_ns, end_ns); }
   void StartOutageNow() override { forced_ = true; }

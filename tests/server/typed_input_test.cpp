@@ -52,7 +52,9 @@ TEST_F(TypedInput, SamplesAndFixesReachTheFilterAndBadOnesAreRefusedByName) {
   for (int f = 1; f <= 10; ++f) {
     const int64_t t = kT0 + f * kFrameNs;
     for (int k = 9; k >= 0; --k) ASSERT_TRUE(push.Write(Imu(t - k * kFrameNs / 10)));
-    if (f % 5 == 0) ASSERT_TRUE(push.Write(Fix(t - 5 * kFrameNs)));
+    if (f % 5 == 0) {
+      ASSERT_TRUE(push.Write(Fix(t - 5 * kFrameNs)));
+    }
     ASSERT_TRUE(push.Write(Gray8Frame(t)));
   }
   ASSERT_TRUE(push.WaitPoses(10));
@@ -93,8 +95,19 @@ TEST_F(TypedInput, SamplesAndFixesReachTheFilterAndBadOnesAreRefusedByName) {
   EXPECT_NE(stats.last_input_error().find("older than the newest frame"), std::string::npos)
       << stats.last_input_error();
   EXPECT_FALSE(stats.has_gpsd());
-  // The fake filter counts the fixes it was given: 2 on time + 1 late.
+  // The fake filter counts the fixes it was given: 2 on time + 1 late; each
+  // rides on the next pose, as the filter saw it.
   EXPECT_EQ(push.poses().back().gps_used(), 3u);
+  int seen = 0;
+  for (const auto& p : push.poses()) {
+    for (const auto& f : p.gps_fixes()) {
+      ++seen;
+      EXPECT_LE(f.t_ns(), p.t_ns());
+      EXPECT_DOUBLE_EQ(f.sigma_horizontal_m(), 1.5);
+      EXPECT_DOUBLE_EQ(f.sigma_vertical_m(), 10.0);  // not stated: the API's default
+    }
+  }
+  EXPECT_EQ(seen, 3);
 }
 
 TEST_F(TypedInput, ANoFixReportIsAnOutageUntilTheNextFix) {
