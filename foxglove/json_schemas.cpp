@@ -83,7 +83,9 @@ std::string FrameTransforms() {
 }
 
 std::string LocationFix() {
+  // "type" besides "oneOf": viewers that do not read enums still see an integer.
   json covariance_type = {{"title", "foxglove.PositionCovarianceType"},
+                          {"type", "integer"},
                           {"description", "what position_covariance holds"},
                           {"oneOf",
                            {{{"title", "UNKNOWN"}, {"const", 0}},
@@ -115,7 +117,9 @@ std::string LocationFix() {
 }
 
 std::string Status() {
-  json nullable_number = {{"type", {"number", "null"}}};
+  // Plain "number" although the value may be null: Foxglove's JSON Schema
+  // reader takes one type per field, and a null simply plots as a gap.
+  json nullable_number = {{"type", "number"}};
   json schema = Object(
       "locaid.Status", "Filter state of one pose (see PoseUpdate in localization.proto)",
       {{"timestamp", Time("sensor time of the pose")},

@@ -1,7 +1,10 @@
 // JSON Schemas of the foxglove message types locaid publishes as JSON, and of
 // its own status message. Field names and types follow the foxglove schemas
 // (https://docs.foxglove.dev/docs/visualization/message-schemas); only the
-// fields locaid fills are required.
+// fields locaid fills are required. They stay within what Foxglove's and
+// Lichtblick's JSON Schema reader accepts: one "type" per field (boolean,
+// string, number, integer, object, array of those), enums as "oneOf" numeric
+// constants.
 #pragma once
 
 #include <string>

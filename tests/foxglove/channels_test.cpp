@@ -70,6 +70,38 @@ TEST(FoxgloveChannels, TableHasTheTopicsAndSchemaNames) {
   }
 }
 
+// What Foxglove's parseJsonSchema accepts (packages/mcap-support): each
+// field has one "type" among these, objects recurse, arrays have typed items,
+// and an enum is "oneOf" numeric constants.
+void ExpectViewerReadable(const json& schema, const std::string& where) {
+  ASSERT_EQ(schema.value("type", ""), "object") << where;
+  for (const auto& [name, field] : schema["properties"].items()) {
+    const std::string path = where + "." + name;
+    if (field.contains("oneOf")) {
+      for (const auto& alternative : field["oneOf"]) EXPECT_TRUE(alternative["const"].is_number()) << path;
+      continue;
+    }
+    ASSERT_TRUE(field.contains("type") && field["type"].is_string()) << path << ": " << field.dump();
+    const std::string type = field["type"];
+    if (type == "object") {
+      ExpectViewerReadable(field, path);
+    } else if (type == "array") {
+      const json& items = field["items"];
+      ASSERT_TRUE(items["type"].is_string()) << path;
+      if (items["type"] == "object") ExpectViewerReadable(items, path + "[]");
+      else EXPECT_TRUE(items["type"] == "number" || items["type"] == "integer" || items["type"] == "string") << path;
+    } else {
+      EXPECT_TRUE(type == "boolean" || type == "string" || type == "number" || type == "integer") << path;
+    }
+  }
+}
+
+TEST(FoxgloveChannels, JsonSchemasStayWithinWhatViewersRead) {
+  for (const fx::ChannelSpec& c : fx::Channels()) {
+    if (c.encoding == "json") ExpectViewerReadable(json::parse(c.schema), c.topic);
+  }
+}
+
 TEST(FoxgloveChannels, LocationFixSchemaNamesTheFoxgloveFields) {
   const json schema = json::parse(fx::Channel(fx::Topic::kFix).schema);
   for (const char* field : {"timestamp", "frame_id", "latitude", "longitude", "altitude", "position_covariance",
