@@ -238,19 +238,23 @@ class Connection : public std::enable_shared_from_this<Connection> {
   }
 
   // Queues a frame; when the queue is full the oldest queued messageData
-  // makes room (control messages are never dropped).
+  // makes room (control messages are never dropped). The first drop is
+  // announced with a warning status; Foxglove and Lichtblick show this very
+  // text with a hint that the server is dropping messages for the viewer.
   void Send(Outgoing m) {
     if (!open_ || closing_) return;
+    bool first_drop = false;
     if (queue_.size() >= server_.options.max_queued_messages) {
       for (auto it = queue_.begin(); it != queue_.end(); ++it) {
         if (it->text) continue;
         queue_.erase(it);
-        ++dropped_;
+        first_drop = dropped_++ == 0;
         ++server_.dropped;
         break;
       }
     }
     queue_.push_back(std::move(m));
+    if (first_drop) queue_.push_back({true, StatusJson(1, "Send buffer limit reached"), nullptr});
     WriteNext();
   }
 

@@ -15,7 +15,8 @@
 // Each client has a bounded queue of outgoing messages: when a message
 // arrives and the queue is full, the oldest queued messageData is dropped
 // and counted, so a slow client never stalls the producer or other clients.
-// serverInfo/advertise/status are never dropped.
+// serverInfo/advertise/status are never dropped; the first drop sends the
+// client a warning status ("Send buffer limit reached").
 #pragma once
 
 #include "foxglove/channels.hpp"

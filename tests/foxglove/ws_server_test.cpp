@@ -181,6 +181,20 @@ TEST_F(WsServerTest, AClientThatStopsReadingLosesItsOldestMessagesOnly) {
   EXPECT_TRUE(got_last) << "the client that reads did not get the newest message";
   EXPECT_GT(server_->stats().messages_dropped, 0u);
   fast_reader.wait();
+
+  // Reading again, the slow client finds one warning, then the newest message.
+  int warnings = 0;
+  for (;;) {
+    const std::string m = slow.Read();
+    if (m.front() == '{') {
+      const json j = json::parse(m);
+      EXPECT_EQ(j["op"], "status");
+      EXPECT_EQ(j["message"], "Send buffer limit reached");
+      ++warnings;
+    }
+    if (m.size() > 13 && m.substr(13, 5) == "last!") break;
+  }
+  EXPECT_EQ(warnings, 1);
 }
 
 }  // namespace
