@@ -11,11 +11,11 @@ namespace {
 bool Live(v1::SessionState s) { return s == v1::SESSION_STATE_STARTING || s == v1::SESSION_STATE_RUNNING; }
 
 std::string Describe(const grpc::Status& s) {
-  static const char* kNames[] = {"OK",        "CANCELLED",          "UNKNOWN",      "INVALID_ARGUMENT",
-                                 "DEADLINE_EXCEEDED", "NOT_FOUND",   "ALREADY_EXISTS", "PERMISSION_DENIED",
-                                 "RESOURCE_EXHAUSTED", "FAILED_PRECONDITION", "ABORTED", "OUT_OF_RANGE",
-                                 "UNIMPLEMENTED", "INTERNAL",     "UNAVAILABLE",  "DATA_LOSS",
-                                 "UNAUTHENTICATED"};
+  // Indexed by grpc::StatusCode (0-16).
+  static const char* kNames[] = {
+      "OK",           "CANCELLED",           "UNKNOWN",  "INVALID_ARGUMENT", "DEADLINE_EXCEEDED", "NOT_FOUND",
+      "ALREADY_EXISTS", "PERMISSION_DENIED", "RESOURCE_EXHAUSTED", "FAILED_PRECONDITION", "ABORTED",
+      "OUT_OF_RANGE", "UNIMPLEMENTED",       "INTERNAL", "UNAVAILABLE",      "DATA_LOSS",         "UNAUTHENTICATED"};
   const int code = static_cast<int>(s.error_code());
   std::string name = code >= 0 && code < 17 ? kNames[code] : "code " + std::to_string(code);
   return s.error_message().empty() ? name : name + ": " + s.error_message();
@@ -63,6 +63,7 @@ void SessionFollower::Run() {
       Wait(wait_s);
       continue;
     }
+    if (options_.session.empty()) backoff.Reset();  // the server answered
     if (target.empty() || (target == current_ && current_done_)) {
       if (target.empty() && !said_waiting) options_.log("no live session; checking every " + Seconds(options_.poll_s));
       said_waiting = true;
@@ -77,8 +78,10 @@ void SessionFollower::Run() {
       options_.log("following session " + target);
       on_session_(target);
     }
+    const int64_t sequence_before = last_sequence_;
     const grpc::Status s = Stream(target);
     if (stopping()) break;
+    if (last_sequence_ != sequence_before) backoff.Reset();  // the stream delivered
     bool switching = false;
     {
       std::lock_guard lock(mu_);
@@ -87,7 +90,6 @@ void SessionFollower::Run() {
     if (switching) {
       options_.log("session " + target + ": a newer session started; switching");
     } else if (s.ok()) {
-      backoff.Reset();
       options_.log("session " + target + " ended (stream OK after sequence " + std::to_string(last_sequence_) + ")");
       current_done_ = true;
     } else if (s.error_code() == grpc::UNAVAILABLE || s.error_code() == grpc::DEADLINE_EXCEEDED ||
