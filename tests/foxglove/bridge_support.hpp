@@ -41,6 +41,7 @@ class BridgeProcess {
   BridgeProcess(const std::filesystem::path& dir, int server_port, int ws_port,
                 const std::vector<std::string>& extra_args = {})
       : err_(dir / "bridge.err") {
+    std::filesystem::create_directories(dir);
     std::vector<std::string> argv = {std::string(LOCAID_BIN_DIR) + "/locaid-foxglove", "--server",
                                      "127.0.0.1:" + std::to_string(server_port), "--listen",
                                      "127.0.0.1:" + std::to_string(ws_port)};

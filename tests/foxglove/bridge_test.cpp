@@ -169,6 +169,19 @@ TEST_F(BridgeTest, ReconnectsWhenTheServerComesBack) {
   EXPECT_TRUE(bridge.WaitForLog("following session " + id, 30)) << bridge.log();
 }
 
+TEST_F(BridgeTest, SendsTheTokenFromTokenFile) {
+  {
+    std::ofstream(dir_ / "token") << "s3cret-token\n";  // the trailing newline is not part of it
+  }
+  st::ServerProcess server(dir_ / "server", {"--token", "s3cret-token"});
+  ASSERT_GT(server.port(), 0) << server.log();
+  ft::BridgeProcess without(dir_ / "without", server.port(), ft::FreeLoopbackPort());
+  ft::BridgeProcess with(dir_, server.port(), ft::FreeLoopbackPort(), {"--token-file", (dir_ / "token").string()});
+  EXPECT_TRUE(without.WaitForLog("ListSessions failed: UNAUTHENTICATED", 20)) << without.log();
+  EXPECT_TRUE(with.WaitForLog("no live session", 20)) << with.log();
+  EXPECT_EQ(with.log().find("UNAUTHENTICATED"), std::string::npos) << with.log();
+}
+
 TEST_F(BridgeTest, BadFlagsAreUsageErrors) {
   auto run = [](const std::string& args) {
     return st::RunShell(st::ShellQuote(std::string(LOCAID_BIN_DIR) + "/locaid-foxglove") + " " + args);

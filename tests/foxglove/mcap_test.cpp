@@ -73,8 +73,9 @@ TEST_F(McapSubscribeTest, SigtermClosesTheFileProperly) {
   EXPECT_EQ(read["schemas"], kSchemas);
 }
 
-TEST_F(McapSubscribeTest, MissingOutIsAUsageError) {
-  const st::CliResult r = st::RunCli(server_->port(), {"subscribe", "s000000000000", "--format", "mcap"});
+// Checked before any call: no server (nor node) needed.
+TEST(McapSubscribe, MissingOutIsAUsageError) {
+  const st::CliResult r = st::RunCli(1, {"subscribe", "s000000000000", "--format", "mcap"});
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("--out is required for --format mcap"), std::string::npos) << r.err;
 }
