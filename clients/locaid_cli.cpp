@@ -3,11 +3,12 @@
 //   locaid health
 //   locaid session start --kitti PATH | --synthetic SEED | --live-json ... [--scenario NAME|--scenario-file F]
 //   locaid session list | get ID | stop ID [--remove]
-//   locaid subscribe ID [--from-start] [--format print|tum|kitti|csv|geojson] [--out FILE] [--max N]
+//   locaid subscribe ID [--from-start] [--format print|tum|kitti|csv|geojson|mcap] [--out FILE] [--max N]
 //   locaid outage start ID [--duration S] | stop ID | window ID --start S --duration S
 //   locaid scenario ID (--name NAME | --file YAML)
 //   locaid stats ID
 // Every call carries a deadline (--timeout-s; subscribe: --stream-timeout-s).
+#include "foxglove/mcap_recording.hpp"
 #include "locaid/v1/localization.grpc.pb.h"
 
 #include <CLI/CLI.hpp>
@@ -27,6 +28,7 @@
 #include <iomanip>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <string>
 
@@ -412,8 +414,8 @@ int main(int argc, char** argv) {
   double stream_timeout_s = 24 * 3600;
   subscribe->add_option("id", session_id)->required();
   subscribe->add_flag("--from-start", from_start, "begin with the session's history");
-  subscribe->add_option("--format", format, "print|tum|kitti|csv|geojson")
-      ->check(CLI::IsMember({"print", "tum", "kitti", "csv", "geojson"}))
+  subscribe->add_option("--format", format, "print|tum|kitti|csv|geojson|mcap (Foxglove channels, see docs/api.md)")
+      ->check(CLI::IsMember({"print", "tum", "kitti", "csv", "geojson", "mcap"}))
       ->capture_default_str();
   subscribe->add_option("--out", out_path, "record file (formats other than print)");
   subscribe->add_option("--max", max_poses, "stop after N poses (0 = until the stream ends)");
@@ -587,7 +589,16 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (subscribe->parsed()) {
-      Recorder recorder(format, out_path);
+      // MCAP: the Foxglove bridge's channels in one indexed file, closed
+      // (summary and footer written) when the stream ends, also on a signal.
+      std::optional<Recorder> recorder;
+      std::unique_ptr<locaid::foxglove::McapRecording> mcap;
+      if (format == "mcap") {
+        if (out_path.empty()) throw std::runtime_error("--out is required for --format mcap");
+        mcap = std::make_unique<locaid::foxglove::McapRecording>(out_path);
+      } else {
+        recorder.emplace(format, out_path);
+      }
       v1::StreamPosesRequest req;
       req.set_session_id(session_id);
       req.set_from_start(from_start);
@@ -605,8 +616,9 @@ int main(int argc, char** argv) {
                                 .count();
         const double delay_ms = static_cast<double>(now_ns - pose.published_unix_ns()) * 1e-6;
         try {
-          recorder.Add(pose, delay_ms);
-        } catch (const RecordError& e) {
+          if (mcap) mcap->Add(pose);
+          else recorder->Add(pose, delay_ms);
+        } catch (const std::runtime_error& e) {  // RecordError, or McapWriter's std::system_error
           g_stream_ctx->TryCancel();
           (void)reader->Finish();
           std::cerr << "error: " << e.what() << "\n";
@@ -625,8 +637,9 @@ int main(int argc, char** argv) {
       }
       const grpc::Status s = reader->Finish();
       try {
-        recorder.Close();
-      } catch (const RecordError& e) {
+        if (mcap) mcap->Close();
+        else recorder->Close();
+      } catch (const std::runtime_error& e) {
         std::cerr << "error: " << e.what() << "\n";
         return 4;
       }

@@ -15,7 +15,7 @@ build_pkgs=(
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc
   libgtest-dev libgmock-dev libbenchmark-dev
   libyaml-cpp-dev nlohmann-json3-dev libcli11-dev prometheus-cpp-dev
-  libgps-dev libzstd-dev
+  libgps-dev libzstd-dev libboost-dev
   python3 python3-matplotlib python3-grpcio python3-protobuf python3-grpc-tools
 )
 runtime_pkgs=(

@@ -1,0 +1,178 @@
+// locaid-foxglove: a Foxglove WebSocket bridge. Streams a session's fused
+// poses from locaid-server (gRPC) and serves them to Foxglove / Lichtblick
+// as foxglove.websocket.v1 on --listen (loopback by default).
+//
+//   locaid-foxglove --server 127.0.0.1:50051 [--token-file F] [--tls-ca F]
+//                   [--listen 127.0.0.1:8765] [--session ID]
+//
+// Threads (all started and joined here): the WebSocket server's network
+// thread, the session follower (gRPC) on its own thread, and main, which
+// waits for SIGTERM/SIGINT and then stops both. Exit status: 0 after a
+// signal, 1 when the WebSocket port cannot be opened, 2 for bad flags.
+#include "foxglove/apps/session_follower.hpp"
+#include "foxglove/channels.hpp"
+#include "foxglove/ws_server.hpp"
+
+#include <CLI/CLI.hpp>
+#include <grpcpp/grpcpp.h>
+
+#include <pthread.h>
+
+#include <cctype>
+#include <csignal>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+namespace fx = locaid::foxglove;
+
+namespace {
+
+std::mutex g_log_mu;
+
+// One line per event on stderr.
+void Log(const std::string& line) {
+  std::lock_guard lock(g_log_mu);
+  std::cerr << "locaid-foxglove: " << line << std::endl;
+}
+
+std::string ReadFile(const std::string& path, const char* flag) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(std::string(flag) + ": cannot read '" + path + "'");
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+std::string Trim(std::string s) {
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.front()))) s.erase(s.begin());
+  return s;
+}
+
+// "--listen": an IPv4 address or "localhost", ':' and a port 0-65535
+// (0: the OS picks one; the start-up line says which).
+struct ListenAddress {
+  std::string host;
+  uint16_t port = 0;
+};
+std::string ParseListen(const std::string& text, ListenAddress* out) {
+  const auto colon = text.rfind(':');
+  if (colon == std::string::npos) return "expected HOST:PORT, e.g. 127.0.0.1:8765";
+  std::string host = text.substr(0, colon), port = text.substr(colon + 1);
+  if (host.size() > 2 && host.front() == '[' && host.back() == ']') host = host.substr(1, host.size() - 2);
+  if (host.empty()) return "the host before ':' is empty";
+  if (host == "localhost") host = "127.0.0.1";
+  if (port.empty() || port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos ||
+      std::stoi(port) > 65535) {
+    return "port '" + port + "' is not a number in [0, 65535]";
+  }
+  out->host = host;
+  out->port = static_cast<uint16_t>(std::stoi(port));
+  return "";
+}
+
+std::shared_ptr<grpc::Channel> MakeChannel(const std::string& server, const std::string& tls_ca_pem) {
+  grpc::ChannelArguments args;
+  args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, 30000);
+  args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
+  args.SetMaxReceiveMessageSize(64 * 1024 * 1024);
+  // Reconnect quickly after a server restart (gRPC's default backoff grows to 120 s).
+  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 5000);
+  args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 500);
+  grpc::SslCredentialsOptions ssl;
+  ssl.pem_root_certs = tls_ca_pem;
+  auto creds = tls_ca_pem.empty() ? grpc::InsecureChannelCredentials() : grpc::SslCredentials(ssl);
+  return grpc::CreateCustomChannel(server, creds, args);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string server, token_file, tls_ca, listen = "127.0.0.1:8765", session;
+  size_t queue = 2000;
+  CLI::App app{"locaid-foxglove: serves a locaid session live to Foxglove / Lichtblick (foxglove.websocket.v1)"};
+  app.add_option("--server", server, "locaid-server address: host:port or unix:PATH")->required();
+  app.add_option("--token-file", token_file, "file holding the server's bearer token")->check(CLI::ExistingFile);
+  app.add_option("--tls-ca", tls_ca, "PEM file of the CA (or self-signed cert) to trust; enables TLS")
+      ->check(CLI::ExistingFile);
+  app.add_option("--listen", listen, "WebSocket address HOST:PORT (no authentication: keep it on loopback)")
+      ->capture_default_str();
+  app.add_option("--session", session, "session id to serve (default: follow the newest STARTING/RUNNING session)");
+  app.add_option("--queue", queue, "messages queued per WebSocket client before the oldest are dropped")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // CLI11 prints the precise message; every usage error exits with 2.
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+
+  ListenAddress address;
+  if (const std::string why = ParseListen(listen, &address); !why.empty()) {
+    std::cerr << "--listen '" << listen << "': " << why << "\nRun with --help for more information.\n";
+    return 2;
+  }
+  fx::FollowerOptions follow;
+  try {
+    if (!token_file.empty()) follow.token = Trim(ReadFile(token_file, "--token-file"));
+    follow.channel = MakeChannel(server, tls_ca.empty() ? "" : ReadFile(tls_ca, "--tls-ca"));
+  } catch (const std::exception& e) {
+    std::cerr << e.what() << "\n";
+    return 2;
+  }
+  follow.session = session;
+  follow.log = Log;
+
+  // Signals are taken by sigwait on main; every thread started below
+  // inherits the mask, so none of them is interrupted by one.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  std::unique_ptr<fx::WsServer> ws;
+  try {
+    fx::WsServerOptions ws_options;
+    ws_options.host = address.host;
+    ws_options.port = address.port;
+    ws_options.max_queued_messages = queue;
+    ws_options.log = Log;
+    ws = std::make_unique<fx::WsServer>(ws_options, fx::Channels());
+  } catch (const std::exception& e) {
+    Log(e.what());
+    return 1;
+  }
+  Log("listening on ws://" + address.host + ":" + std::to_string(ws->port()) + " (foxglove.websocket.v1), server " +
+      server + (session.empty() ? ", following the newest session" : ", session " + session));
+
+  fx::PoseConverter converter;  // follower thread only
+  fx::SessionFollower follower(
+      follow,
+      [&](const std::string& id) {
+        converter.Reset();
+        ws->SetSessionId(id);
+      },
+      [&](const locaid::v1::PoseUpdate& pose) {
+        for (auto& m : converter.Convert(pose)) ws->Publish(static_cast<size_t>(m.topic), m.log_time_ns, std::move(m.data));
+      });
+
+  std::thread ws_thread([&] { ws->Run(); });
+  std::thread follower_thread([&] { follower.Run(); });
+
+  int signal = 0;
+  sigwait(&signals, &signal);
+  Log(std::string("stopping on ") + (signal == SIGTERM ? "SIGTERM" : "SIGINT"));
+  follower.Stop();
+  ws->Stop();
+  follower_thread.join();
+  ws_thread.join();
+  const fx::WsServerStats stats = ws->stats();
+  Log("stopped (" + std::to_string(stats.clients_connected) + " clients served, " +
+      std::to_string(stats.messages_sent) + " messages sent, " + std::to_string(stats.messages_dropped) +
+      " dropped)");
+  return 0;
+}

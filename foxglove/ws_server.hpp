@@ -1,0 +1,85 @@
+// WsServer: a Foxglove WebSocket protocol server (subprotocol
+// foxglove.websocket.v1) on Boost.Beast, for a fixed table of channels.
+//
+// What it speaks: on connect, serverInfo (name, no capabilities, sessionId)
+// and one advertise of every channel; it handles subscribe / unsubscribe and
+// sends subscribed messages as binary messageData (opcode 1, uint32
+// subscription id, uint64 timestamp in ns, payload; little endian). Client
+// publishing, parameters and services are not offered (a client that tries
+// gets a status message). SetSessionId() sends a new serverInfo to every
+// client, which is how a viewer learns that the data now comes from another
+// session; channels and subscriptions stay.
+//
+// Threads: Run() runs the network on the calling thread until Stop(); every
+// other method may be called from any thread (they post to that thread).
+// Each client has a bounded queue of outgoing messages: when a message
+// arrives and the queue is full, the oldest queued messageData is dropped
+// and counted, so a slow client never stalls the producer or other clients.
+// serverInfo/advertise/status are never dropped; the first drop sends the
+// client a warning status ("Send buffer limit reached").
+#pragma once
+
+#include "foxglove/channels.hpp"
+
+#include <atomic>
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace locaid::foxglove {
+
+class Connection;
+
+struct WsServerOptions {
+  std::string host = "127.0.0.1";  // loopback by default: the bridge has no authentication
+  uint16_t port = 8765;            // 0: the OS picks one (see WsServer::port())
+  std::string name = "locaid-foxglove";
+  size_t max_queued_messages = 2000;  // per client
+  // One line per event (connect, subscribe, disconnect with drop count).
+  std::function<void(const std::string&)> log = [](const std::string&) {};
+};
+
+struct WsServerStats {
+  uint64_t clients_connected = 0;  // since start
+  uint64_t messages_sent = 0;      // messageData frames written, all clients
+  uint64_t messages_dropped = 0;   // messageData dropped from full queues, all clients
+};
+
+class WsServer {
+ public:
+  // Binds and listens; throws std::runtime_error naming the address when
+  // that fails (port in use, bad address).
+  WsServer(WsServerOptions options, std::vector<ChannelSpec> channels);
+  ~WsServer();
+  WsServer(const WsServer&) = delete;
+  WsServer& operator=(const WsServer&) = delete;
+
+  uint16_t port() const;
+  // Serves clients on this thread; returns after Stop() once every
+  // connection is closed (close handshakes are bounded by a 2 s timeout).
+  void Run();
+  // Closes the listener and every connection (sending a close frame).
+  void Stop();
+
+  // Sends serverInfo with this sessionId to every client (and to later ones).
+  void SetSessionId(std::string session_id);
+  // Queues one message of channel `channel` (index into the table) for each
+  // client subscribed to it. Never blocks on a client.
+  void Publish(size_t channel, uint64_t timestamp_ns, std::string data);
+
+  WsServerStats stats() const;
+
+ private:
+  struct Impl;
+  friend class Connection;  // one client's state (ws_server.cpp)
+  std::unique_ptr<Impl> impl_;
+};
+
+// Base64 (RFC 4648, with padding), as the protocol wants binary schemas.
+std::string Base64(std::string_view bytes);
+
+}  // namespace locaid::foxglove

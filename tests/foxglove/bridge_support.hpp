@@ -1,0 +1,110 @@
+// Helpers for the end-to-end foxglove tests: the real locaid-foxglove as a
+// child process, a free loopback port, node scripts run with their output
+// parsed as JSON, and synthetic sessions on the real server. Builds on the
+// server tests' ChildProcess / ServerProcess (tests/server/test_support.hpp).
+#pragma once
+
+#include "server/test_support.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <netinet/in.h>
+#include <sys/socket.h>
+
+namespace locaid::foxglove::testing {
+
+namespace v1 = locaid::v1;
+namespace st = locaid::server::testing;
+using nlohmann::json;
+
+inline bool HaveNode() { return std::system("node --version > /dev/null 2>&1") == 0; }
+
+// A port the OS had free a moment ago (bind to 0, read it, close).
+inline int FreeLoopbackPort() {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  socklen_t len = sizeof a;
+  if (::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0 ||
+      ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len) != 0) {
+    ::close(fd);
+    return 0;
+  }
+  ::close(fd);
+  return ntohs(a.sin_port);
+}
+
+// locaid-foxglove against a server port; its stderr log in `dir`/bridge.err.
+class BridgeProcess {
+ public:
+  BridgeProcess(const std::filesystem::path& dir, int server_port, int ws_port,
+                const std::vector<std::string>& extra_args = {})
+      : err_(dir / "bridge.err") {
+    std::filesystem::create_directories(dir);
+    std::vector<std::string> argv = {std::string(LOCAID_BIN_DIR) + "/locaid-foxglove", "--server",
+                                     "127.0.0.1:" + std::to_string(server_port), "--listen",
+                                     "127.0.0.1:" + std::to_string(ws_port)};
+    argv.insert(argv.end(), extra_args.begin(), extra_args.end());
+    child_ = std::make_unique<st::ChildProcess>(argv, st::ChildProcess::Options{dir / "bridge.out", err_, 0});
+  }
+  st::ChildProcess& process() { return *child_; }
+  std::string log() const { return st::Slurp(err_); }
+  // Waits (bounded) until the log holds `text`.
+  bool WaitForLog(const std::string& text, double timeout_s) {
+    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    while (log().find(text) == std::string::npos) {
+      if (std::chrono::steady_clock::now() >= until || child_->Wait(0)) return false;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    return true;
+  }
+
+ private:
+  std::filesystem::path err_;
+  std::unique_ptr<st::ChildProcess> child_;
+};
+
+struct NodeRun {
+  int exit_code = -1;
+  json out;          // stdout parsed as JSON (discarded when it is not JSON)
+  std::string text;  // stdout and stderr, for failure messages
+};
+
+// Runs `node script args...` and parses what it prints.
+inline NodeRun RunNode(const std::filesystem::path& script, const std::vector<std::string>& args) {
+  // Appended piece by piece: GCC 12 warns falsely (-Wrestrict) on "literal" + string.
+  std::string command = "node";
+  command.append(" ").append(st::ShellQuote(script.string()));
+  for (const auto& a : args) command.append(" ").append(st::ShellQuote(a));
+  const st::CliResult r = st::RunShell(command);
+  return {r.exit_code, json::parse(r.out, nullptr, false), r.out + r.err};
+}
+
+// StartSession{synthetic{seed, frames}} at `rate` (0: as fast as possible).
+inline std::string StartSynthetic(v1::Localization::Stub* stub, uint64_t seed, uint32_t frames, double rate) {
+  v1::StartSessionRequest req;
+  req.mutable_synthetic()->set_seed(seed);
+  req.mutable_synthetic()->set_frames(frames);
+  req.set_playback_rate(rate);
+  grpc::ClientContext ctx;
+  st::SetDeadline(&ctx, 30);
+  v1::Session session;
+  const grpc::Status s = stub->StartSession(&ctx, req, &session);
+  EXPECT_TRUE(s.ok()) << s.error_message();
+  return session.id();
+}
+
+// Waits (bounded) until the session is FINISHED; returns its poses published.
+inline uint64_t WaitFinished(v1::Localization::Stub* stub, const std::string& id, double timeout_s) {
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  v1::Session s = st::GetSession(stub, id);
+  while (s.state() != v1::SESSION_STATE_FINISHED && std::chrono::steady_clock::now() < until) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    s = st::GetSession(stub, id);
+  }
+  EXPECT_EQ(s.state(), v1::SESSION_STATE_FINISHED) << s.error();
+  return s.stats().poses_published();
+}
+
+}  // namespace locaid::foxglove::testing

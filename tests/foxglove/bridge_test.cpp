@@ -1,0 +1,214 @@
+// locaid-foxglove end to end: the real locaid-server on a loopback port, the
+// real bridge, and Foxglove's own client (@foxglove/ws-protocol over `ws`,
+// js/client.mjs). Also: switching to a newer session, SIGTERM, a server that
+// is not there, and flag errors. Skips when node is missing.
+#include "bridge_support.hpp"
+
+#include <gtest/gtest.h>
+
+namespace {
+
+namespace ft = locaid::foxglove::testing;
+namespace st = locaid::server::testing;
+using nlohmann::json;
+
+const std::filesystem::path kJsDir = LOCAID_FOXGLOVE_JS_DIR;
+constexpr uint32_t kFrames = 60;  // 6 s of a synthetic drive at 10 Hz
+
+class BridgeTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = st::FreshTestDir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+  }
+  // client.mjs in the background, its JSON summary in `dir_`/client.json.
+  std::unique_ptr<st::ChildProcess> StartClient(int ws_port, int sessions, uint64_t updates) {
+    const std::vector<std::string> argv = {"/usr/bin/env",  "node",
+                                           (kJsDir / "client.mjs").string(), "--url",
+                                           "ws://127.0.0.1:" + std::to_string(ws_port), "--sessions",
+                                           std::to_string(sessions), "--updates",
+                                           std::to_string(updates), "--timeout-s",
+                                           "120"};
+    return std::make_unique<st::ChildProcess>(argv,
+                                              st::ChildProcess::Options{dir_ / "client.json", dir_ / "client.err", 0});
+  }
+  json ClientResult(st::ChildProcess& client) {
+    EXPECT_TRUE(client.Wait(150)) << "client.mjs did not end";
+    EXPECT_EQ(client.exit_code(), 0) << st::Slurp(dir_ / "client.json") << st::Slurp(dir_ / "client.err");
+    return json::parse(st::Slurp(dir_ / "client.json"), nullptr, false);
+  }
+  static std::vector<std::string> NamedSessions(const json& result) {
+    std::vector<std::string> ids;
+    for (const auto& id : result["server_infos"]) {
+      if (id.is_string()) ids.push_back(id);
+    }
+    return ids;
+  }
+
+  std::filesystem::path dir_;
+};
+
+// A server, the bridge following its newest session, and Foxglove's client
+// subscribed to every channel before any session starts (the WebSocket is
+// live only: nothing is replayed to a late subscriber).
+class BridgeClientTest : public BridgeTest {
+ protected:
+  void SetUp() override {
+    BridgeTest::SetUp();
+    if (!ft::HaveNode()) GTEST_SKIP() << "node is not installed; the Foxglove client (@foxglove/ws-protocol) needs it";
+    ASSERT_TRUE(std::filesystem::exists(kJsDir / "node_modules/@foxglove/ws-protocol"))
+        << "run " << (kJsDir / "setup.sh") << " (the FoxgloveJsClientSetup CTest fixture does)";
+    server_ = std::make_unique<st::ServerProcess>(dir_ / "server");
+    ASSERT_GT(server_->port(), 0) << server_->log();
+    stub_ = st::MakeStub(server_->port());
+    ws_port_ = ft::FreeLoopbackPort();
+    bridge_ = std::make_unique<ft::BridgeProcess>(dir_, server_->port(), ws_port_);
+    ASSERT_TRUE(bridge_->WaitForLog("listening on", 10)) << bridge_->log();
+  }
+  // Starts client.mjs and waits until the bridge saw its subscriptions.
+  void Subscribe(int sessions, uint64_t updates) {
+    client_ = StartClient(ws_port_, sessions, updates);
+    ASSERT_TRUE(bridge_->WaitForLog("subscribed to /locaid/update", 30)) << bridge_->log();
+  }
+
+  std::unique_ptr<st::ServerProcess> server_;
+  std::unique_ptr<locaid::v1::Localization::Stub> stub_;
+  int ws_port_ = 0;
+  std::unique_ptr<ft::BridgeProcess> bridge_;
+  std::unique_ptr<st::ChildProcess> client_;
+};
+
+TEST_F(BridgeClientTest, ServesEveryChannelToTheFoxgloveClient) {
+  Subscribe(1, kFrames);
+  const std::string id = ft::StartSynthetic(stub_.get(), 7, kFrames, 1.0);
+  const json result = ClientResult(*client_);
+  ASSERT_FALSE(result.is_discarded());
+
+  EXPECT_EQ(result["errors"], json::array());
+  EXPECT_EQ(NamedSessions(result), std::vector<std::string>{id});
+  const std::map<std::string, std::string> schemas = {
+      {"/locaid/pose", "foxglove.PoseInFrame"},   {"/tf", "foxglove.FrameTransforms"},
+      {"/locaid/fix", "foxglove.LocationFix"},    {"/locaid/gps", "foxglove.LocationFix"},
+      {"/locaid/truth", "foxglove.PoseInFrame"},  {"/locaid/truth_fix", "foxglove.LocationFix"},
+      {"/locaid/path", "foxglove.PosesInFrame"},  {"/locaid/status", "locaid.Status"},
+      {"/locaid/update", "locaid.v1.PoseUpdate"}};
+  ASSERT_EQ(result["channels"].size(), schemas.size()) << result["channels"].dump(2);
+  for (const auto& [topic, schema] : schemas) {
+    EXPECT_EQ(result["channels"][topic]["schemaName"], schema) << topic;
+  }
+  const json& counts = result["counts"];
+  for (const char* topic : {"/locaid/pose", "/tf", "/locaid/fix", "/locaid/status", "/locaid/update", "/locaid/path"}) {
+    EXPECT_GT(counts.value(topic, 0), 0) << topic << " in " << counts.dump();
+  }
+  EXPECT_EQ(counts.value("/locaid/update", 0), static_cast<int>(kFrames));  // from_start: every pose, once
+  EXPECT_EQ(counts.value("/locaid/pose", 0), static_cast<int>(kFrames));
+  EXPECT_EQ(result["update_session_mismatches"], 0);
+  EXPECT_EQ(result["last_update"]["session_id"], id);
+  EXPECT_EQ(result["first_tf"]["transforms"][1]["child_frame_id"], "cam0");
+  EXPECT_GT(result["last_path_poses"].get<int>(), 1);
+  std::cout << "[   info   ] counts " << counts.dump() << "\n";
+}
+
+TEST_F(BridgeClientTest, SwitchesToANewerSessionWithANewServerInfo) {
+  Subscribe(2, 5);
+  const std::string first = ft::StartSynthetic(stub_.get(), 7, kFrames, 1.0);
+  ASSERT_TRUE(bridge_->WaitForLog("following session " + first, 30)) << bridge_->log();
+  st::WaitStats(stub_.get(), first, 60, [](const auto& s) { return s.poses_published() >= 10; });
+  const std::string second = ft::StartSynthetic(stub_.get(), 8, kFrames, 1.0);
+  const json result = ClientResult(*client_);
+  ASSERT_FALSE(result.is_discarded());
+
+  EXPECT_EQ(NamedSessions(result), (std::vector<std::string>{first, second}));
+  EXPECT_GT(result["counts_by_session"][first].value("/locaid/update", 0), 0);
+  EXPECT_GE(result["counts_by_session"][second].value("/locaid/update", 0), 5);
+  EXPECT_EQ(result["update_session_mismatches"], 0);  // the new serverInfo comes before the new session's data
+  EXPECT_EQ(result["last_update"]["session_id"], second);
+  EXPECT_NE(bridge_->log().find("a newer session started; switching"), std::string::npos) << bridge_->log();
+}
+
+TEST_F(BridgeTest, SigtermWhileStreamingExitsZeroPromptly) {
+  st::ServerProcess server(dir_ / "server");
+  ASSERT_GT(server.port(), 0) << server.log();
+  ft::BridgeProcess bridge(dir_, server.port(), ft::FreeLoopbackPort());
+  auto stub = st::MakeStub(server.port());
+  const std::string id = ft::StartSynthetic(stub.get(), 7, kFrames, 1.0);
+  ASSERT_TRUE(bridge.WaitForLog("following session " + id, 30)) << bridge.log();
+  ASSERT_TRUE(bridge.process().Signal(SIGTERM));
+  ASSERT_TRUE(bridge.process().Wait(5)) << "still running 5 s after SIGTERM\n" << bridge.log();
+  EXPECT_EQ(bridge.process().exit_code(), 0) << bridge.log();
+  EXPECT_NE(bridge.log().find("stopping on SIGTERM"), std::string::npos) << bridge.log();
+}
+
+TEST_F(BridgeTest, WithoutAServerRetriesWithBackoffAndStopsOnSigint) {
+  const int nobody = ft::FreeLoopbackPort();  // nothing listens there
+  ft::BridgeProcess bridge(dir_, nobody, ft::FreeLoopbackPort());
+  ASSERT_TRUE(bridge.WaitForLog("retrying in 1 s", 20)) << bridge.log();
+  const std::string log = bridge.log();
+  EXPECT_NE(log.find("ListSessions failed: UNAVAILABLE"), std::string::npos) << log;
+  EXPECT_NE(log.find("retrying in 0.5 s"), std::string::npos) << log;
+  ASSERT_TRUE(bridge.process().Signal(SIGINT));
+  ASSERT_TRUE(bridge.process().Wait(5)) << bridge.log();
+  EXPECT_EQ(bridge.process().exit_code(), 0) << bridge.log();
+}
+
+TEST_F(BridgeTest, ReconnectsWhenTheServerComesBack) {
+  const int grpc_port = ft::FreeLoopbackPort();
+  ft::BridgeProcess bridge(dir_, grpc_port, ft::FreeLoopbackPort());
+  ASSERT_TRUE(bridge.WaitForLog("ListSessions failed", 20)) << bridge.log();
+  // The server the bridge was told about starts late, on that port.
+  std::filesystem::create_directories(dir_ / "server");
+  st::ChildProcess server({std::string(LOCAID_BIN_DIR) + "/locaid-server", "--listen",
+                           "127.0.0.1:" + std::to_string(grpc_port), "--port-file", (dir_ / "server/port").string(),
+                           "--work-dir", (dir_ / "server/work").string()},
+                          st::ChildProcess::Options{dir_ / "server/out", dir_ / "server/err", 0});
+  for (int i = 0; i < 1000 && !std::filesystem::exists(dir_ / "server/port"); ++i) {  // at most 10 s
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_TRUE(std::filesystem::exists(dir_ / "server/port")) << st::Slurp(dir_ / "server/err");
+  auto stub = st::MakeStub(grpc_port);
+  const std::string id = ft::StartSynthetic(stub.get(), 7, kFrames, 1.0);
+  EXPECT_TRUE(bridge.WaitForLog("following session " + id, 30)) << bridge.log();
+}
+
+TEST_F(BridgeTest, SendsTheTokenFromTokenFile) {
+  {
+    std::ofstream(dir_ / "token") << "s3cret-token\n";  // the trailing newline is not part of it
+  }
+  st::ServerProcess server(dir_ / "server", {"--token", "s3cret-token"});
+  ASSERT_GT(server.port(), 0) << server.log();
+  ft::BridgeProcess without(dir_ / "without", server.port(), ft::FreeLoopbackPort());
+  ft::BridgeProcess with(dir_, server.port(), ft::FreeLoopbackPort(), {"--token-file", (dir_ / "token").string()});
+  EXPECT_TRUE(without.WaitForLog("ListSessions failed: UNAUTHENTICATED", 20)) << without.log();
+  EXPECT_TRUE(with.WaitForLog("no live session", 20)) << with.log();
+  EXPECT_EQ(with.log().find("UNAUTHENTICATED"), std::string::npos) << with.log();
+}
+
+TEST_F(BridgeTest, BadFlagsAreUsageErrors) {
+  auto run = [](const std::string& args) {
+    return st::RunShell(st::ShellQuote(std::string(LOCAID_BIN_DIR) + "/locaid-foxglove") + " " + args);
+  };
+  st::CliResult r = run("--server 127.0.0.1:1 --listen nonsense");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--listen 'nonsense': expected HOST:PORT"), std::string::npos) << r.err;
+  r = run("--server 127.0.0.1:1 --listen 127.0.0.1:70000");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("port '70000' is not a number in [0, 65535]"), std::string::npos) << r.err;
+  r = run("--listen 127.0.0.1:0");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--server is required"), std::string::npos) << r.err;
+  r = run("--server 127.0.0.1:1 --token-file /nonexistent/token");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("/nonexistent/token"), std::string::npos) << r.err;
+}
+
+TEST_F(BridgeTest, AWebSocketPortInUseIsReported) {
+  st::ServerProcess server(dir_ / "server");
+  ASSERT_GT(server.port(), 0);
+  // The gRPC server's own port is taken: the bridge cannot listen there.
+  const st::CliResult r = st::RunShell(st::ShellQuote(std::string(LOCAID_BIN_DIR) + "/locaid-foxglove") +
+                                       " --server 127.0.0.1:" + std::to_string(server.port()) +
+                                       " --listen 127.0.0.1:" + std::to_string(server.port()));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("cannot listen on 127.0.0.1:" + std::to_string(server.port())), std::string::npos) << r.err;
+}
+
+}  // namespace

@@ -1,0 +1,161 @@
+// Connects to locaid-foxglove with Foxglove's own WebSocket client
+// (@foxglove/ws-protocol FoxgloveClient over the `ws` package), subscribes to
+// every advertised channel, decodes what arrives and prints a summary as JSON,
+// so the C++ tests check the bridge against a client they did not write.
+//
+//   node client.mjs --url ws://127.0.0.1:PORT --sessions K --updates N [--timeout-s S]
+//
+// It waits until serverInfo messages have named K sessions (a serverInfo
+// without sessionId, sent before the bridge follows one, does not count) and
+// the last of them has delivered N /locaid/update messages, then prints the
+// summary and exits 0.
+// On timeout it prints what it has and exits 3. JSON messages are parsed and
+// their required fields (per schema name) checked; /locaid/update is decoded
+// with protobufjs from the advertised FileDescriptorSet and its session_id
+// compared with the session serverInfo named last.
+import { createRequire } from "node:module";
+
+import WebSocket from "ws";
+
+// The packages are CommonJS; require gives their full exports.
+const require = createRequire(import.meta.url);
+const { FoxgloveClient } = require("@foxglove/ws-protocol");
+const protobuf = require("protobufjs");
+require("protobufjs/ext/descriptor"); // adds Root.fromDescriptor
+
+// Required fields of the JSON messages, by schema name.
+const REQUIRED = {
+  "foxglove.PoseInFrame": ["timestamp", "frame_id", "pose"],
+  "foxglove.PosesInFrame": ["timestamp", "frame_id", "poses"],
+  "foxglove.FrameTransforms": ["transforms"],
+  "foxglove.LocationFix": ["timestamp", "frame_id", "latitude", "longitude", "altitude", "position_covariance",
+    "position_covariance_type"],
+  "locaid.Status": ["timestamp", "mode", "seconds_since_gps", "gps_outage_active", "horizontal_error_m", "gps_used",
+    "gps_rejected", "gps_resets"],
+};
+
+function parseArgs(argv) {
+  const args = { timeoutS: 60 };
+  for (let i = 0; i < argv.length; i += 2) {
+    const [key, value] = [argv[i], argv[i + 1]];
+    if (key === "--url") args.url = value;
+    else if (key === "--sessions") args.sessions = Number(value);
+    else if (key === "--updates") args.updates = Number(value);
+    else if (key === "--timeout-s") args.timeoutS = Number(value);
+    else throw new Error(`unknown argument ${key}`);
+  }
+  if (!args.url || !(args.sessions >= 1) || !(args.updates >= 0)) {
+    throw new Error("usage: node client.mjs --url URL --sessions K --updates N [--timeout-s S]");
+  }
+  return args;
+}
+
+function main() {
+  const args = parseArgs(process.argv.slice(2));
+  const result = {
+    server_infos: [],
+    channels: {},
+    counts: {},
+    counts_by_session: {},
+    errors: [],
+    update_session_mismatches: 0,
+    last_update: null,
+    last_status: null,
+    last_path_poses: 0,
+    first_tf: null,
+  };
+  const channels = new Map(); // channel id -> { topic, schemaName, decode }
+  const subscriptions = new Map(); // subscription id -> channel id
+  let session = null;
+
+  const client = new FoxgloveClient({ ws: new WebSocket(args.url, [FoxgloveClient.SUPPORTED_SUBPROTOCOL]) });
+  const finish = (code) => {
+    console.log(JSON.stringify(result, null, 2));
+    client.close();
+    process.exit(code);
+  };
+  const timer = setTimeout(() => {
+    result.errors.push(`timeout after ${args.timeoutS} s`);
+    finish(3);
+  }, args.timeoutS * 1000);
+
+  const done = () => {
+    const named = new Set(result.server_infos.filter((id) => id !== null));
+    return named.size >= args.sessions && (result.counts_by_session[session]?.["/locaid/update"] ?? 0) >= args.updates;
+  };
+
+  client.on("error", (error) => result.errors.push(`client error: ${error?.message ?? error}`));
+  client.on("close", () => {
+    if (!done()) {
+      result.errors.push("connection closed before the expected data arrived");
+      clearTimeout(timer);
+      finish(4);
+    }
+  });
+  client.on("status", (status) => result.errors.push(`status from server: ${status.message}`));
+  client.on("serverInfo", (info) => {
+    session = info.sessionId ?? null;
+    result.server_infos.push(session);
+  });
+  client.on("advertise", (advertised) => {
+    for (const channel of advertised) {
+      result.channels[channel.topic] = { schemaName: channel.schemaName, encoding: channel.encoding,
+        schemaEncoding: channel.schemaEncoding ?? null };
+      let decode;
+      if (channel.encoding === "protobuf") {
+        const root = protobuf.Root.fromDescriptor(Buffer.from(channel.schema, "base64"));
+        const type = root.lookupType(channel.schemaName);
+        decode = (bytes) => type.toObject(type.decode(bytes), { longs: String, defaults: true });
+      } else {
+        JSON.parse(channel.schema); // the JSON Schema must itself be JSON
+        decode = (bytes) => JSON.parse(new TextDecoder().decode(bytes));
+      }
+      channels.set(channel.id, { topic: channel.topic, schemaName: channel.schemaName, decode });
+      subscriptions.set(client.subscribe(channel.id), channel.id);
+    }
+  });
+  client.on("message", ({ subscriptionId, data }) => {
+    const channel = channels.get(subscriptions.get(subscriptionId));
+    if (!channel) {
+      result.errors.push(`message for unknown subscription ${subscriptionId}`);
+      return;
+    }
+    const bytes = new Uint8Array(data.buffer, data.byteOffset, data.byteLength);
+    let message;
+    try {
+      message = channel.decode(bytes);
+    } catch (error) {
+      result.errors.push(`${channel.topic}: cannot decode: ${error.message}`);
+      return;
+    }
+    for (const field of REQUIRED[channel.schemaName] ?? []) {
+      if (!(field in message)) result.errors.push(`${channel.topic}: missing field ${field}`);
+    }
+    result.counts[channel.topic] = (result.counts[channel.topic] ?? 0) + 1;
+    const bySession = (result.counts_by_session[session ?? ""] ??= {});
+    bySession[channel.topic] = (bySession[channel.topic] ?? 0) + 1;
+    if (channel.topic === "/locaid/update") {
+      // Root.fromDescriptor keeps the .proto field names (session_id, t_ns).
+      if (message.session_id !== session) result.update_session_mismatches += 1;
+      result.last_update = { session_id: message.session_id, sequence: message.sequence, t_ns: message.t_ns,
+        mode: message.mode };
+    } else if (channel.topic === "/locaid/status") {
+      result.last_status = message;
+    } else if (channel.topic === "/locaid/path") {
+      result.last_path_poses = message.poses.length;
+    } else if (channel.topic === "/tf" && !result.first_tf) {
+      result.first_tf = message;
+    }
+    if (done()) {
+      clearTimeout(timer);
+      finish(0);
+    }
+  });
+}
+
+try {
+  main();
+} catch (error) {
+  console.error(`client.mjs: ${error.message}`);
+  process.exit(1);
+}

@@ -1,0 +1,83 @@
+// `locaid subscribe ID --format mcap`: the Foxglove channels in an MCAP file,
+// read by Foxglove's own reader (@mcap/core via tests/record/js/read_mcap.mjs).
+// Skips when node is missing.
+#include "bridge_support.hpp"
+
+#include <gtest/gtest.h>
+
+namespace {
+
+namespace ft = locaid::foxglove::testing;
+namespace st = locaid::server::testing;
+using nlohmann::json;
+
+const std::filesystem::path kMcapJsDir = LOCAID_MCAP_JS_DIR;
+
+const json kSchemas = {"foxglove.FrameTransforms", "foxglove.LocationFix", "foxglove.PoseInFrame",
+                       "foxglove.PosesInFrame",    "locaid.Status",        "locaid.v1.PoseUpdate"};
+
+class McapSubscribeTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!ft::HaveNode()) GTEST_SKIP() << "node is not installed; the official MCAP reader (@mcap/core) needs it";
+    ASSERT_TRUE(std::filesystem::exists(kMcapJsDir / "node_modules/@mcap/core"))
+        << "run " << (kMcapJsDir / "setup.sh") << " (the McapJsReaderSetup CTest fixture does)";
+    dir_ = st::FreshTestDir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+    server_ = std::make_unique<st::ServerProcess>(dir_ / "server");
+    ASSERT_GT(server_->port(), 0) << server_->log();
+    stub_ = st::MakeStub(server_->port());
+  }
+  // Both of @mcap/core's readers read the whole file and agree.
+  json ReadFully(const std::filesystem::path& file) {
+    const ft::NodeRun run = ft::RunNode(kMcapJsDir / "read_mcap.mjs", {file.string()});
+    EXPECT_EQ(run.exit_code, 0) << run.text;
+    return run.out.is_discarded() ? json::object() : run.out["indexed"];
+  }
+
+  std::filesystem::path dir_;
+  std::unique_ptr<st::ServerProcess> server_;
+  std::unique_ptr<locaid::v1::Localization::Stub> stub_;
+};
+
+TEST_F(McapSubscribeTest, RecordsTheBridgeChannelsOfAFinishedSession) {
+  const std::string id = ft::StartSynthetic(stub_.get(), 7, 60, 0);
+  const uint64_t poses = ft::WaitFinished(stub_.get(), id, 120);
+  const auto file = dir_ / "run.mcap";
+  const st::CliResult r = st::RunCli(server_->port(), {"subscribe", id, "--from-start", "--format", "mcap", "--out",
+                                                       file.string()});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const json read = ReadFully(file);
+  ASSERT_TRUE(read.contains("topics")) << read.dump(2);
+  EXPECT_EQ(read["schemas"], kSchemas);
+  for (const char* topic : {"/locaid/pose", "/tf", "/locaid/fix", "/locaid/status", "/locaid/update", "/locaid/path"}) {
+    ASSERT_TRUE(read["topics"].contains(topic)) << topic << " in " << read["topics"].dump();
+    EXPECT_TRUE(read["topics"][topic]["sequences_in_order"].get<bool>()) << topic;
+  }
+  EXPECT_EQ(read["topics"]["/locaid/update"]["count"].get<uint64_t>(), poses);
+  EXPECT_EQ(read["topics"]["/tf"]["count"].get<uint64_t>(), poses);
+  EXPECT_EQ(read["statistics"]["channel_count"], 9);  // every channel is declared, also those without messages
+}
+
+TEST_F(McapSubscribeTest, SigtermClosesTheFileProperly) {
+  const std::string id = ft::StartSynthetic(stub_.get(), 7, 60, 1.0);  // 6 s of real time
+  const auto file = dir_ / "live.mcap";
+  st::ChildProcess cli(st::CliArgv(server_->port(), {"subscribe", id, "--format", "mcap", "--out", file.string()}),
+                       st::ChildProcess::Options{dir_ / "cli.out", dir_ / "cli.err", 0});
+  st::WaitStats(stub_.get(), id, 60, [](const auto& s) { return s.poses_published() >= 10 && s.subscribers() >= 1; });
+  ASSERT_TRUE(cli.Signal(SIGTERM));
+  ASSERT_TRUE(cli.Wait(10)) << st::Slurp(dir_ / "cli.err");
+  EXPECT_EQ(cli.exit_code(), 0) << st::Slurp(dir_ / "cli.err");
+  const json read = ReadFully(file);  // complete: summary and footer were written
+  ASSERT_TRUE(read.contains("topics")) << read.dump(2);
+  EXPECT_GE(read["topics"]["/locaid/update"]["count"].get<uint64_t>(), 1u);
+  EXPECT_EQ(read["schemas"], kSchemas);
+}
+
+// Checked before any call: no server (nor node) needed.
+TEST(McapSubscribe, MissingOutIsAUsageError) {
+  const st::CliResult r = st::RunCli(1, {"subscribe", "s000000000000", "--format", "mcap"});
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--out is required for --format mcap"), std::string::npos) << r.err;
+}
+
+}  // namespace
