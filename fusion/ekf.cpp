@@ -293,7 +293,10 @@ FusedPose Ekf::Output(int64_t t_ns, bool vo_ok) const {
   out.covariance.block<3, 3>(0, 3) = P_.block<3, 3>(0, th);
   out.covariance.block<3, 3>(3, 0) = P_.block<3, 3>(th, 0);
   out.covariance.block<3, 3>(3, 3) = P_.block<3, 3>(th, th);
-  if (out.seconds_since_gps > config_.vo_only_after_periods * gps_period_s_) {
+  // Fixes that reach the filter late (a live receiver's latency) are not an
+  // outage: twice their recent worst lag is added to the allowance (margin
+  // for the jitter of that lag).
+  if (out.seconds_since_gps > config_.vo_only_after_periods * gps_period_s_ + 2 * gps_lag_s_) {
     out.mode = vo_ok ? Mode::kVoOnly : Mode::kLost;
   } else if (last_gps_rejected_ns_ && Seconds(t_ns, *last_gps_rejected_ns_) < config_.degraded_hold_s) {
     out.mode = Mode::kGpsDegraded;

@@ -237,6 +237,7 @@ class Ekf {
   int rejections_h_ = 0, rejections_v_ = 0;  // in a row, per component
   std::optional<int64_t> last_gps_accepted_ns_, last_gps_rejected_ns_, last_gps_received_ns_;
   double gps_period_s_ = 1.0;
+  double gps_lag_s_ = 0;  // how late fixes reach the filter after their frames (recent worst), s
 };
 
 }  // namespace locaid::fusion

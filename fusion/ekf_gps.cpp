@@ -53,6 +53,9 @@ bool Ekf::UpdateGps(const GpsFix& fix) {
   // 0 by default). A fix older than the state (it arrived after later IMU
   // data, as live fixes do) is compared with where the antenna was then.
   const double late_s = config_.use_imu ? std::max(0.0, Seconds(t_ns_, fix.t_ns)) : 0.0;
+  // How late fixes arrive after their frames: the recent worst, slowly
+  // forgotten (a receiver's latency jitters).
+  gps_lag_s_ = std::max(0.95 * gps_lag_s_, std::max(0.0, Seconds(last_frame_ns_.value_or(fix.t_ns), fix.t_ns)));
   const double latency_s = config_.gps_latency_s + late_s;
   Vec3 predicted =
       GpsAntennaPrediction(x_.p_enu_m, x_.v_enu_mps, x_.R_enu_body, config_.gps_lever_arm_body_m, latency_s);
