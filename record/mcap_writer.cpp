@@ -177,7 +177,11 @@ void McapWriter::WriteChunk() {
   entry.chunk_length = head.size() + payload.size();
 
   std::string indexes;
-  for (const auto& [channel_id, entries] : chunk_.index) {
+  for (auto& [channel_id, entries] : chunk_.index) {
+    // Readers seek by time: a channel's entries go out in log-time order
+    // (messages may have been written out of it, e.g. late GPS fixes).
+    std::stable_sort(entries.begin(), entries.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
     entry.message_index_offsets[channel_id] = entry.chunk_offset + entry.chunk_length + indexes.size();
     const size_t index_start = mcap::BeginRecord(indexes, Op::kMessageIndex);
     mcap::PutU16(indexes, channel_id);

@@ -78,12 +78,15 @@ std::string GpsItemFromProto(const v1::GpsFix& in, LiveItem* out) {
       return "covariance_enu_m2: expected 0 or 9 values, got " + std::to_string(in.covariance_enu_m2_size());
     Eigen::Matrix3d C;
     for (int i = 0; i < 9; ++i) C(i / 3, i % 3) = in.covariance_enu_m2(i);
-    if (!C.allFinite()) return "covariance_enu_m2: not finite";
-    if (!C.isApprox(C.transpose(), 1e-9)) return "covariance_enu_m2: not symmetric";
-    if (Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(C).eigenvalues().minCoeff() <= 0)
-      return "covariance_enu_m2: not positive definite";
-    f.cov_enu_m2 = C;
-    if (!f.has_altitude) (*f.cov_enu_m2)(2, 2) = std::max(C(2, 2), 1.0);
+    // NaN entries (a driver that does not know) mean "not stated": the
+    // sigmas (or their defaults) apply, never a NaN in the filter.
+    if (!C.hasNaN()) {
+      if (!C.allFinite()) return "covariance_enu_m2: not finite";
+      if (!C.isApprox(C.transpose(), 1e-9)) return "covariance_enu_m2: not symmetric";
+      if (Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(C).eigenvalues().minCoeff() <= 0)
+        return "covariance_enu_m2: not positive definite";
+      f.cov_enu_m2 = C;
+    }
   }
   if (in.has_velocity()) {
     Eigen::Vector3d v;

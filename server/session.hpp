@@ -117,9 +117,6 @@ class Session {
   uint64_t sequence_ = 0;
 };
 
-// Fills a PoseUpdate (everything except session_id, sequence,
-// published_unix_ns and dropped_for_subscriber).
-void FillPoseUpdate(const StepResult& r, double latency_ms, PoseMessage* out);
 
 int64_t UnixNowNs();
 

@@ -81,3 +81,33 @@ TEST(McapSubscribe, MissingOutIsAUsageError) {
 }
 
 }  // namespace
+
+namespace {
+
+// `locaid-replay --out-mcap`: offline, the same channels; a synthetic drive
+// has ground truth, so the truth channels are there too.
+TEST(McapReplay, RecordsEveryReplayedPoseWithItsTruthAndFixes) {
+  if (!ft::HaveNode()) GTEST_SKIP() << "node is not installed; the official MCAP reader (@mcap/core) needs it";
+  const auto dir = st::FreshTestDir("mcap_replay");
+  const std::string bin = LOCAID_BIN_DIR;
+  ASSERT_EQ(std::system((bin + "/locaid-synth -q --out " + (dir / "d").string() +
+                         " --frames 120 --width 320 --height 96 --seed 5").c_str()), 0);
+  std::filesystem::path drive;
+  for (const auto& e : std::filesystem::directory_iterator(dir / "d"))
+    if (e.is_directory()) drive = e.path();
+  const auto file = dir / "replay.mcap";
+  ASSERT_EQ(std::system((bin + "/locaid-replay --drive " + drive.string() + " --scenario open-sky --out-mcap " +
+                         file.string() + " > /dev/null 2>&1").c_str()), 0);
+  const ft::NodeRun run = ft::RunNode(kMcapJsDir / "read_mcap.mjs", {file.string()});
+  ASSERT_EQ(run.exit_code, 0) << run.text;
+  const json read = run.out["indexed"];
+  EXPECT_EQ(read["schemas"], kSchemas);
+  for (const char* topic : {"/locaid/pose", "/tf", "/locaid/status", "/locaid/update"})
+    EXPECT_EQ(read["topics"][topic]["count"].get<uint64_t>(), 120u) << topic;
+  // Truth once the filter has its ENU origin (its first fix); 10 Hz fixes.
+  EXPECT_GE(read["topics"]["/locaid/truth"]["count"].get<uint64_t>(), 115u);
+  EXPECT_GE(read["topics"]["/locaid/gps"]["count"].get<uint64_t>(), 110u);
+  EXPECT_EQ(read["statistics"]["channel_count"], 9);
+}
+
+}  // namespace

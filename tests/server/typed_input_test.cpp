@@ -73,7 +73,9 @@ TEST_F(TypedInput, SamplesAndFixesReachTheFilterAndBadOnesAreRefusedByName) {
   // Refused by order / age: counted.
   ASSERT_TRUE(push.Write(Imu(t_last - 5 * kFrameNs)));             // before the newest sample
   ASSERT_TRUE(push.Write(Fix(t_last - 2'000'000'000LL)));           // 2 s older than the newest frame
-  ASSERT_TRUE(push.Write(Fix(t_last - 100'000'000LL)));              // 0.1 s late: fused
+  v1::PushRequest nan_cov = Fix(t_last - 100'000'000LL);               // 0.1 s late: fused
+  for (int i = 0; i < 9; ++i) nan_cov.mutable_gps()->add_covariance_enu_m2(std::nan(""));  // not stated
+  ASSERT_TRUE(push.Write(nan_cov));
   ASSERT_TRUE(push.Write(Gray8Frame(t_last + kFrameNs)));
   ASSERT_TRUE(push.WaitPoses(11));
   const grpc::Status end = push.Close();

@@ -6,6 +6,7 @@
 #include "kitti/dataset.hpp"
 #include "kitti/oxts_pose.hpp"
 #include "kitti/parse_number.hpp"
+#include "server/pipeline/apps/replay_mcap.hpp"
 #include "server/pipeline/localizer.hpp"
 #include "server/pipeline/replay_metrics.hpp"
 #include "server/pipeline/scenario_yaml.hpp"
@@ -191,7 +192,7 @@ void ApplyEkfSetting(fusion::EkfConfig& c, const std::string& setting) {
 
 int main(int argc, char** argv) {
   CLI::App app{"locaid-replay: VO + GPS/IMU fusion over a recorded drive, with outage metrics"};
-  std::string drive_dir, scenario_arg = "open-sky", out_tum, out_csv, vo_method = "default";
+  std::string drive_dir, scenario_arg = "open-sky", out_tum, out_csv, out_mcap, vo_method = "default";
   bool json = false, no_imu = false;
   int max_frames = 0;
   int64_t seed = -1;
@@ -201,6 +202,8 @@ int main(int argc, char** argv) {
   app.add_option("--scenario", scenario_arg, "built-in scenario name or YAML file");
   app.add_option("--out-tum", out_tum, "fused poses T_enu_body as TUM");
   app.add_option("--out-csv", out_csv, "per-frame CSV for clients/plot_outage.py");
+  app.add_option("--out-mcap", out_mcap,
+                 "the poses as an MCAP recording (the Foxglove channels of `locaid subscribe --format mcap`)");
   app.add_flag("--json", json, "print metrics as JSON on stdout");
   app.add_flag("--no-imu", no_imu, "VO + GPS only (no IMU)");
   app.add_option("--vo-method", vo_method, "VO method (default, thesis)");
@@ -259,6 +262,8 @@ int main(int argc, char** argv) {
       queue.Done();
     });
 
+    std::optional<pipeline::ReplayMcap> mcap;
+    if (!out_mcap.empty()) mcap.emplace(out_mcap);
     std::vector<pipeline::ReplaySample> samples;
     std::vector<pipeline::FrameResult> results;
     std::vector<Eigen::Isometry3d> vo_motion;  // raw VO (body axes) per frame
@@ -336,6 +341,13 @@ int main(int argc, char** argv) {
       gps_enu.push_back(g);
       gps_gt.push_back(g_gt);
       gps_rej.push_back(rej);
+      if (mcap) {
+        std::optional<Eigen::Isometry3d> truth = gt_enu ? gt_at(t_ns) : std::nullopt;
+        double lat = 0, lon = 0, alt = 0;
+        if (truth) gt_enu->Reverse(truth->translation().x(), truth->translation().y(), truth->translation().z(), lat,
+                                   lon, alt);
+        mcap->Add(static_cast<int64_t>(i), r, truth, lat, lon, alt);
+      }
       results.push_back(std::move(r));
       if (i % 50 == 0)
         std::cerr << "\rframe " << i << "/" << n_frames << " mode " << fusion::ToString(results.back().pose.mode)
@@ -360,6 +372,10 @@ int main(int argc, char** argv) {
       }
     }
 
+    if (mcap) {
+      mcap->Close();
+      std::cerr << "locaid-replay: " << mcap->poses() << " poses -> " << out_mcap << "\n";
+    }
     if (!out_csv.empty()) {
       std::vector<pipeline::PlotExtras> extras(samples.size());
       for (size_t k = 0; k < samples.size(); ++k) {
