@@ -1,5 +1,6 @@
 #include "clients/connection.hpp"
 
+#include <cctype>
 #include <chrono>
 #include <fstream>
 #include <sstream>
@@ -22,6 +23,7 @@ void ResolveToken(Connection& c) {
   if (c.token_file.empty()) return;
   std::string t = ReadFile(c.token_file, "--token-file");
   while (!t.empty() && std::isspace(static_cast<unsigned char>(t.back()))) t.pop_back();
+  while (!t.empty() && std::isspace(static_cast<unsigned char>(t.front()))) t.erase(t.begin());
   if (t.empty()) throw std::runtime_error("--token-file " + c.token_file + ": empty");
   c.token = t;
 }
@@ -31,6 +33,9 @@ std::shared_ptr<grpc::Channel> MakeChannel(const Connection& c) {
   args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, 30000);
   args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
   args.SetMaxReceiveMessageSize(64 * 1024 * 1024);
+  // Reconnect quickly after a server restart (gRPC's default backoff grows to 120 s).
+  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 5000);
+  args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 500);
   std::shared_ptr<grpc::ChannelCredentials> creds = grpc::InsecureChannelCredentials();
   if (!c.tls_ca.empty()) {
     grpc::SslCredentialsOptions ssl;

@@ -16,7 +16,7 @@ struct Connection {
   std::string tls_ca;      // PEM to trust; enables TLS
 };
 
-// Reads token_file into token (trailing whitespace dropped); throws
+// Reads token_file into token (surrounding whitespace dropped); throws
 // std::runtime_error naming the file when it cannot be read or is empty.
 void ResolveToken(Connection& c);
 std::shared_ptr<grpc::Channel> MakeChannel(const Connection& c);

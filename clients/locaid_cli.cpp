@@ -8,6 +8,7 @@
 //   locaid scenario ID (--name NAME | --file YAML)
 //   locaid stats ID
 // Every call carries a deadline (--timeout-s; subscribe: --stream-timeout-s).
+#include "clients/connection.hpp"
 #include "foxglove/mcap_recording.hpp"
 #include "locaid/v1/localization.grpc.pb.h"
 
@@ -40,10 +41,7 @@ namespace v1 = locaid::v1;
 
 namespace {
 
-struct Common {
-  std::string server = "127.0.0.1:50051";
-  std::string token;
-  std::string tls_ca;
+struct Common : locaid::clients::Connection {
   double timeout_s = 10;
 };
 
@@ -88,26 +86,8 @@ std::string CheckServerAddress(const std::string& a) {
   return "";
 }
 
-std::shared_ptr<grpc::Channel> MakeChannel(const Common& c) {
-  grpc::ChannelArguments args;
-  args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, 30000);
-  args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
-  args.SetMaxReceiveMessageSize(64 * 1024 * 1024);
-  std::shared_ptr<grpc::ChannelCredentials> creds;
-  if (!c.tls_ca.empty()) {
-    grpc::SslCredentialsOptions ssl;
-    ssl.pem_root_certs = ReadFile(c.tls_ca);
-    creds = grpc::SslCredentials(ssl);
-  } else {
-    creds = grpc::InsecureChannelCredentials();
-  }
-  return grpc::CreateCustomChannel(c.server, creds, args);
-}
-
 void Prepare(const Common& c, grpc::ClientContext* ctx, double timeout_s) {
-  ctx->set_deadline(std::chrono::system_clock::now() +
-                    std::chrono::milliseconds(static_cast<int64_t>(timeout_s * 1000)));
-  if (!c.token.empty()) ctx->AddMetadata("authorization", "Bearer " + c.token);
+  locaid::clients::Prepare(c, ctx, timeout_s);
 }
 
 const char* CodeName(grpc::StatusCode code) {
@@ -180,6 +160,18 @@ void PrintStats(const v1::SessionStats& s) {
             << s.poses_published() << "\nsubscribers " << s.subscribers() << "\ndropped_total "
             << s.dropped_total() << "\n";
   if (!s.last_input_error().empty()) std::cout << "last_input_error " << s.last_input_error() << "\n";
+  if (s.imu_samples() + s.gps_fixes_in() + s.sensor_items_rejected() > 0) {
+    std::cout << "imu_samples " << s.imu_samples() << "\ngps_fixes_in " << s.gps_fixes_in() << "\ngps_fixes_late "
+              << s.gps_fixes_late() << "\ngps_no_fix " << s.gps_no_fix() << "\nsensor_items_rejected "
+              << s.sensor_items_rejected() << "\n";
+  }
+  if (s.has_gpsd()) {
+    const auto& g = s.gpsd();
+    std::cout << "gpsd connected=" << (g.connected() ? "true" : "false") << " connects=" << g.connects()
+              << " connection_losses=" << g.connection_losses() << " fix_latency_median_ms="
+              << g.fix_latency_median_ms() << " fix_latency_max_ms=" << g.fix_latency_max_ms() << "\n";
+    if (!g.last_error().empty()) std::cout << "gpsd_last_error " << g.last_error() << "\n";
+  }
   for (const auto& sub : s.subscriber()) {
     std::cout << "subscriber " << sub.id() << " peer=" << sub.peer() << " delivered=" << sub.delivered()
               << " dropped=" << sub.dropped() << " queued=" << sub.queued() << "\n";
@@ -371,6 +363,7 @@ int main(int argc, char** argv) {
                  "host:port, or unix:PATH for the server's --listen-unix socket (unix:/abs/path, unix:rel/path)")
       ->capture_default_str();
   app.add_option("--token", c.token, "bearer token");
+  app.add_option("--token-file", c.token_file, "file holding the bearer token (keeps it out of argv)");
   app.add_option("--tls-ca", c.tls_ca, "PEM file of the CA (or self-signed cert) to trust; enables TLS");
   app.add_option("--timeout-s", c.timeout_s, "deadline of unary calls, seconds")->capture_default_str();
 
@@ -455,7 +448,8 @@ int main(int argc, char** argv) {
   std::signal(SIGXFSZ, SIG_IGN);
 
   try {
-    auto channel = MakeChannel(c);
+    locaid::clients::ResolveToken(c);
+    auto channel = locaid::clients::MakeChannel(c);
     auto stub = v1::Localization::NewStub(channel);
 
     if (health->parsed()) {

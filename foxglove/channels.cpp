@@ -177,6 +177,7 @@ void PoseConverter::Reset() {
   path_.clear();
   spacing_ns_ = options_.spacing_ns;
   last_path_t_ns_ = 0;
+  last_path_sent_ns_ = 0;
 }
 
 std::vector<OutMessage> PoseConverter::Convert(const v1::PoseUpdate& p) {
@@ -193,7 +194,10 @@ std::vector<OutMessage> PoseConverter::Convert(const v1::PoseUpdate& p) {
     out.push_back(Json(Topic::kTruth, t, PoseInFrameJson(t, p.truth_position_enu_m(), p.truth_orientation_enu_body())));
     out.push_back(Json(Topic::kTruthFix, t, TruthFixJson(p)));
   }
-  if (has_position && GrowPath(p)) out.push_back(Json(Topic::kPath, t, PathJson(t)));
+  if (has_position && GrowPath(p) && PathDue(p.t_ns())) {
+    out.push_back(Json(Topic::kPath, t, PathJson(t)));
+    last_path_sent_ns_ = p.t_ns();
+  }
   out.push_back(Json(Topic::kStatus, t, StatusJson(p)));
   out.push_back({Topic::kUpdate, static_cast<uint64_t>(std::max<int64_t>(t, 0)), p.SerializeAsString()});
   return out;
@@ -211,6 +215,15 @@ bool PoseConverter::GrowPath(const v1::PoseUpdate& p) {
   path_.push_back({p.position_enu_m(), p.orientation_enu_body()});
   last_path_t_ns_ = p.t_ns();
   return true;
+}
+
+bool PoseConverter::PathDue(int64_t t_ns) const {
+  // The whole track goes out each time, so it goes out less often as it
+  // grows: at most every path_size x 10 ms of sensor time (a 3600-pose track
+  // every 36 s). That bounds its cost to ~100 poses of JSON per second of
+  // drive, live and in recordings, whatever the drive's length.
+  const auto interval_ns = std::max<int64_t>(options_.spacing_ns, static_cast<int64_t>(path_.size()) * 10'000'000);
+  return last_path_sent_ns_ == 0 || t_ns - last_path_sent_ns_ >= interval_ns;
 }
 
 json PoseConverter::PathJson(int64_t t_ns) const {

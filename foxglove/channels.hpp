@@ -106,12 +106,15 @@ class PoseConverter {
   };
   // Adds the pose to the track if due; true when the track changed.
   bool GrowPath(const v1::PoseUpdate& p);
+  // Whether the track is sent with this pose (see channels.cpp).
+  bool PathDue(int64_t t_ns) const;
   nlohmann::json PathJson(int64_t t_ns) const;
 
   PathOptions options_;
   std::vector<PathPose> path_;
   int64_t spacing_ns_ = 0;
   int64_t last_path_t_ns_ = 0;
+  int64_t last_path_sent_ns_ = 0;
 };
 
 }  // namespace locaid::foxglove

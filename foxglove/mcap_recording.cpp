@@ -5,7 +5,8 @@
 
 namespace locaid::foxglove {
 
-McapRecording::McapRecording(const std::filesystem::path& path) : writer_(path) {
+McapRecording::McapRecording(const std::filesystem::path& path, record::McapOptions options)
+    : writer_(path, std::move(options)) {
   // One Schema record per schema name (three channels share LocationFix).
   // MCAP names the encodings "jsonschema" and "protobuf", as the WebSocket
   // protocol does.

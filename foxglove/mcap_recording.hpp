@@ -19,7 +19,7 @@ namespace locaid::foxglove {
 
 class McapRecording {
  public:
-  explicit McapRecording(const std::filesystem::path& path);
+  explicit McapRecording(const std::filesystem::path& path, record::McapOptions options = {});
   void Add(const v1::PoseUpdate& pose);
   // Writes the summary and footer; the destructor does it too (swallowing errors).
   void Close();

@@ -9,6 +9,7 @@
 // thread, the session follower (gRPC) on its own thread, and main, which
 // waits for SIGTERM/SIGINT and then stops both. Exit status: 0 after a
 // signal, 1 when the WebSocket port cannot be opened, 2 for bad flags.
+#include "clients/connection.hpp"
 #include "foxglove/apps/session_follower.hpp"
 #include "foxglove/channels.hpp"
 #include "foxglove/ws_server.hpp"
@@ -39,18 +40,6 @@ void Log(const std::string& line) {
   std::cerr << "locaid-foxglove: " << line << std::endl;
 }
 
-std::string ReadFile(const std::string& path, const char* flag) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(std::string(flag) + ": cannot read '" + path + "'");
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
-std::string Trim(std::string s) {
-  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
-  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.front()))) s.erase(s.begin());
-  return s;
-}
-
 // "--listen": an IPv4 address or "localhost", ':' and a port 0-65535
 // (0: the OS picks one; the start-up line says which).
 struct ListenAddress {
@@ -73,19 +62,6 @@ std::string ParseListen(const std::string& text, ListenAddress* out) {
   return "";
 }
 
-std::shared_ptr<grpc::Channel> MakeChannel(const std::string& server, const std::string& tls_ca_pem) {
-  grpc::ChannelArguments args;
-  args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, 30000);
-  args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 10000);
-  args.SetMaxReceiveMessageSize(64 * 1024 * 1024);
-  // Reconnect quickly after a server restart (gRPC's default backoff grows to 120 s).
-  args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 5000);
-  args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 500);
-  grpc::SslCredentialsOptions ssl;
-  ssl.pem_root_certs = tls_ca_pem;
-  auto creds = tls_ca_pem.empty() ? grpc::InsecureChannelCredentials() : grpc::SslCredentials(ssl);
-  return grpc::CreateCustomChannel(server, creds, args);
-}
 
 }  // namespace
 
@@ -117,8 +93,13 @@ int main(int argc, char** argv) {
   }
   fx::FollowerOptions follow;
   try {
-    if (!token_file.empty()) follow.token = Trim(ReadFile(token_file, "--token-file"));
-    follow.channel = MakeChannel(server, tls_ca.empty() ? "" : ReadFile(tls_ca, "--tls-ca"));
+    locaid::clients::Connection connection;
+    connection.server = server;
+    connection.token_file = token_file;
+    connection.tls_ca = tls_ca;
+    locaid::clients::ResolveToken(connection);
+    follow.token = connection.token;
+    follow.channel = locaid::clients::MakeChannel(connection);
   } catch (const std::exception& e) {
     std::cerr << e.what() << "\n";
     return 2;
