@@ -26,12 +26,17 @@ TEST(Contract, TokenFileWorksAsFlagConfigKeyAndContainerVariable) {
   const fs::path dir = TestDir("token");
   WriteFile(dir / "token", "s3cret\n");
   WriteFile(dir / "server.yaml", "token_file: " + (dir / "token").string() + "\n");
-  auto check = [](int port, const std::string& how) {
+  auto check = [&dir](int port, const std::string& how) {
     ASSERT_GT(port, 0) << how << ": the server did not start";
     CliResult r = RunCli(port, {"session", "list"});
     EXPECT_NE(r.err.find("UNAUTHENTICATED"), std::string::npos) << how << ": " << r.err;
     r = RunCli(port, {"session", "list"}, {"--token", "s3cret"});
     EXPECT_EQ(r.exit_code, 0) << how << ": " << r.err;
+    // The client's side of keeping the secret out of argv.
+    r = RunCli(port, {"session", "list"}, {"--token-file", (dir / "token").string()});
+    EXPECT_EQ(r.exit_code, 0) << how << ", locaid --token-file: " << r.err;
+    r = RunCli(port, {"session", "list"}, {"--token-file", (dir / "missing").string()});
+    EXPECT_NE(r.err.find("--token-file " + (dir / "missing").string() + ": cannot read"), std::string::npos) << r.err;
   };
   {
     ServerProcess flag(dir / "flag", {"--token-file", (dir / "token").string()});
