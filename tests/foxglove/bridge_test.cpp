@@ -105,6 +105,14 @@ TEST_F(BridgeClientTest, ServesEveryChannelToTheFoxgloveClient) {
   EXPECT_EQ(result["last_update"]["session_id"], id);
   EXPECT_EQ(result["first_tf"]["transforms"][1]["child_frame_id"], "cam0");
   EXPECT_GT(result["last_path_poses"].get<int>(), 1);
+  // Every foxglove.* message passed ajv against Foxglove's published schemas
+  // (a failure is in `errors` above); the GPS and truth channels too, now
+  // that the server fills them.
+  for (const char* topic : {"/locaid/pose", "/tf", "/locaid/fix", "/locaid/gps", "/locaid/truth", "/locaid/truth_fix",
+                            "/locaid/path"}) {
+    EXPECT_EQ(result["schema_validated"].value(topic, 0), counts.value(topic, 0)) << topic;
+    EXPECT_GT(result["schema_validated"].value(topic, 0), 0) << topic;
+  }
   std::cout << "[   info   ] counts " << counts.dump() << "\n";
 }
 

@@ -9,8 +9,9 @@
 // without sessionId, sent before the bridge follows one, does not count) and
 // the last of them has delivered N /locaid/update messages, then prints the
 // summary and exits 0.
-// On timeout it prints what it has and exits 3. JSON messages are parsed and
-// their required fields (per schema name) checked; /locaid/update is decoded
+// On timeout it prints what it has and exits 3. JSON messages are parsed, their
+// required fields (per schema name) checked, and foxglove.* messages validated
+// with ajv against @foxglove/schemas' JSON Schemas; /locaid/update is decoded
 // with protobufjs from the advertised FileDescriptorSet and its session_id
 // compared with the session serverInfo named last.
 import { createRequire } from "node:module";
@@ -22,6 +23,21 @@ const require = createRequire(import.meta.url);
 const { FoxgloveClient } = require("@foxglove/ws-protocol");
 const protobuf = require("protobufjs");
 require("protobufjs/ext/descriptor"); // adds Root.fromDescriptor
+const Ajv = require("ajv");
+const foxgloveJsonSchemas = require("@foxglove/schemas/jsonschema");
+
+// Every foxglove.* message is validated against Foxglove's own published JSON
+// Schema (@foxglove/schemas), not the one the bridge advertises.
+const ajv = new Ajv({ allErrors: true, strict: false });
+const validators = {};
+function validatorFor(schemaName) {
+  if (!schemaName.startsWith("foxglove.")) return null;
+  if (!(schemaName in validators)) {
+    const schema = foxgloveJsonSchemas[schemaName.slice("foxglove.".length)];
+    validators[schemaName] = schema ? ajv.compile(schema) : null;
+  }
+  return validators[schemaName];
+}
 
 // Required fields of the JSON messages, by schema name.
 const REQUIRED = {
@@ -57,6 +73,7 @@ function main() {
     channels: {},
     counts: {},
     counts_by_session: {},
+    schema_validated: {},
     errors: [],
     update_session_mismatches: 0,
     last_update: null,
@@ -110,7 +127,8 @@ function main() {
         JSON.parse(channel.schema); // the JSON Schema must itself be JSON
         decode = (bytes) => JSON.parse(new TextDecoder().decode(bytes));
       }
-      channels.set(channel.id, { topic: channel.topic, schemaName: channel.schemaName, decode });
+      channels.set(channel.id, { topic: channel.topic, schemaName: channel.schemaName, encoding: channel.encoding,
+        decode });
       subscriptions.set(client.subscribe(channel.id), channel.id);
     }
   });
@@ -130,6 +148,12 @@ function main() {
     }
     for (const field of REQUIRED[channel.schemaName] ?? []) {
       if (!(field in message)) result.errors.push(`${channel.topic}: missing field ${field}`);
+    }
+    const validate = channel.encoding === "json" ? validatorFor(channel.schemaName) : null;
+    if (validate) {
+      result.schema_validated[channel.topic] = (result.schema_validated[channel.topic] ?? 0) + 1;
+      if (!validate(message) && result.errors.length < 20)
+        result.errors.push(`${channel.topic}: not a valid ${channel.schemaName}: ${ajv.errorsText(validate.errors)}`);
     }
     result.counts[channel.topic] = (result.counts[channel.topic] ?? 0) + 1;
     const bySession = (result.counts_by_session[session ?? ""] ??= {});
