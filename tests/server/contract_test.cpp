@@ -387,12 +387,9 @@ TEST(Contract, StopDuringRenderReturnsPromptlyAndRendersAreBounded) {
   for (auto& t : stoppers) t.join();
   std::printf("[ render   ] StopSession during render: %.0f / %.0f / %.0f ms; ListSessions meanwhile %.0f ms\n",
               stop_ms[0], stop_ms[1], stop_ms[2], list_ms);
-  // What is checked is that a stop does not wait for the render (2000 full
-  // size frames: over a minute); a stop waits for the frame being drawn,
-  // which on a loaded 2-core machine took up to 2 s (seen), so the bound is
-  // far from both. Typical figures are in docs/benchmarks.md, not asserted.
-  for (double ms : stop_ms) EXPECT_LT(ms, 10000.0);
-  EXPECT_LT(list_ms, 5000.0);
+  // The contract is 200 ms; the bound here leaves room for a loaded CI machine.
+  for (double ms : stop_ms) EXPECT_LT(ms, 1000.0);
+  EXPECT_LT(list_ms, 1000.0);
   // Cancelled renders leave no partial drive behind.
   size_t left = 0;
   if (fs::exists(dir / "work" / "synthetic"))
