@@ -40,11 +40,8 @@ bool Ekf::UpdateGps(const GpsFix& fix) {
   }
   last_gps_received_ns_ = fix.t_ns;
   if (!initialized_) {
-    // The start-up fit weighs fixes by their horizontal sigma (the larger
-    // axis of a covariance).
-    const double sigma_h =
-        fix.cov_enu_m2 ? std::sqrt(std::max((*fix.cov_enu_m2)(0, 0), (*fix.cov_enu_m2)(1, 1))) : fix.sigma_h_m;
-    init_fixes_.push_back({fix.t_ns, z, sigma_h, Eigen::Isometry3d::Identity()});
+    // The start-up fit weighs fixes by their horizontal sigma.
+    init_fixes_.push_back({fix.t_ns, z, fix.horizontal_sigma_m(), Eigen::Isometry3d::Identity()});
     init_fixes_.back().T_start_body.matrix()(0, 0) = std::numeric_limits<double>::quiet_NaN();
     return false;
   }

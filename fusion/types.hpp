@@ -4,6 +4,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <optional>
 
@@ -22,6 +24,12 @@ struct GpsFix {
   // Velocity over ground in ENU (m/s) with a 1-sigma per axis; fused with IMU.
   std::optional<Eigen::Vector3d> v_enu_mps;
   double sigma_v_enu_mps = 0.5;
+  // The 1-sigma the filter uses: from the covariance when set (its larger
+  // horizontal axis), else the sigmas.
+  double horizontal_sigma_m() const {
+    return cov_enu_m2 ? std::sqrt(std::max((*cov_enu_m2)(0, 0), (*cov_enu_m2)(1, 1))) : sigma_h_m;
+  }
+  double vertical_sigma_m() const { return cov_enu_m2 ? std::sqrt((*cov_enu_m2)(2, 2)) : sigma_v_m; }
 };
 
 // IMU sample in the body frame (x forward, y left, z up), as OXTS reports it:

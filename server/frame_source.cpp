@@ -221,7 +221,7 @@ void LiveFrameSource::TakeGps(LiveItem item) {
     held_gps_.pop_front();
     ++stats_.gps_fixes_late;
   }
-  held_gps_.push_back({item.gps, item.arrival_steady_ns, item.from_gpsd});
+  held_gps_.push_back({item.gps, item.arrival_steady_ns});
 }
 
 bool LiveFrameSource::HasReleasable() const {

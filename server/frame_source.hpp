@@ -27,8 +27,7 @@ namespace locaid::server {
 // server (for the latency from arrival to use).
 struct ArrivedFix {
   fusion::GpsFix fix;
-  int64_t arrival_steady_ns = 0;
-  bool from_gpsd = false;
+  int64_t arrival_steady_ns = 0;  // 0: pushed (no arrival-to-use latency recorded)
 };
 
 struct SourceItem {
@@ -96,8 +95,7 @@ struct LiveItem {
   fusion::ImuSample imu;    // kImu
   fusion::GpsFix gps;       // kGps (gps.t_ns == t_ns)
   bool gps_no_fix = false;  // kGps: a no-fix report (position meaningless)
-  int64_t arrival_steady_ns = 0;
-  bool from_gpsd = false;   // kGps: read by the server from gpsd (not pushed)
+  int64_t arrival_steady_ns = 0;  // kGps read from gpsd: when it arrived; 0 for pushed items
 };
 
 struct LiveCameraSetup {

@@ -84,7 +84,6 @@ void GpsdReceiver::Run() {
           LiveItem item;
           item.kind = LiveItem::Kind::kGps;
           item.arrival_steady_ns = SteadyNowNs();
-          item.from_gpsd = true;
           if (auto fix = sensors::FixFromGpsd(report)) {
             item.t_ns = fix->t_ns;
             item.gps = *fix;

@@ -1,6 +1,8 @@
 // The server's only contact with locaid_pipeline / locaid_fusion.
 #include "server/source_pipeline.hpp"
 
+#include "server/pose_message.hpp"
+
 #include "server/pipeline/localizer.hpp"
 #include "server/pipeline/scenario_yaml.hpp"
 
@@ -25,7 +27,7 @@ class LocalizerEstimator : public FrameEstimator {
   Estimate Process(const vo::StereoFrame& frame, std::span<const kitti::OxtsSample> oxts) override {
     const pipeline::FrameResult r = localizer_.Process(frame, oxts);
     Estimate e;
-    e.gps_fixes = Seen(r);
+    e.gps_fixes = FixesSeen(r);
     e.pose = r.pose;
     e.vo_inliers = r.vo.inliers;
     e.vo_status = r.vo.status;
@@ -33,13 +35,9 @@ class LocalizerEstimator : public FrameEstimator {
     return e;
   }
   std::vector<FixSeen> FuseSensors(const pipeline::SensorBatch& batch) override {
-    return Seen(localizer_.FuseSensors(batch));
+    return FixesSeen(localizer_.FuseSensors(batch));
   }
-  static std::vector<FixSeen> Seen(const pipeline::FrameResult& r) {
-    std::vector<FixSeen> out;
-    for (const auto& f : r.gps_feeds) out.push_back({f.fix, f.accepted, f.rejected_vertical, f.nis, f.gate});
-    return out;
-  }
+
   void ScheduleOutage(int64_t start_ns, int64_t end_ns) override { localizer_.ScheduleOutage(start_ns, end_ns); }
   void StartOutageNow() override { localizer_.StartOutageNow(); }
   void StopOutageNow() override { localizer_.StopOutageNow(); }

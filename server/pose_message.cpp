@@ -71,9 +71,8 @@ void FillPoseUpdate(const StepResult& r, double latency_ms, locaid::v1::PoseUpda
     g->set_latitude_deg(f.fix.lat_deg);
     g->set_longitude_deg(f.fix.lon_deg);
     g->set_altitude_m(f.fix.alt_m);
-    g->set_sigma_horizontal_m(f.fix.cov_enu_m2 ? std::sqrt(std::max((*f.fix.cov_enu_m2)(0, 0), (*f.fix.cov_enu_m2)(1, 1)))
-                                                : f.fix.sigma_h_m);
-    g->set_sigma_vertical_m(f.fix.cov_enu_m2 ? std::sqrt((*f.fix.cov_enu_m2)(2, 2)) : f.fix.sigma_v_m);
+    g->set_sigma_horizontal_m(f.fix.horizontal_sigma_m());
+    g->set_sigma_vertical_m(f.fix.vertical_sigma_m());
     g->set_used(f.used);
     g->set_rejected_vertical(f.rejected_vertical);
     g->set_nis(f.nis);
@@ -97,6 +96,13 @@ void FillPoseUpdate(const StepResult& r, double latency_ms, locaid::v1::PoseUpda
     out->set_truth_altitude_m(r.truth->alt_m);
     out->set_horizontal_error_m((t - T.translation()).head<2>().norm());
   }
+}
+
+std::vector<FixSeen> FixesSeen(const pipeline::FrameResult& r) {
+  std::vector<FixSeen> out;
+  out.reserve(r.gps_feeds.size());
+  for (const auto& f : r.gps_feeds) out.push_back({f.fix, f.accepted, f.rejected_vertical, f.nis, f.gate});
+  return out;
 }
 
 }  // namespace locaid::server

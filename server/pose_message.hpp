@@ -4,10 +4,16 @@
 #pragma once
 
 #include "locaid/v1/localization.pb.h"
+#include "server/pipeline/localizer.hpp"
 #include "server/session_pipeline.hpp"
+
+#include <vector>
 
 namespace locaid::server {
 
 void FillPoseUpdate(const StepResult& r, double latency_ms, locaid::v1::PoseUpdate* out);
+
+// The fixes a Localizer call fed to the filter, as a pose reports them.
+std::vector<FixSeen> FixesSeen(const pipeline::FrameResult& r);
 
 }  // namespace locaid::server

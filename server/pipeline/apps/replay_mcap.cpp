@@ -14,7 +14,7 @@ void ReplayMcap::Add(int64_t frame_index, const FrameResult& r, const std::optio
   step.vo_inliers = r.vo.inliers;
   step.vo_status = r.vo.status;
   step.gps_outage_active = r.in_outage;
-  for (const GpsFeed& f : r.gps_feeds) step.gps_fixes.push_back({f.fix, f.accepted, f.rejected_vertical, f.nis, f.gate});
+  step.gps_fixes = server::FixesSeen(r);
   if (truth_enu) step.truth = server::TruthPose{truth_lat, truth_lon, truth_alt, truth_enu};
   locaid::v1::PoseUpdate msg;
   server::FillPoseUpdate(step, r.vo_ms + r.fusion_ms, &msg);
