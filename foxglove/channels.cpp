@@ -8,7 +8,10 @@
 
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <set>
+#include <string_view>
+#include <utility>
 
 namespace locaid::foxglove {
 namespace {
@@ -22,32 +25,98 @@ ChannelSpec JsonChannel(const char* topic, const char* schema_name, std::string 
   return {topic, "json", schema_name, "jsonschema", std::move(schema)};
 }
 
-json Vector3Json(const v1::Vector3& v) { return {{"x", v.x()}, {"y", v.y()}, {"z", v.z()}}; }
-json QuaternionJson(const v1::Quaternion& q) { return {{"x", q.x()}, {"y", q.y()}, {"z", q.z()}, {"w", q.w()}}; }
-json PoseJson(const v1::Vector3& position, const v1::Quaternion& orientation) {
-  return {{"position", Vector3Json(position)}, {"orientation", QuaternionJson(orientation)}};
+// Bodies are refilled for every pose: each Put* reuses the member already
+// there (assigning a number in place allocates nothing), so converting a
+// pose builds no JSON trees after the first one. The first call on an empty
+// body creates the member; every body's shape is fixed per schema, so no
+// member of an earlier pose is ever left behind.
+json& Member(json& object, std::string_view key) {
+  if (auto it = object.find(key); it != object.end()) return *it;
+  return object[std::string(key)];
 }
-
-json Color(double r, double g, double b) { return {{"r", r}, {"g", g}, {"b", b}, {"a", 1.0}}; }
-
-json LocationFixJson(int64_t t_ns, const char* frame_id, double lat, double lon, double alt,
-                     const std::array<double, 9>& covariance, int covariance_type, json color) {
-  return {{"timestamp", TimeJson(t_ns)},
-          {"frame_id", frame_id},
-          {"latitude", lat},
-          {"longitude", lon},
-          {"altitude", alt},
-          {"position_covariance", covariance},
-          {"position_covariance_type", covariance_type},
-          {"color", std::move(color)}};
-}
-
+void Put(json& object, std::string_view key, double value) { Member(object, key) = value; }
+void PutInt(json& object, std::string_view key, int64_t value) { Member(object, key) = value; }
+void PutUint(json& object, std::string_view key, uint64_t value) { Member(object, key) = value; }
+void PutBool(json& object, std::string_view key, bool value) { Member(object, key) = value; }
 // JSON has no infinity: +Infinity (no fix yet) and NaN become null.
-json FiniteOrNull(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+void PutFiniteOrNull(json& object, std::string_view key, double value) {
+  json& m = Member(object, key);
+  if (std::isfinite(value)) {
+    m = value;
+  } else {
+    m = nullptr;
+  }
+}
+// Strings are compared first: most (frame ids, enum names) repeat.
+void PutString(json& object, std::string_view key, std::string_view value) {
+  json& m = Member(object, key);
+  if (!m.is_string() || m.get_ref<const std::string&>() != value) m = std::string(value);
+}
+// Element k of an array member, growing it on the first fill.
+json& Element(json& array, size_t k) {
+  if (!array.is_array()) array = json::array();
+  while (array.size() <= k) array.push_back(nullptr);
+  return array[k];
+}
+
+void PutVector3(json& object, std::string_view key, const v1::Vector3& v) {
+  json& m = Member(object, key);
+  Put(m, "x", v.x());
+  Put(m, "y", v.y());
+  Put(m, "z", v.z());
+}
+void PutXyz(json& object, std::string_view key, const std::array<double, 3>& v) {
+  json& m = Member(object, key);
+  Put(m, "x", v[0]);
+  Put(m, "y", v[1]);
+  Put(m, "z", v[2]);
+}
+void PutQuaternion(json& object, std::string_view key, double x, double y, double z, double w) {
+  json& m = Member(object, key);
+  Put(m, "x", x);
+  Put(m, "y", y);
+  Put(m, "z", z);
+  Put(m, "w", w);
+}
+void PutQuaternion(json& object, std::string_view key, const v1::Quaternion& q) {
+  PutQuaternion(object, key, q.x(), q.y(), q.z(), q.w());
+}
+void PutPose(json& object, std::string_view key, const v1::Vector3& position, const v1::Quaternion& orientation) {
+  json& m = Member(object, key);
+  PutVector3(m, "position", position);
+  PutQuaternion(m, "orientation", orientation);
+}
+void PutTime(json& object, int64_t t_ns) { TimeJson(t_ns, Member(object, "timestamp")); }
+
+struct Rgba {
+  double r, g, b;
+};
+void PutColor(json& object, Rgba c) {
+  json& m = Member(object, "color");
+  Put(m, "r", c.r);
+  Put(m, "g", c.g);
+  Put(m, "b", c.b);
+  Put(m, "a", 1.0);
+}
+
+void PutLocationFix(json& body, int64_t t_ns, const char* frame_id, double lat, double lon, double alt,
+                    const std::array<double, 9>& covariance, int covariance_type, Rgba color) {
+  PutTime(body, t_ns);
+  PutString(body, "frame_id", frame_id);
+  Put(body, "latitude", lat);
+  Put(body, "longitude", lon);
+  Put(body, "altitude", alt);
+  json& c = Member(body, "position_covariance");
+  for (size_t k = 0; k < covariance.size(); ++k) Element(c, k) = covariance[k];
+  PutInt(body, "position_covariance_type", covariance_type);
+  PutColor(body, color);
+}
 
 // The enum value's name without its prefix: MODE_GPS_FUSED -> GPS_FUSED.
-std::string EnumName(const std::string& full, const std::string& prefix) {
-  return full.rfind(prefix, 0) == 0 ? full.substr(prefix.size()) : full;
+std::string_view EnumName(const std::string& full, std::string_view prefix) {
+  std::string_view name(full);
+  if (name.substr(0, prefix.size()) == prefix) name.remove_prefix(prefix.size());
+  return name;
 }
 
 OutMessage Json(Topic topic, int64_t t_ns, const json& body) {
@@ -90,9 +159,10 @@ std::string PoseUpdateDescriptorSet() {
   return set.SerializeAsString();
 }
 
-json TimeJson(int64_t t_ns) {
+void TimeJson(int64_t t_ns, json& body) {
   const int64_t t = std::max<int64_t>(t_ns, 0);
-  return {{"sec", t / 1'000'000'000}, {"nsec", t % 1'000'000'000}};
+  PutInt(body, "sec", t / 1'000'000'000);
+  PutInt(body, "nsec", t % 1'000'000'000);
 }
 
 std::array<double, 9> PositionCovarianceEnu(const v1::PoseUpdate& p) {
@@ -104,77 +174,85 @@ std::array<double, 9> PositionCovarianceEnu(const v1::PoseUpdate& p) {
   return c;
 }
 
-json PoseInFrameJson(int64_t t_ns, const v1::Vector3& position, const v1::Quaternion& orientation) {
-  return {{"timestamp", TimeJson(t_ns)}, {"frame_id", kEnuFrame}, {"pose", PoseJson(position, orientation)}};
+void PoseInFrameJson(int64_t t_ns, const v1::Vector3& position, const v1::Quaternion& orientation, json& body) {
+  PutTime(body, t_ns);
+  PutString(body, "frame_id", kEnuFrame);
+  PutPose(body, "pose", position, orientation);
 }
 
-json FrameTransformsJson(const v1::PoseUpdate& p) {
-  const StaticTransform& cam = BaseLinkToCam0();
-  json body = {{"timestamp", TimeJson(p.t_ns())},
-               {"parent_frame_id", kEnuFrame},
-               {"child_frame_id", kBodyFrame},
-               {"translation", Vector3Json(p.position_enu_m())},
-               {"rotation", QuaternionJson(p.orientation_enu_body())}};
+void FrameTransformsJson(const v1::PoseUpdate& p, json& body) {
+  json& transforms = Member(body, "transforms");
+  json& vehicle = Element(transforms, 0);
+  PutTime(vehicle, p.t_ns());
+  PutString(vehicle, "parent_frame_id", kEnuFrame);
+  PutString(vehicle, "child_frame_id", kBodyFrame);
+  PutVector3(vehicle, "translation", p.position_enu_m());
+  PutQuaternion(vehicle, "rotation", p.orientation_enu_body());
   // The camera mount is static; it rides along with every update so a
   // viewer that joins late (or seeks in a recording) always has it.
-  json camera = {{"timestamp", TimeJson(p.t_ns())},
-                 {"parent_frame_id", kBodyFrame},
-                 {"child_frame_id", "cam0"},
-                 {"translation", {{"x", cam.translation[0]}, {"y", cam.translation[1]}, {"z", cam.translation[2]}}},
-                 {"rotation",
-                  {{"x", cam.rotation_xyzw[0]},
-                   {"y", cam.rotation_xyzw[1]},
-                   {"z", cam.rotation_xyzw[2]},
-                   {"w", cam.rotation_xyzw[3]}}}};
-  return {{"transforms", {std::move(body), std::move(camera)}}};
+  const StaticTransform& cam = BaseLinkToCam0();
+  json& camera = Element(transforms, 1);
+  PutTime(camera, p.t_ns());
+  PutString(camera, "parent_frame_id", kBodyFrame);
+  PutString(camera, "child_frame_id", "cam0");
+  PutXyz(camera, "translation", cam.translation);
+  PutQuaternion(camera, "rotation", cam.rotation_xyzw[0], cam.rotation_xyzw[1], cam.rotation_xyzw[2],
+                cam.rotation_xyzw[3]);
 }
 
-json FusedFixJson(const v1::PoseUpdate& p) {
+void FusedFixJson(const v1::PoseUpdate& p, json& body) {
   const bool known = p.covariance_size() == 36;
-  return LocationFixJson(p.t_ns(), kBodyFrame, p.latitude_deg(), p.longitude_deg(), p.altitude_m(),
-                         PositionCovarianceEnu(p), known ? 3 : 0, Color(0.1, 0.4, 1.0));
+  PutLocationFix(body, p.t_ns(), kBodyFrame, p.latitude_deg(), p.longitude_deg(), p.altitude_m(),
+                 PositionCovarianceEnu(p), known ? 3 : 0, {0.1, 0.4, 1.0});
 }
 
-json GpsFixJson(const v1::GpsFixSeen& fix) {
+void GpsFixJson(const v1::GpsFixSeen& fix, json& body) {
   const double h2 = fix.sigma_horizontal_m() * fix.sigma_horizontal_m();
   const double v2 = fix.sigma_vertical_m() * fix.sigma_vertical_m();
   // Green: fused by the filter; red: refused by its gate (or before it ran).
-  json j = LocationFixJson(fix.t_ns(), "gps", fix.latitude_deg(), fix.longitude_deg(), fix.altitude_m(),
-                           {h2, 0, 0, 0, h2, 0, 0, 0, v2}, 2, fix.used() ? Color(0.1, 0.8, 0.2) : Color(0.9, 0.1, 0.1));
-  j["metadata"] = {{{"key", "used"}, {"value", fix.used() ? "true" : "false"}},
-                   {{"key", "rejected_vertical"}, {"value", fix.rejected_vertical() ? "true" : "false"}},
-                   {{"key", "nis"}, {"value", std::to_string(fix.nis())}},
-                   {{"key", "gate"}, {"value", std::to_string(fix.gate())}}};
-  return j;
+  PutLocationFix(body, fix.t_ns(), "gps", fix.latitude_deg(), fix.longitude_deg(), fix.altitude_m(),
+                 {h2, 0, 0, 0, h2, 0, 0, 0, v2}, 2, fix.used() ? Rgba{0.1, 0.8, 0.2} : Rgba{0.9, 0.1, 0.1});
+  const std::pair<const char*, std::string> entries[] = {{"used", fix.used() ? "true" : "false"},
+                                                         {"rejected_vertical", fix.rejected_vertical() ? "true" : "false"},
+                                                         {"nis", std::to_string(fix.nis())},
+                                                         {"gate", std::to_string(fix.gate())}};
+  json& metadata = Member(body, "metadata");
+  for (size_t k = 0; k < std::size(entries); ++k) {
+    json& entry = Element(metadata, k);
+    PutString(entry, "key", entries[k].first);
+    PutString(entry, "value", entries[k].second);
+  }
 }
 
-json TruthFixJson(const v1::PoseUpdate& p) {
-  return LocationFixJson(p.t_ns(), kBodyFrame, p.truth_latitude_deg(), p.truth_longitude_deg(), p.truth_altitude_m(),
-                         {}, 0, Color(1.0, 0.6, 0.0));
+void TruthFixJson(const v1::PoseUpdate& p, json& body) {
+  PutLocationFix(body, p.t_ns(), kBodyFrame, p.truth_latitude_deg(), p.truth_longitude_deg(), p.truth_altitude_m(), {},
+                 0, {1.0, 0.6, 0.0});
 }
 
-json StatusJson(const v1::PoseUpdate& p) {
-  return {{"timestamp", TimeJson(p.t_ns())},
-          {"session_id", p.session_id()},
-          {"sequence", p.sequence()},
-          {"frame_index", p.frame_index()},
-          {"mode", EnumName(v1::Mode_Name(p.mode()), "MODE_")},
-          {"vo_status", EnumName(v1::VoStatus_Name(p.vo_status()), "VO_STATUS_")},
-          {"vo_inliers", p.vo_inliers()},
-          {"seconds_since_gps", FiniteOrNull(p.seconds_since_gps())},
-          {"gps_outage_active", p.gps_outage_active()},
-          {"gps_used", p.gps_used()},
-          {"gps_rejected", p.gps_rejected()},
-          {"gps_resets", p.gps_resets()},
-          {"has_truth", p.has_truth()},
-          {"horizontal_error_m", p.has_truth() ? FiniteOrNull(p.horizontal_error_m()) : json(nullptr)},
-          {"processing_latency_ms", p.processing_latency_ms()}};
+void StatusJson(const v1::PoseUpdate& p, json& body) {
+  PutTime(body, p.t_ns());
+  PutString(body, "session_id", p.session_id());
+  PutUint(body, "sequence", p.sequence());
+  PutInt(body, "frame_index", p.frame_index());
+  PutString(body, "mode", EnumName(v1::Mode_Name(p.mode()), "MODE_"));
+  PutString(body, "vo_status", EnumName(v1::VoStatus_Name(p.vo_status()), "VO_STATUS_"));
+  PutInt(body, "vo_inliers", p.vo_inliers());
+  PutFiniteOrNull(body, "seconds_since_gps", p.seconds_since_gps());
+  PutBool(body, "gps_outage_active", p.gps_outage_active());
+  PutUint(body, "gps_used", p.gps_used());
+  PutUint(body, "gps_rejected", p.gps_rejected());
+  PutUint(body, "gps_resets", p.gps_resets());
+  PutBool(body, "has_truth", p.has_truth());
+  PutFiniteOrNull(body, "horizontal_error_m",
+                  p.has_truth() ? p.horizontal_error_m() : std::numeric_limits<double>::quiet_NaN());
+  Put(body, "processing_latency_ms", p.processing_latency_ms());
 }
 
 PoseConverter::PoseConverter(PathOptions options) : options_(options) { Reset(); }
 
 void PoseConverter::Reset() {
   path_.clear();
+  path_text_.clear();
   spacing_ns_ = options_.spacing_ns;
   last_path_t_ns_ = 0;
   last_path_sent_ns_ = 0;
@@ -183,22 +261,34 @@ void PoseConverter::Reset() {
 std::vector<OutMessage> PoseConverter::Convert(const v1::PoseUpdate& p) {
   std::vector<OutMessage> out;
   const int64_t t = p.t_ns();
+  auto body = [this](Topic topic) -> json& { return bodies_[static_cast<size_t>(topic)]; };
   // LOST: the filter has no position yet (or only a prediction), so the map
   // and the track leave it out; pose, tf and status still show the state.
   const bool has_position = p.mode() != v1::MODE_LOST;
-  out.push_back(Json(Topic::kPose, t, PoseInFrameJson(t, p.position_enu_m(), p.orientation_enu_body())));
-  out.push_back(Json(Topic::kTf, t, FrameTransformsJson(p)));
-  if (has_position) out.push_back(Json(Topic::kFix, t, FusedFixJson(p)));
-  for (const auto& fix : p.gps_fixes()) out.push_back(Json(Topic::kGps, fix.t_ns(), GpsFixJson(fix)));
+  PoseInFrameJson(t, p.position_enu_m(), p.orientation_enu_body(), body(Topic::kPose));
+  out.push_back(Json(Topic::kPose, t, body(Topic::kPose)));
+  FrameTransformsJson(p, body(Topic::kTf));
+  out.push_back(Json(Topic::kTf, t, body(Topic::kTf)));
+  if (has_position) {
+    FusedFixJson(p, body(Topic::kFix));
+    out.push_back(Json(Topic::kFix, t, body(Topic::kFix)));
+  }
+  for (const auto& fix : p.gps_fixes()) {
+    GpsFixJson(fix, body(Topic::kGps));
+    out.push_back(Json(Topic::kGps, fix.t_ns(), body(Topic::kGps)));
+  }
   if (p.has_truth()) {
-    out.push_back(Json(Topic::kTruth, t, PoseInFrameJson(t, p.truth_position_enu_m(), p.truth_orientation_enu_body())));
-    out.push_back(Json(Topic::kTruthFix, t, TruthFixJson(p)));
+    PoseInFrameJson(t, p.truth_position_enu_m(), p.truth_orientation_enu_body(), body(Topic::kTruth));
+    out.push_back(Json(Topic::kTruth, t, body(Topic::kTruth)));
+    TruthFixJson(p, body(Topic::kTruthFix));
+    out.push_back(Json(Topic::kTruthFix, t, body(Topic::kTruthFix)));
   }
   if (has_position && GrowPath(p) && PathDue(p.t_ns())) {
-    out.push_back(Json(Topic::kPath, t, PathJson(t)));
+    out.push_back({Topic::kPath, static_cast<uint64_t>(std::max<int64_t>(t, 0)), PathText(t)});
     last_path_sent_ns_ = p.t_ns();
   }
-  out.push_back(Json(Topic::kStatus, t, StatusJson(p)));
+  StatusJson(p, body(Topic::kStatus));
+  out.push_back(Json(Topic::kStatus, t, body(Topic::kStatus)));
   out.push_back({Topic::kUpdate, static_cast<uint64_t>(std::max<int64_t>(t, 0)), p.SerializeAsString()});
   return out;
 }
@@ -208,13 +298,24 @@ bool PoseConverter::GrowPath(const v1::PoseUpdate& p) {
   if (path_.size() >= options_.max_poses) {
     // Keep poses 0, 2, 4, ...: the same shape at half the density.
     size_t kept = 0;
-    for (size_t i = 0; i < path_.size(); i += 2) path_[kept++] = path_[i];
+    for (size_t i = 0; i < path_.size(); i += 2) path_[kept++] = std::move(path_[i]);
     path_.resize(kept);
     spacing_ns_ *= 2;
+    path_text_.clear();
+    for (const std::string& pose : path_) AppendPathText(pose);
   }
-  path_.push_back({p.position_enu_m(), p.orientation_enu_body()});
+  json pose;
+  PutVector3(pose, "position", p.position_enu_m());
+  PutQuaternion(pose, "orientation", p.orientation_enu_body());
+  path_.push_back(pose.dump());
+  AppendPathText(path_.back());
   last_path_t_ns_ = p.t_ns();
   return true;
+}
+
+void PoseConverter::AppendPathText(const std::string& pose) {
+  if (!path_text_.empty()) path_text_ += ',';
+  path_text_ += pose;
 }
 
 bool PoseConverter::PathDue(int64_t t_ns) const {
@@ -226,10 +327,20 @@ bool PoseConverter::PathDue(int64_t t_ns) const {
   return last_path_sent_ns_ == 0 || t_ns - last_path_sent_ns_ >= interval_ns;
 }
 
-json PoseConverter::PathJson(int64_t t_ns) const {
-  json poses = json::array();
-  for (const auto& pose : path_) poses.push_back(PoseJson(pose.position, pose.orientation));
-  return {{"timestamp", TimeJson(t_ns)}, {"frame_id", kEnuFrame}, {"poses", std::move(poses)}};
+std::string PoseConverter::PathText(int64_t t_ns) const {
+  // Each pose is serialized (by nlohmann) once, when it joins the track; the
+  // message is those texts inside the PosesInFrame object, so sending the
+  // track costs a copy, not a serialization of every pose again.
+  json time;
+  TimeJson(t_ns, time);
+  std::string text = R"({"frame_id":")";
+  text += kEnuFrame;
+  text += R"(","poses":[)";
+  text += path_text_;
+  text += R"(],"timestamp":)";
+  text += time.dump();
+  text += '}';
+  return text;
 }
 
 }  // namespace locaid::foxglove

@@ -65,19 +65,23 @@ struct OutMessage {
   std::string data;          // JSON text or protobuf bytes
 };
 
+// Message bodies, one per schema (exposed for the tests). Each fills `body`
+// in place: on an empty body it builds the message; on a body it filled
+// before it overwrites the values and allocates nothing new, which is how
+// PoseConverter keeps the per-pose cost low (docs/benchmarks.md).
+//
 // {sec, nsec} of a nanosecond time (clamped to >= 0).
-nlohmann::json TimeJson(int64_t t_ns);
+void TimeJson(int64_t t_ns, nlohmann::json& body);
 // The 3x3 ENU position block of PoseUpdate.covariance (6x6 row-major),
 // row-major; all zero when the update has no 36-value covariance.
 std::array<double, 9> PositionCovarianceEnu(const v1::PoseUpdate& p);
-
-// Message bodies, one per schema (exposed for the tests).
-nlohmann::json PoseInFrameJson(int64_t t_ns, const v1::Vector3& position, const v1::Quaternion& orientation);
-nlohmann::json FrameTransformsJson(const v1::PoseUpdate& p);
-nlohmann::json FusedFixJson(const v1::PoseUpdate& p);
-nlohmann::json GpsFixJson(const v1::GpsFixSeen& fix);
-nlohmann::json TruthFixJson(const v1::PoseUpdate& p);
-nlohmann::json StatusJson(const v1::PoseUpdate& p);
+void PoseInFrameJson(int64_t t_ns, const v1::Vector3& position, const v1::Quaternion& orientation,
+                     nlohmann::json& body);
+void FrameTransformsJson(const v1::PoseUpdate& p, nlohmann::json& body);
+void FusedFixJson(const v1::PoseUpdate& p, nlohmann::json& body);
+void GpsFixJson(const v1::GpsFixSeen& fix, nlohmann::json& body);
+void TruthFixJson(const v1::PoseUpdate& p, nlohmann::json& body);
+void StatusJson(const v1::PoseUpdate& p, nlohmann::json& body);
 
 // How much of the fused track /locaid/path keeps. A pose joins the track
 // when it is at least `spacing_ns` of sensor time after the previous one
@@ -100,18 +104,17 @@ class PoseConverter {
   int64_t path_spacing_ns() const { return spacing_ns_; }
 
  private:
-  struct PathPose {
-    v1::Vector3 position;
-    v1::Quaternion orientation;
-  };
   // Adds the pose to the track if due; true when the track changed.
   bool GrowPath(const v1::PoseUpdate& p);
+  void AppendPathText(const std::string& pose);
   // Whether the track is sent with this pose (see channels.cpp).
   bool PathDue(int64_t t_ns) const;
-  nlohmann::json PathJson(int64_t t_ns) const;
+  std::string PathText(int64_t t_ns) const;
 
   PathOptions options_;
-  std::vector<PathPose> path_;
+  std::array<nlohmann::json, static_cast<size_t>(Topic::kCount)> bodies_;  // refilled per pose
+  std::vector<std::string> path_;  // each track pose as foxglove.Pose JSON text
+  std::string path_text_;          // path_ joined by commas
   int64_t spacing_ns_ = 0;
   int64_t last_path_t_ns_ = 0;
   int64_t last_path_sent_ns_ = 0;

@@ -6,7 +6,9 @@
 #include <boost/beast/websocket.hpp>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <deque>
 #include <map>
 #include <set>
@@ -58,6 +60,36 @@ struct Outgoing {
   bool text = false;
   std::string head;
   std::shared_ptr<const std::string> payload;
+  std::chrono::steady_clock::time_point since{};  // messageData: when Publish got it
+};
+
+// Counts of delays in 10 us bins, the last bin holding 100 ms and more.
+// Written on the strand, read by stats() from any thread.
+class DelayHistogram {
+ public:
+  void Add(std::chrono::steady_clock::duration d) {
+    const auto bin = std::clamp<int64_t>(std::chrono::duration_cast<std::chrono::microseconds>(d).count() / 10, 0,
+                                         static_cast<int64_t>(kBins) - 1);
+    bins_[static_cast<size_t>(bin)].fetch_add(1, std::memory_order_relaxed);
+  }
+  // Upper edge, in ms, of the bin holding quantile q (0 when empty).
+  double QuantileMs(double q) const {
+    std::array<uint64_t, kBins> counts;
+    uint64_t total = 0;
+    for (size_t i = 0; i < kBins; ++i) total += counts[i] = bins_[i].load(std::memory_order_relaxed);
+    if (total == 0) return 0;
+    const auto rank = static_cast<uint64_t>(std::ceil(q * static_cast<double>(total)));
+    uint64_t seen = 0;
+    for (size_t i = 0; i < kBins; ++i) {
+      seen += counts[i];
+      if (seen >= std::max<uint64_t>(rank, 1)) return static_cast<double>(i + 1) * 0.01;
+    }
+    return static_cast<double>(kBins) * 0.01;
+  }
+
+ private:
+  static constexpr size_t kBins = 10'000;
+  std::array<std::atomic<uint64_t>, kBins> bins_{};
 };
 
 }  // namespace
@@ -68,14 +100,18 @@ struct WsServer::Impl {
   WsServerOptions options;
   std::vector<ChannelSpec> channels;
   std::string advertise;  // the advertise message, built once
-  net::io_context ioc{1};
-  tcp::acceptor acceptor{ioc};
+  net::io_context ioc;  // run by Run()'s thread, and briefly by RunReady()'s callers
+  // Every socket, timer and posted job of the server runs on this one
+  // strand, so whichever thread runs the io_context, they run one at a time.
+  net::strand<net::io_context::executor_type> strand = net::make_strand(ioc);
+  tcp::acceptor acceptor{strand};
   net::executor_work_guard<net::io_context::executor_type> work = net::make_work_guard(ioc);
-  std::set<std::shared_ptr<Connection>> connections;  // io thread only
-  std::string session_id;                             // io thread only
-  bool stopping = false;                              // io thread only
+  std::set<std::shared_ptr<Connection>> connections;  // strand only
+  std::string session_id;                             // strand only
+  bool stopping = false;                              // strand only
   uint16_t port = 0;
   std::atomic<uint64_t> clients_connected{0}, sent{0}, dropped{0};
+  DelayHistogram delays;
 
   // sessionId is left out until a session is known (it is optional).
   std::string ServerInfo() const {
@@ -107,7 +143,7 @@ json AdvertiseJson(const std::vector<ChannelSpec>& channels) {
 }  // namespace
 
 // One client: HTTP upgrade, then a read loop for its requests and a write
-// loop draining its bounded queue. Lives on the io thread only.
+// loop draining its bounded queue. Lives on the server's strand only.
 class Connection : public std::enable_shared_from_this<Connection> {
  public:
   Connection(tcp::socket socket, WsServer::Impl& server) : ws_(std::move(socket)), server_(server) {
@@ -122,9 +158,10 @@ class Connection : public std::enable_shared_from_this<Connection> {
                      [self = shared_from_this()](beast::error_code ec, size_t) { self->OnUpgradeRead(ec); });
   }
 
-  void Deliver(size_t channel, uint64_t timestamp_ns, const std::shared_ptr<const std::string>& payload) {
+  void Deliver(size_t channel, uint64_t timestamp_ns, const std::shared_ptr<const std::string>& payload,
+               std::chrono::steady_clock::time_point since) {
     for (const auto& [subscription, subscribed_channel] : subscriptions_) {
-      if (subscribed_channel == channel) Send({false, MessageDataHeader(subscription, timestamp_ns), payload});
+      if (subscribed_channel == channel) Send({false, MessageDataHeader(subscription, timestamp_ns), payload, since});
     }
   }
 
@@ -281,6 +318,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
     if (!in_flight_.text) {
       ++sent_;
       ++server_.sent;
+      server_.delays.Add(std::chrono::steady_clock::now() - in_flight_.since);
     }
     in_flight_ = {};
     WriteNext();
@@ -316,7 +354,7 @@ class Connection : public std::enable_shared_from_this<Connection> {
 };
 
 void WsServer::Impl::Accept() {
-  acceptor.async_accept([this](beast::error_code ec, tcp::socket socket) {
+  acceptor.async_accept(strand, [this](beast::error_code ec, tcp::socket socket) {
     if (ec) {
       if (!stopping) options.log("accept failed: " + ec.message());
       if (stopping || ec == net::error::operation_aborted) return;
@@ -353,8 +391,10 @@ uint16_t WsServer::port() const { return impl_->port; }
 
 void WsServer::Run() { impl_->ioc.run(); }
 
+void WsServer::RunReady() { impl_->ioc.poll(); }
+
 void WsServer::Stop() {
-  net::post(impl_->ioc, [impl = impl_.get()] {
+  net::post(impl_->strand, [impl = impl_.get()] {
     if (impl->stopping) return;
     impl->stopping = true;
     beast::error_code ignored;
@@ -367,7 +407,7 @@ void WsServer::Stop() {
 }
 
 void WsServer::SetSessionId(std::string session_id) {
-  net::post(impl_->ioc, [impl = impl_.get(), id = std::move(session_id)] {
+  net::post(impl_->strand, [impl = impl_.get(), id = std::move(session_id)] {
     impl->session_id = id;
     const std::string info = impl->ServerInfo();
     for (const auto& c : impl->connections) {
@@ -376,15 +416,34 @@ void WsServer::SetSessionId(std::string session_id) {
   });
 }
 
-void WsServer::Publish(size_t channel, uint64_t timestamp_ns, std::string data) {
-  auto payload = std::make_shared<const std::string>(std::move(data));
-  net::post(impl_->ioc, [impl = impl_.get(), channel, timestamp_ns, payload = std::move(payload)] {
-    for (const auto& c : impl->connections) c->Deliver(channel, timestamp_ns, payload);
+void WsServer::Publish(std::vector<OutMessage> messages, std::chrono::steady_clock::time_point since) {
+  struct Shared {
+    size_t channel;
+    uint64_t timestamp_ns;
+    std::shared_ptr<const std::string> payload;  // one copy, whatever the number of clients
+  };
+  std::vector<Shared> shared;
+  shared.reserve(messages.size());
+  for (OutMessage& m : messages) {
+    shared.push_back({static_cast<size_t>(m.topic), m.log_time_ns, std::make_shared<const std::string>(std::move(m.data))});
+  }
+  net::post(impl_->strand, [impl = impl_.get(), shared = std::move(shared), since] {
+    for (const Shared& m : shared) {
+      for (const auto& c : impl->connections) c->Deliver(m.channel, m.timestamp_ns, m.payload, since);
+    }
   });
 }
 
+void WsServer::Publish(size_t channel, uint64_t timestamp_ns, std::string data,
+                       std::chrono::steady_clock::time_point since) {
+  std::vector<OutMessage> one;
+  one.push_back({static_cast<Topic>(channel), timestamp_ns, std::move(data)});
+  Publish(std::move(one), since);
+}
+
 WsServerStats WsServer::stats() const {
-  return {impl_->clients_connected.load(), impl_->sent.load(), impl_->dropped.load()};
+  return {impl_->clients_connected.load(), impl_->sent.load(),           impl_->dropped.load(),
+          impl_->delays.QuantileMs(0.5),   impl_->delays.QuantileMs(0.99), impl_->delays.QuantileMs(1.0)};
 }
 
 std::string Base64(std::string_view bytes) {

@@ -1,23 +1,13 @@
 #include "record/mcap_format.hpp"
 
-#include <array>
+#include <zlib.h>
+
+#include <algorithm>
 #include <limits>
 #include <stdexcept>
 
 namespace locaid::record::mcap {
 namespace {
-
-// One table entry per byte value: the usual byte-at-a-time CRC-32.
-constexpr std::array<uint32_t, 256> MakeCrcTable() {
-  std::array<uint32_t, 256> table{};
-  for (uint32_t i = 0; i < 256; ++i) {
-    uint32_t c = i;
-    for (int bit = 0; bit < 8; ++bit) c = (c & 1u) ? (0xEDB88320u ^ (c >> 1)) : (c >> 1);
-    table[i] = c;
-  }
-  return table;
-}
-constexpr std::array<uint32_t, 256> kCrcTable = MakeCrcTable();
 
 void PutLittleEndian(std::string& out, uint64_t value, int bytes) {
   for (int i = 0; i < bytes; ++i) out.push_back(static_cast<char>((value >> (8 * i)) & 0xFFu));
@@ -54,9 +44,16 @@ void PutMap(std::string& out, const Map& map, PutEntry put_entry) {
 }  // namespace
 
 void Crc32::Update(std::string_view bytes) {
-  uint32_t c = state_;
-  for (unsigned char b : bytes) c = kCrcTable[(c ^ b) & 0xFFu] ^ (c >> 8);
-  state_ = c;
+  // zlib's crc32 (the same CRC, a table-sliced implementation) takes uInt
+  // lengths, so very large views go in pieces.
+  const auto* data = reinterpret_cast<const Bytef*>(bytes.data());
+  size_t left = bytes.size();
+  while (left > 0) {
+    const auto n = static_cast<uInt>(std::min<size_t>(left, std::numeric_limits<uInt>::max()));
+    value_ = static_cast<uint32_t>(crc32(value_, data, n));
+    data += n;
+    left -= n;
+  }
 }
 
 uint32_t ComputeCrc32(std::string_view bytes) {

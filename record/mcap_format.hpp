@@ -31,15 +31,16 @@ enum class Op : uint8_t {
 // Opcode byte plus the uint64 content length that precede every record's content.
 inline constexpr size_t kRecordPrefixBytes = 1 + 8;
 
-// CRC-32 as zlib and Ethernet compute it (reflected polynomial 0xEDB88320,
-// initial value and final XOR 0xFFFFFFFF), fed in pieces.
+// The CRC-32 MCAP uses (zlib's / Ethernet's: reflected polynomial
+// 0xEDB88320, initial value and final XOR 0xFFFFFFFF), computed by zlib and
+// fed in pieces.
 class Crc32 {
  public:
   void Update(std::string_view bytes);
-  uint32_t Value() const { return ~state_; }
+  uint32_t Value() const { return value_; }
 
  private:
-  uint32_t state_ = 0xFFFFFFFFu;
+  uint32_t value_ = 0;  // zlib's running value (pre- and post-conditioned)
 };
 uint32_t ComputeCrc32(std::string_view bytes);
 

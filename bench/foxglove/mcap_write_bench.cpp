@@ -3,7 +3,7 @@
 // Foxglove channel as `locaid subscribe --format mcap` writes it, zstd chunks
 // and uncompressed. Prints JSON (docs/benchmarks.md, "MCAP recording").
 //
-//   build/bin/mcap_write_bench [--poses 20000] [--out-dir /tmp]
+//   build/bin/mcap_write_bench [--poses 20000] [--zstd-level 3] [--out-dir /tmp]
 #include "foxglove/mcap_recording.hpp"
 
 #include <CLI/CLI.hpp>
@@ -58,16 +58,18 @@ v1::PoseUpdate Pose(int k) {
   return p;
 }
 
-nlohmann::json Run(const std::vector<v1::PoseUpdate>& poses, const std::filesystem::path& file, bool zstd) {
+nlohmann::json Run(const std::vector<v1::PoseUpdate>& poses, const std::filesystem::path& file, bool zstd,
+                   int zstd_level) {
   locaid::record::McapOptions options;
   options.zstd = zstd;
+  options.zstd_level = zstd_level;
   const auto t0 = std::chrono::steady_clock::now();
   locaid::foxglove::McapRecording recording(file, options);
   for (const auto& p : poses) recording.Add(p);
   recording.Close();
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const auto bytes = std::filesystem::file_size(file);
-  return {{"compression", zstd ? "zstd" : "none"},
+  return {{"compression", zstd ? "zstd-" + std::to_string(zstd_level) : "none"},
           {"poses", poses.size()},
           {"messages", recording.messages()},
           {"seconds", s},
@@ -80,9 +82,13 @@ nlohmann::json Run(const std::vector<v1::PoseUpdate>& poses, const std::filesyst
 
 int main(int argc, char** argv) {
   int n = 20000;
+  int zstd_level = locaid::record::McapOptions{}.zstd_level;  // what the recorders use
   std::string out_dir = std::filesystem::temp_directory_path().string();
   CLI::App app{"mcap_write_bench: MCAP recording speed and size per pose"};
   app.add_option("--poses", n, "poses to write")->check(CLI::Range(1, 10'000'000))->capture_default_str();
+  app.add_option("--zstd-level", zstd_level, "zstd compression level of the compressed run")
+      ->check(CLI::Range(1, 19))
+      ->capture_default_str();
   app.add_option("--out-dir", out_dir, "where the files go (deleted afterwards)")->check(CLI::ExistingDirectory);
   CLI11_PARSE(app, argc, argv);
   std::vector<v1::PoseUpdate> poses;
@@ -91,7 +97,7 @@ int main(int argc, char** argv) {
   nlohmann::json out = nlohmann::json::array();
   for (bool zstd : {true, false}) {
     const auto file = std::filesystem::path(out_dir) / (std::string("mcap_write_bench_") + (zstd ? "zstd" : "none") + ".mcap");
-    out.push_back(Run(poses, file, zstd));
+    out.push_back(Run(poses, file, zstd, zstd_level));
     std::filesystem::remove(file);
   }
   std::cout << out.dump(2) << "\n";

@@ -38,6 +38,14 @@ v1::PoseUpdate SamplePose(int64_t t_ns, v1::Mode mode = v1::MODE_GPS_FUSED) {
   return p;
 }
 
+// A message body filled into a fresh object.
+template <typename Fill, typename... Args>
+json Body(Fill fill, const Args&... args) {
+  json body;
+  fill(args..., body);
+  return body;
+}
+
 std::map<fx::Topic, int> CountByTopic(const std::vector<fx::OutMessage>& messages) {
   std::map<fx::Topic, int> counts;
   for (const auto& m : messages) ++counts[m.topic];
@@ -124,9 +132,9 @@ TEST(FoxgloveChannels, DescriptorSetHoldsPoseUpdate) {
 }
 
 TEST(FoxgloveChannels, TimestampsSplitNanoseconds) {
-  EXPECT_EQ(fx::TimeJson(1'715'953'912'123'456'789), json({{"sec", 1715953912}, {"nsec", 123456789}}));
-  EXPECT_EQ(fx::TimeJson(999'999'999), json({{"sec", 0}, {"nsec", 999999999}}));
-  EXPECT_EQ(fx::TimeJson(-5), json({{"sec", 0}, {"nsec", 0}}));  // foxglove time is unsigned
+  EXPECT_EQ(Body(fx::TimeJson, 1'715'953'912'123'456'789), json({{"sec", 1715953912}, {"nsec", 123456789}}));
+  EXPECT_EQ(Body(fx::TimeJson, 999'999'999), json({{"sec", 0}, {"nsec", 999999999}}));
+  EXPECT_EQ(Body(fx::TimeJson, -5), json({{"sec", 0}, {"nsec", 0}}));  // foxglove time is unsigned
 }
 
 TEST(FoxgloveChannels, FusedFixCarriesTheEnuPositionBlockOfTheCovariance) {
@@ -134,7 +142,7 @@ TEST(FoxgloveChannels, FusedFixCarriesTheEnuPositionBlockOfTheCovariance) {
   // Rows 0-2, columns 0-2 of the 6x6 (row-major index r * 6 + c).
   const std::array<double, 9> block = {0, 1, 2, 6, 7, 8, 12, 13, 14};
   EXPECT_EQ(fx::PositionCovarianceEnu(p), block);
-  const json fix = fx::FusedFixJson(p);
+  const json fix = Body(fx::FusedFixJson, p);
   EXPECT_EQ(fix["position_covariance"], json(block));
   EXPECT_EQ(fix["position_covariance_type"], 3);  // KNOWN
   EXPECT_NEAR(fix["latitude"].get<double>(), 49.011, kTol);
@@ -145,7 +153,7 @@ TEST(FoxgloveChannels, FusedFixCarriesTheEnuPositionBlockOfTheCovariance) {
 
   v1::PoseUpdate no_cov = p;
   no_cov.clear_covariance();
-  EXPECT_EQ(fx::FusedFixJson(no_cov)["position_covariance_type"], 0);  // UNKNOWN
+  EXPECT_EQ(Body(fx::FusedFixJson, no_cov)["position_covariance_type"], 0);  // UNKNOWN
 }
 
 TEST(FoxgloveChannels, GpsFixIsGreenWhenUsedRedWhenRejected) {
@@ -155,24 +163,24 @@ TEST(FoxgloveChannels, GpsFixIsGreenWhenUsedRedWhenRejected) {
   fix.set_sigma_horizontal_m(2);
   fix.set_sigma_vertical_m(3);
   fix.set_used(true);
-  json used = fx::GpsFixJson(fix);
+  json used = Body(fx::GpsFixJson, fix);
   EXPECT_EQ(used["position_covariance"], json({4, 0, 0, 0, 4, 0, 0, 0, 9}));
   EXPECT_EQ(used["position_covariance_type"], 2);  // DIAGONAL_KNOWN
   EXPECT_GT(used["color"]["g"].get<double>(), used["color"]["r"].get<double>());
   EXPECT_EQ(used["metadata"][0], json({{"key", "used"}, {"value", "true"}}));
   fix.set_used(false);
-  json rejected = fx::GpsFixJson(fix);
+  json rejected = Body(fx::GpsFixJson, fix);
   EXPECT_GT(rejected["color"]["r"].get<double>(), rejected["color"]["g"].get<double>());
   EXPECT_EQ(rejected["metadata"][0]["value"], "false");
 }
 
 TEST(FoxgloveChannels, PoseAndTransformsUseTheFoxgloveFieldNames) {
   const v1::PoseUpdate p = SamplePose(5);
-  const json pose = fx::PoseInFrameJson(p.t_ns(), p.position_enu_m(), p.orientation_enu_body());
+  const json pose = Body(fx::PoseInFrameJson, p.t_ns(), p.position_enu_m(), p.orientation_enu_body());
   EXPECT_EQ(pose["frame_id"], "enu");
   EXPECT_EQ(pose["pose"]["position"], json({{"x", 1.5}, {"y", -2.5}, {"z", 0.25}}));
   EXPECT_EQ(pose["pose"]["orientation"], json({{"x", 0.0}, {"y", 0.0}, {"z", 0.0}, {"w", 1.0}}));
-  const json tf = fx::FrameTransformsJson(p);
+  const json tf = Body(fx::FrameTransformsJson, p);
   ASSERT_EQ(tf["transforms"].size(), 2u);
   EXPECT_EQ(tf["transforms"][0]["parent_frame_id"], "enu");
   EXPECT_EQ(tf["transforms"][0]["child_frame_id"], "base_link");
@@ -208,7 +216,7 @@ TEST(FoxgloveChannels, CameraMountIsTheServersKittiRig) {
 
 TEST(FoxgloveChannels, StatusTurnsInfinityIntoNull) {
   v1::PoseUpdate p = SamplePose(1);
-  json status = fx::StatusJson(p);
+  json status = Body(fx::StatusJson, p);
   EXPECT_TRUE(status["seconds_since_gps"].is_null());
   EXPECT_TRUE(status["horizontal_error_m"].is_null());  // no truth
   EXPECT_EQ(status["mode"], "GPS_FUSED");
@@ -216,9 +224,63 @@ TEST(FoxgloveChannels, StatusTurnsInfinityIntoNull) {
   p.set_seconds_since_gps(0.25);
   p.set_has_truth(true);
   p.set_horizontal_error_m(1.75);
-  status = fx::StatusJson(p);
+  status = Body(fx::StatusJson, p);
   EXPECT_EQ(status["seconds_since_gps"], 0.25);
   EXPECT_EQ(status["horizontal_error_m"], 1.75);
+}
+
+// The converter refills one body per channel; a refilled body must read
+// exactly as a fresh one (no value of the previous pose left behind).
+TEST(FoxgloveChannels, ARefilledBodyEqualsAFreshOne) {
+  v1::PoseUpdate first = SamplePose(1'000'000'000);
+  first.set_has_truth(true);
+  first.set_horizontal_error_m(2.5);
+  first.set_seconds_since_gps(0.1);
+  first.set_mode(v1::MODE_VO_ONLY);
+  v1::PoseUpdate second = SamplePose(2'500'000'123);
+  second.mutable_position_enu_m()->set_x(-7.25);
+  second.clear_covariance();
+  json status, fix, tf;
+  fx::StatusJson(first, status);
+  fx::FusedFixJson(first, fix);
+  fx::FrameTransformsJson(first, tf);
+  fx::StatusJson(second, status);
+  fx::FusedFixJson(second, fix);
+  fx::FrameTransformsJson(second, tf);
+  EXPECT_EQ(status.dump(), Body(fx::StatusJson, second).dump());
+  EXPECT_EQ(fix.dump(), Body(fx::FusedFixJson, second).dump());
+  EXPECT_EQ(tf.dump(), Body(fx::FrameTransformsJson, second).dump());
+  EXPECT_TRUE(status["horizontal_error_m"].is_null());
+
+  v1::GpsFixSeen used, rejected;
+  used.set_used(true);
+  used.set_nis(1.5);
+  rejected.set_rejected_vertical(true);
+  json gps;
+  fx::GpsFixJson(used, gps);
+  fx::GpsFixJson(rejected, gps);
+  EXPECT_EQ(gps.dump(), Body(fx::GpsFixJson, rejected).dump());
+}
+
+TEST(FoxgloveChannels, PathMessageIsAPosesInFrameOfTheTrack) {
+  fx::PoseConverter converter(fx::PathOptions{.spacing_ns = 1'000'000'000, .max_poses = 100});
+  json path;
+  for (int i = 0; i <= 30; ++i) {
+    v1::PoseUpdate p = SamplePose(int64_t{i} * 100'000'000);
+    p.mutable_position_enu_m()->set_x(i);
+    for (const auto& m : converter.Convert(p)) {
+      if (m.topic == fx::Topic::kPath) path = json::parse(m.data);
+    }
+  }
+  ASSERT_TRUE(path.is_object());
+  EXPECT_EQ(path["frame_id"], "enu");
+  EXPECT_EQ(path["timestamp"], json({{"sec", 3}, {"nsec", 0}}));
+  // Track poses at 0, 1, 2, 3 s (x = 0, 10, 20, 30).
+  ASSERT_EQ(path["poses"].size(), 4u);
+  for (size_t k = 0; k < 4; ++k) {
+    EXPECT_EQ(path["poses"][k]["position"], json({{"x", 10.0 * static_cast<double>(k)}, {"y", -2.5}, {"z", 0.25}}));
+    EXPECT_EQ(path["poses"][k]["orientation"], json({{"x", 0.0}, {"y", 0.0}, {"z", 0.0}, {"w", 1.0}}));
+  }
 }
 
 TEST(FoxgloveChannels, ConvertFeedsChannelsByWhatThePoseHas) {

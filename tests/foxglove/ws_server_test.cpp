@@ -150,6 +150,38 @@ TEST_F(WsServerTest, SpeaksFoxgloveWebsocketV1) {
   }
 }
 
+// The delay counts from Publish's `since`: content that waited 30 ms before
+// Publish shows a delay of at least 30 ms once written.
+TEST_F(WsServerTest, DelayIsCountedFromWhenTheContentArrived) {
+  Start(16);
+  TestClient client(server_->port(), "foxglove.websocket.v1");
+  client.ReadJson();  // serverInfo
+  client.ReadJson();  // advertise
+  client.Send({{"op", "subscribe"}, {"subscriptions", {{{"id", 1}, {"channelId", 0}}}}});
+  // Subscribing has no acknowledgement: publish until one arrives.
+  std::atomic<bool> received{false};
+  std::thread producer([&] {
+    for (int i = 0; i < 500 && !received; ++i) {
+      server_->Publish(0, 1, "{}", std::chrono::steady_clock::now() - std::chrono::milliseconds(30));
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  });
+  client.Read();
+  received = true;
+  producer.join();
+  // The server counts a frame when its write completes, which may be just
+  // after the client has read it.
+  for (int i = 0; i < 200 && server_->stats().messages_sent == 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  const fx::WsServerStats stats = server_->stats();
+  ASSERT_GE(stats.messages_sent, 1u);
+  EXPECT_GE(stats.delay_p50_ms, 30.0);
+  EXPECT_GE(stats.delay_p99_ms, stats.delay_p50_ms);
+  EXPECT_GE(stats.delay_max_ms, stats.delay_p99_ms);
+  EXPECT_LE(stats.delay_max_ms, 100.0);  // the histogram's last bin
+}
+
 TEST_F(WsServerTest, AClientThatStopsReadingLosesItsOldestMessagesOnly) {
   Start(32);
   TestClient slow(server_->port(), "foxglove.websocket.v1"), fast(server_->port(), "foxglove.websocket.v1");
