@@ -116,7 +116,10 @@ void McapWriter::Write(uint16_t channel_id, uint64_t log_time_ns, uint64_t publi
   ++message_count_;
   ++channel.message_count;
 
-  if (chunk_.records.size() >= options_.chunk_size_bytes) WriteChunk();
+  if (chunk_.records.size() >= options_.chunk_size_bytes ||
+      (options_.chunk_max_span_ns > 0 && chunk_.end_time - chunk_.start_time >= options_.chunk_max_span_ns)) {
+    WriteChunk();
+  }
 }
 
 void McapWriter::Close() {

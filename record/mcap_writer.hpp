@@ -11,12 +11,16 @@
 // Guarantees:
 //  - Bounded memory: at most one chunk is buffered. A chunk is closed once its
 //    uncompressed records reach `chunk_size_bytes` (a single larger message
-//    makes a chunk of its own). Besides the chunk, the writer keeps one Chunk
-//    Index entry per written chunk and the schemas and channels.
+//    makes a chunk of its own) or its messages span `chunk_max_span_ns` of
+//    log time. Besides the chunk, the writer keeps one Chunk Index entry per
+//    written chunk (~100 bytes; with 1 s chunks, 8.6 MB for a day of
+//    recording) and the schemas and channels.
 //  - Crash safety: every completed chunk and its indexes are handed to the
 //    kernel with write(2) before Write() returns, with no user-space buffer.
 //    A process killed at any point leaves a file whose complete chunks a
-//    streaming reader still reads; only the summary and footer are missing.
+//    streaming reader still reads; only the summary and footer are missing,
+//    and of the messages only the open chunk's: with the default span, at
+//    most the last second of log time.
 //    (No fsync: a power loss may still drop what the kernel had not stored.)
 //  - No threads, no global state; not safe for concurrent calls on one object.
 //  - Errors throw: std::system_error (a std::runtime_error) naming the file
@@ -40,6 +44,9 @@ namespace locaid::record {
 
 struct McapOptions {
   size_t chunk_size_bytes = 1 << 20;  // uncompressed records per chunk before it is written
+  // A chunk is also written once its messages span this much log time, so a
+  // killed recorder loses at most that much (0: chunks close by size only).
+  uint64_t chunk_max_span_ns = 1'000'000'000;
   bool zstd = true;                   // compress chunks with zstd; false: stored uncompressed
   int zstd_level = 3;
   std::string profile = "";  // Header profile, e.g. "ros2"; empty: none

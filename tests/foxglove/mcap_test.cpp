@@ -16,6 +16,17 @@ const std::filesystem::path kMcapJsDir = LOCAID_MCAP_JS_DIR;
 const json kSchemas = {"foxglove.FrameTransforms", "foxglove.LocationFix", "foxglove.PoseInFrame",
                        "foxglove.PosesInFrame",    "locaid.Status",        "locaid.v1.PoseUpdate"};
 
+// Every message of every topic decoded by the schema stored in the file
+// (protobuf from its FileDescriptorSet, JSON).
+void ExpectEveryMessageDecoded(const json& read) {
+  EXPECT_EQ(read.value("decode_errors", json::array()), json::array());
+  const json topics = read.value("topics", json::object());
+  ASSERT_FALSE(topics.empty());
+  for (const auto& [topic, t] : topics.items()) {
+    EXPECT_EQ(t.value("decoded", -1), t.value("count", -2)) << topic;
+  }
+}
+
 class McapSubscribeTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -56,6 +67,33 @@ TEST_F(McapSubscribeTest, RecordsTheBridgeChannelsOfAFinishedSession) {
   EXPECT_EQ(read["topics"]["/locaid/update"]["count"].get<uint64_t>(), poses);
   EXPECT_EQ(read["topics"]["/tf"]["count"].get<uint64_t>(), poses);
   EXPECT_EQ(read["statistics"]["channel_count"], 9);  // every channel is declared, also those without messages
+  ExpectEveryMessageDecoded(read);
+}
+
+// A recorder killed without warning: the file ends mid-way, yet every chunk
+// written before the kill reads, and chunks close each second of log time,
+// so at most about a second of poses is lost.
+TEST_F(McapSubscribeTest, SigkillLeavesEveryCompleteChunkReadable) {
+  const std::string id = ft::StartSynthetic(stub_.get(), 7, 80, 1.0);  // 8 s of real time
+  const auto file = dir_ / "killed.mcap";
+  st::ChildProcess cli(st::CliArgv(server_->port(), {"subscribe", id, "--format", "mcap", "--out", file.string()}),
+                       st::ChildProcess::Options{dir_ / "cli.out", dir_ / "cli.err", 0});
+  const auto stats = st::WaitStats(stub_.get(), id, 60, [](const auto& s) {
+    return s.poses_published() >= 40 && s.subscribers() >= 1;
+  });
+  ASSERT_GE(stats.poses_published(), 40u);
+  ASSERT_TRUE(cli.Signal(SIGKILL));
+  ASSERT_TRUE(cli.Wait(10));
+  const ft::NodeRun run = ft::RunNode(kMcapJsDir / "read_mcap.mjs", {"--stream", file.string()});
+  ASSERT_EQ(run.exit_code, 0) << run.text;
+  EXPECT_TRUE(run.out["truncated"].get<bool>()) << "no footer: the recorder never closed the file";
+  const json& read = run.out["stream"];
+  const json updates =
+      read.value("topics", json::object()).value("/locaid/update", json{{"count", 0}, {"sequences_in_order", false}});
+  // 10 poses a second: all but the open chunk's (<= 1 s, plus the pose in flight).
+  EXPECT_GE(updates["count"].get<uint64_t>(), stats.poses_published() - 12) << read.dump(2);
+  EXPECT_TRUE(updates["sequences_in_order"].get<bool>());
+  ExpectEveryMessageDecoded(read);
 }
 
 TEST_F(McapSubscribeTest, SigtermClosesTheFileProperly) {
@@ -108,6 +146,7 @@ TEST(McapReplay, RecordsEveryReplayedPoseWithItsTruthAndFixes) {
   EXPECT_GE(read["topics"]["/locaid/truth"]["count"].get<uint64_t>(), 115u);
   EXPECT_GE(read["topics"]["/locaid/gps"]["count"].get<uint64_t>(), 110u);
   EXPECT_EQ(read["statistics"]["channel_count"], 9);
+  ExpectEveryMessageDecoded(read);
 }
 
 }  // namespace

@@ -128,6 +128,32 @@ TEST_F(McapWriterFileTest, FullChunksAreInTheFileBeforeClose) {
   for (size_t i = 0; i < scan.messages.size(); ++i) ASSERT_EQ(scan.messages[i].sequence, i);
 }
 
+// Small messages never fill a chunk; the log-time span closes it instead, so
+// a recorder killed mid-session loses at most that span.
+TEST_F(McapWriterFileTest, AChunkClosesOnceItSpansItsMaximumLogTime) {
+  const fs::path path = dir_ / "span.mcap";
+  McapWriter writer(path, McapOptions{.chunk_max_span_ns = 1'000'000'000, .zstd = true});
+  const uint16_t channel = writer.AddChannel(0, "/locaid/gps", "json");
+  // 10 Hz for 3.05 s: chunks of 0.0-1.0, 1.1-2.1, 2.2-3.0 s (the third still open).
+  const uint32_t written = 31;
+  for (uint32_t i = 0; i < written; ++i) {
+    const uint64_t t = rt::kSampleStartNs + uint64_t{i} * 100'000'000;
+    writer.Write(channel, t, t, rt::SamplePayload("/locaid/gps", i), i);
+  }
+  const rt::StreamScan scan = rt::ScanStream(rt::ReadFileBytes(path));
+  EXPECT_TRUE(scan.truncated) << "no footer yet";
+  EXPECT_EQ(scan.chunk_count, 2u);
+  EXPECT_EQ(scan.messages.size(), 22u);  // 11 per chunk: 1.0 s is reached by the 11th message
+
+  McapWriter by_size(dir_ / "size.mcap", McapOptions{.chunk_max_span_ns = 0, .zstd = true});
+  const uint16_t c = by_size.AddChannel(0, "/locaid/gps", "json");
+  for (uint32_t i = 0; i < written; ++i) {
+    const uint64_t t = rt::kSampleStartNs + uint64_t{i} * 100'000'000;
+    by_size.Write(c, t, t, rt::SamplePayload("/locaid/gps", i), i);
+  }
+  EXPECT_EQ(rt::ScanStream(rt::ReadFileBytes(dir_ / "size.mcap")).chunk_count, 0u) << "1 MiB chunks: none full yet";
+}
+
 TEST_F(McapWriterFileTest, UnknownIdsAreRejectedNamingTheId) {
   McapWriter writer(dir_ / "ids.mcap");
   try {

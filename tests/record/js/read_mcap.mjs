@@ -1,6 +1,9 @@
-// Reads an MCAP file with Foxglove's own TypeScript reader (@mcap/core) and
-// prints what it found as JSON, so the C++ tests can check locaid's writer
-// against a reader they did not write.
+// Reads an MCAP file with Foxglove's own TypeScript reader (@mcap/core, its
+// chunk decompression from @mcap/support) and prints what it found as JSON,
+// so the C++ tests can check locaid's writer against a reader they did not
+// write. Every message is also decoded by its channel's schema: protobuf
+// with the FileDescriptorSet stored in the file (@mcap/support's
+// protobufFromBinaryDescriptor), JSON with JSON.parse.
 //
 //   node read_mcap.mjs FILE           indexed reader (footer, summary, chunk
 //                                     indexes) and stream reader; both must
@@ -12,39 +15,58 @@
 // Exits 1 with the error on stderr when a reader rejects the file.
 import { open } from "node:fs/promises";
 
-import zstd from "@foxglove/wasm-zstd";
 import { McapIndexedReader, McapStreamReader } from "@mcap/core";
 import { FileHandleReadable } from "@mcap/nodejs";
+import { loadDecompressHandlers, protobufFromBinaryDescriptor } from "@mcap/support";
 
 // Small pieces make the stream reader resume mid-record, as it would on a pipe.
 const STREAM_PIECE_BYTES = 64 * 1024;
 
-// Per topic: messages seen, and whether each channel's sequence numbers ran
-// 0, 1, 2, ... with no gap (the tests number their messages that way).
+// A decoder per schema (by schema id), built from the schema record itself.
+function decoderFor(schema) {
+  if (schema.encoding === "protobuf") {
+    const type = protobufFromBinaryDescriptor(schema.data).lookupType(schema.name);
+    return (data) => type.toObject(type.decode(data), { longs: String });
+  }
+  if (schema.encoding === "jsonschema") {
+    JSON.parse(new TextDecoder().decode(schema.data)); // the schema itself must be JSON
+    return (data) => JSON.parse(new TextDecoder().decode(data));
+  }
+  throw new Error(`schema ${schema.name}: unexpected encoding ${schema.encoding}`);
+}
+
+// Per topic: messages seen, how many decoded by their schema, and whether
+// each channel's sequence numbers ran 0, 1, 2, ... with no gap (the tests
+// number their messages that way).
 class MessageTally {
   constructor() {
     this.topics = {};
     this.start = undefined;
     this.end = undefined;
+    this.decode_errors = [];
   }
 
-  add(topic, message) {
-    const t = (this.topics[topic] ??= { count: 0, sequences_in_order: true });
+  add(topic, message, decode) {
+    const t = (this.topics[topic] ??= { count: 0, decoded: 0, sequences_in_order: true });
     if (message.sequence !== t.count) t.sequences_in_order = false;
     t.count += 1;
+    if (decode) {
+      try {
+        decode(message.data);
+        t.decoded += 1;
+      } catch (error) {
+        if (this.decode_errors.length < 10) this.decode_errors.push(`${topic}: ${error.message}`);
+      }
+    }
     if (this.start === undefined || message.logTime < this.start) this.start = message.logTime;
     if (this.end === undefined || message.logTime > this.end) this.end = message.logTime;
   }
 
   toJSON() {
     const total = Object.values(this.topics).reduce((sum, t) => sum + t.count, 0);
-    return { message_count: total, topics: this.topics, start_time: String(this.start ?? 0n), end_time: String(this.end ?? 0n) };
+    return { message_count: total, topics: this.topics, start_time: String(this.start ?? 0n), end_time: String(this.end ?? 0n),
+      decode_errors: this.decode_errors };
   }
-}
-
-async function decompressHandlers() {
-  await zstd.isLoaded;
-  return { zstd: (buffer, size) => zstd.decompress(buffer, Number(size)) };
 }
 
 async function readIndexed(path, handlers) {
@@ -52,8 +74,11 @@ async function readIndexed(path, handlers) {
   try {
     const reader = await McapIndexedReader.Initialize({ readable: new FileHandleReadable(handle), decompressHandlers: handlers });
     const tally = new MessageTally();
+    const decoders = new Map();
+    for (const [id, schema] of reader.schemasById) decoders.set(id, decoderFor(schema));
     for await (const message of reader.readMessages()) {
-      tally.add(reader.channelsById.get(message.channelId).topic, message);
+      const channel = reader.channelsById.get(message.channelId);
+      tally.add(channel.topic, message, decoders.get(channel.schemaId));
     }
     const stats = reader.statistics;
     return {
@@ -79,6 +104,7 @@ async function readStream(path, handlers) {
   const reader = new McapStreamReader({ includeChunks: true, decompressHandlers: handlers, validateCrcs: true });
   const channels = new Map();
   const schemas = new Set();
+  const decoders = new Map();
   const tally = new MessageTally();
   let chunkCount = 0;
   let sawDataEnd = false;
@@ -91,13 +117,16 @@ async function readStream(path, handlers) {
       reader.append(piece.subarray(0, bytesRead));
       for (let record; (record = reader.nextRecord()); ) {
         if (record.type === "Chunk") chunkCount += 1;
-        else if (record.type === "Schema") schemas.add(record.name);
+        else if (record.type === "Schema") {
+          schemas.add(record.name);
+          decoders.set(record.id, decoderFor(record));
+        }
         else if (record.type === "Channel") channels.set(record.id, record);
         else if (record.type === "DataEnd") sawDataEnd = true;
         else if (record.type === "Message") {
           const channel = channels.get(record.channelId);
           if (!channel) throw new Error(`message on channel ${record.channelId} before its Channel record`);
-          tally.add(channel.topic, record);
+          tally.add(channel.topic, record, decoders.get(channel.schemaId));
         }
       }
     }
@@ -125,7 +154,7 @@ async function main(args) {
   const streamOnly = args[0] === "--stream";
   const path = streamOnly ? args[1] : args[0];
   if (!path) throw new Error("usage: node read_mcap.mjs [--stream] FILE");
-  const handlers = await decompressHandlers();
+  const handlers = await loadDecompressHandlers();
 
   const stream = await readStream(path, handlers);
   if (streamOnly) {
