@@ -116,6 +116,56 @@ TEST_F(BridgeClientTest, ServesEveryChannelToTheFoxgloveClient) {
   std::cout << "[   info   ] counts " << counts.dump() << "\n";
 }
 
+// What the viewer gets is what the gRPC stream of the same session carries:
+// the same poses in the same order, the same numbers to the last bit (the
+// bridge writes doubles in their shortest round-trip form).
+TEST_F(BridgeClientTest, CarriesTheValuesOfTheGrpcStream) {
+  Subscribe(1, kFrames);
+  const std::string id = ft::StartSynthetic(stub_.get(), 9, kFrames, 1.0);
+  const json result = ClientResult(*client_);
+  ASSERT_FALSE(result.is_discarded());
+  EXPECT_EQ(result["errors"], json::array());
+  ft::WaitFinished(stub_.get(), id, 60);
+  st::PoseCollector grpc(st::MakeChannel(server_->port()), id, /*from_start=*/true);
+  ASSERT_TRUE(grpc.WaitDone(60));
+  const std::vector<locaid::v1::PoseUpdate> poses = grpc.poses();
+  ASSERT_EQ(poses.size(), kFrames);
+  const json& v = result["values"];
+  ASSERT_EQ(v["update"].size(), poses.size());
+  ASSERT_EQ(v["pose"].size(), poses.size());
+  ASSERT_EQ(v["status"].size(), poses.size());
+  size_t fixes = 0;
+  for (size_t i = 0; i < poses.size(); ++i) {
+    const locaid::v1::PoseUpdate& p = poses[i];
+    const std::string t = std::to_string(p.t_ns());
+    const json& update = v["update"][i];
+    EXPECT_EQ(update["sequence"], std::to_string(p.sequence()));
+    EXPECT_EQ(update["t_ns"], t);
+    EXPECT_EQ(update["mode"], static_cast<int>(p.mode()));
+    const json& pose = v["pose"][i];
+    EXPECT_EQ(pose["t_ns"], t);
+    for (const json* xyz : {&update, &pose}) {
+      EXPECT_EQ((*xyz)["x"].get<double>(), p.position_enu_m().x()) << "pose " << i;
+      EXPECT_EQ((*xyz)["y"].get<double>(), p.position_enu_m().y()) << "pose " << i;
+      EXPECT_EQ((*xyz)["z"].get<double>(), p.position_enu_m().z()) << "pose " << i;
+    }
+    const json& status = v["status"][i];
+    EXPECT_EQ(status["t_ns"], t);
+    EXPECT_EQ(status["sequence"], p.sequence());
+    EXPECT_EQ(status["mode"], locaid::v1::Mode_Name(p.mode()).substr(5));  // without MODE_
+    EXPECT_EQ(status["gps_used"], p.gps_used());
+    if (p.mode() == locaid::v1::MODE_LOST) continue;  // no fused fix without a position
+    ASSERT_LT(fixes, v["fix"].size());
+    const json& fix = v["fix"][fixes++];
+    EXPECT_EQ(fix["t_ns"], t);
+    EXPECT_EQ(fix["latitude"].get<double>(), p.latitude_deg()) << "pose " << i;
+    EXPECT_EQ(fix["longitude"].get<double>(), p.longitude_deg()) << "pose " << i;
+    EXPECT_EQ(fix["altitude"].get<double>(), p.altitude_m()) << "pose " << i;
+  }
+  EXPECT_EQ(fixes, v["fix"].size());
+  EXPECT_GT(fixes, 0u);
+}
+
 TEST_F(BridgeClientTest, SwitchesToANewerSessionWithANewServerInfo) {
   Subscribe(2, 5);
   const std::string first = ft::StartSynthetic(stub_.get(), 7, kFrames, 1.0);

@@ -13,7 +13,9 @@
 // required fields (per schema name) checked, and foxglove.* messages validated
 // with ajv against @foxglove/schemas' JSON Schemas; /locaid/update is decoded
 // with protobufjs from the advertised FileDescriptorSet and its session_id
-// compared with the session serverInfo named last.
+// compared with the session serverInfo named last. `values` lists, per
+// message of /locaid/update, /locaid/pose, /locaid/fix and /locaid/status,
+// the figures the C++ test compares with the gRPC stream of the session.
 import { createRequire } from "node:module";
 
 import WebSocket from "ws";
@@ -50,6 +52,9 @@ const REQUIRED = {
     "gps_rejected", "gps_resets"],
 };
 
+// A foxglove time {sec, nsec} as nanoseconds, in a string (exact beyond 2^53).
+const nanoseconds = (time) => String(BigInt(time.sec) * 1000000000n + BigInt(time.nsec));
+
 function parseArgs(argv) {
   const args = { timeoutS: 60 };
   for (let i = 0; i < argv.length; i += 2) {
@@ -80,6 +85,7 @@ function main() {
     last_status: null,
     last_path_poses: 0,
     first_tf: null,
+    values: { update: [], pose: [], fix: [], status: [] },
   };
   const channels = new Map(); // channel id -> { topic, schemaName, decode }
   const subscriptions = new Map(); // subscription id -> channel id
@@ -163,8 +169,19 @@ function main() {
       if (message.session_id !== session) result.update_session_mismatches += 1;
       result.last_update = { session_id: message.session_id, sequence: message.sequence, t_ns: message.t_ns,
         mode: message.mode };
+      const p = message.position_enu_m ?? {};
+      result.values.update.push({ sequence: message.sequence, t_ns: message.t_ns, x: p.x ?? 0, y: p.y ?? 0, z: p.z ?? 0,
+        mode: message.mode });
     } else if (channel.topic === "/locaid/status") {
       result.last_status = message;
+      result.values.status.push({ t_ns: nanoseconds(message.timestamp), sequence: message.sequence, mode: message.mode,
+        gps_used: message.gps_used });
+    } else if (channel.topic === "/locaid/pose") {
+      const p = message.pose.position;
+      result.values.pose.push({ t_ns: nanoseconds(message.timestamp), x: p.x, y: p.y, z: p.z });
+    } else if (channel.topic === "/locaid/fix") {
+      result.values.fix.push({ t_ns: nanoseconds(message.timestamp), latitude: message.latitude,
+        longitude: message.longitude, altitude: message.altitude });
     } else if (channel.topic === "/locaid/path") {
       result.last_path_poses = message.poses.length;
     } else if (channel.topic === "/tf" && !result.first_tf) {
