@@ -359,6 +359,10 @@ void WsServer::Impl::Accept() {
       if (!stopping) options.log("accept failed: " + ec.message());
       if (stopping || ec == net::error::operation_aborted) return;
     } else {
+      if (options.socket_send_buffer_bytes > 0) {
+        beast::error_code ignored;  // best effort: the OS may round or cap it
+        socket.set_option(net::socket_base::send_buffer_size(options.socket_send_buffer_bytes), ignored);
+      }
       auto connection = std::make_shared<Connection>(std::move(socket), *this);
       connections.insert(connection);
       connection->Start();

@@ -51,6 +51,11 @@ struct WsServerOptions {
   uint16_t port = 8765;            // 0: the OS picks one (see WsServer::port())
   std::string name = "locaid-foxglove";
   size_t max_queued_messages = 2000;  // per client
+  // SO_SNDBUF of each client's socket (0: the OS default, which Linux grows
+  // to megabytes). Smaller keeps a slow viewer closer to live: what it cannot
+  // take waits in the bridge's queue, where the oldest is dropped, instead
+  // of in the kernel.
+  int socket_send_buffer_bytes = 0;
   // One line per event (connect, subscribe, disconnect with drop count).
   std::function<void(const std::string&)> log = [](const std::string&) {};
 };

@@ -71,6 +71,7 @@ std::string ParseListen(const std::string& text, ListenAddress* out) {
 int main(int argc, char** argv) {
   std::string server, token_file, tls_ca, listen = "127.0.0.1:8765", session;
   size_t queue = 2000;
+  int send_buffer = 0;
   CLI::App app{"locaid-foxglove: serves a locaid session live to Foxglove / Lichtblick (foxglove.websocket.v1)"};
   app.add_option("--server", server, "locaid-server address: host:port or unix:PATH")->required();
   app.add_option("--token-file", token_file, "file holding the server's bearer token")->check(CLI::ExistingFile);
@@ -82,6 +83,10 @@ int main(int argc, char** argv) {
   app.add_option("--queue", queue, "messages queued per WebSocket client before the oldest are dropped")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  app.add_option("--send-buffer", send_buffer,
+                 "kernel send buffer per WebSocket client, bytes (default: the OS's); smaller keeps slow viewers "
+                 "closer to live")
+      ->check(CLI::Range(4096, 64 << 20));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -124,6 +129,7 @@ int main(int argc, char** argv) {
     ws_options.host = address.host;
     ws_options.port = address.port;
     ws_options.max_queued_messages = queue;
+    ws_options.socket_send_buffer_bytes = send_buffer;
     ws_options.log = Log;
     ws = std::make_unique<fx::WsServer>(ws_options, fx::Channels());
   } catch (const std::exception& e) {

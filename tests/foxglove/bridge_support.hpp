@@ -59,6 +59,18 @@ class BridgeProcess {
     }
     return true;
   }
+  // Waits (bounded) until the log holds `text` at least `count` times.
+  bool WaitForLogCount(const std::string& text, int count, double timeout_s) {
+    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    for (;;) {
+      const std::string l = log();
+      int seen = 0;
+      for (size_t at = l.find(text); at != std::string::npos; at = l.find(text, at + text.size())) ++seen;
+      if (seen >= count) return true;
+      if (std::chrono::steady_clock::now() >= until || child_->Wait(0)) return false;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  }
 
  private:
   std::filesystem::path err_;

@@ -183,6 +183,50 @@ TEST_F(BridgeClientTest, SwitchesToANewerSessionWithANewServerInfo) {
   EXPECT_NE(bridge_->log().find("a newer session started; switching"), std::string::npos) << bridge_->log();
 }
 
+// 20 Foxglove clients on one bridge, one of which stops reading: the other
+// 19 get every update of the session, the bridge's own gRPC stream never
+// falls behind (the server drops nothing for it), and the stalled client,
+// reading again, has lost old messages (told once) and catches up with the
+// newest update. A small queue and kernel send buffer (--queue,
+// --send-buffer) make the loss happen within a short session.
+TEST_F(BridgeTest, TwentyClientsOneStalledTheOthersGetEverything) {
+  if (!ft::HaveNode()) GTEST_SKIP() << "node is not installed; the Foxglove client (@foxglove/ws-protocol) needs it";
+  constexpr int kClients = 20;
+  constexpr uint32_t kCrowdFrames = 100;
+  st::ServerProcess server(dir_ / "server");
+  ASSERT_GT(server.port(), 0) << server.log();
+  auto stub = st::MakeStub(server.port());
+  const int ws_port = ft::FreeLoopbackPort();
+  ft::BridgeProcess bridge(dir_, server.port(), ws_port, {"--queue", "20", "--send-buffer", "16384"});
+  ASSERT_TRUE(bridge.WaitForLog("listening on", 10)) << bridge.log();
+  st::ChildProcess crowd({"/usr/bin/env", "node", (kJsDir / "crowd.mjs").string(), "--url",
+                          "ws://127.0.0.1:" + std::to_string(ws_port), "--clients", std::to_string(kClients),
+                          "--updates", std::to_string(kCrowdFrames), "--timeout-s", "120"},
+                         st::ChildProcess::Options{dir_ / "crowd.json", dir_ / "crowd.err", 0});
+  ASSERT_TRUE(bridge.WaitForLogCount("subscribed to /locaid/update", kClients, 30)) << bridge.log();
+  const std::string id = ft::StartSynthetic(stub.get(), 7, kCrowdFrames, 1.0);
+  ASSERT_TRUE(crowd.Wait(150)) << "crowd.mjs did not end";
+  EXPECT_EQ(crowd.exit_code(), 0) << st::Slurp(dir_ / "crowd.json") << st::Slurp(dir_ / "crowd.err");
+  const json result = json::parse(st::Slurp(dir_ / "crowd.json"), nullptr, false);
+  ASSERT_FALSE(result.is_discarded()) << st::Slurp(dir_ / "crowd.err");
+
+  ASSERT_EQ(result["readers"].size(), static_cast<size_t>(kClients - 1));
+  for (const auto& reader : result["readers"]) {
+    EXPECT_EQ(reader["updates"], kCrowdFrames) << reader.dump();
+    EXPECT_EQ(reader["errors"], json::array()) << reader.dump();
+  }
+  const json& stalled = result["stalled"];
+  EXPECT_TRUE(stalled["caught_up"].get<bool>()) << stalled.dump();
+  EXPECT_EQ(stalled["last_sequence"], result["newest_sequence"]);
+  // What the stalled client missed was dropped from its queue, and it was told once.
+  EXPECT_LT(stalled["updates"].get<uint32_t>(), kCrowdFrames) << stalled.dump();
+  EXPECT_EQ(stalled["statuses"], json::array({"Send buffer limit reached"})) << stalled.dump();
+  std::cout << "[   info   ] stalled client: " << stalled["updates"] << " of " << kCrowdFrames << " updates, statuses "
+            << stalled["statuses"].dump() << "\n";
+  EXPECT_EQ(ft::WaitFinished(stub.get(), id, 60), kCrowdFrames);
+  EXPECT_EQ(st::GetStats(stub.get(), id).dropped_total(), 0u) << "the server dropped poses for the bridge";
+}
+
 TEST_F(BridgeTest, SigtermWhileStreamingExitsZeroPromptly) {
   st::ServerProcess server(dir_ / "server");
   ASSERT_GT(server.port(), 0) << server.log();
@@ -253,6 +297,9 @@ TEST_F(BridgeTest, BadFlagsAreUsageErrors) {
   r = run("--listen 127.0.0.1:0");
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("--server is required"), std::string::npos) << r.err;
+  r = run("--server 127.0.0.1:1 --send-buffer 12");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--send-buffer"), std::string::npos) << r.err;
   r = run("--server 127.0.0.1:1 --token-file /nonexistent/token");
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("/nonexistent/token"), std::string::npos) << r.err;
