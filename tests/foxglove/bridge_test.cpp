@@ -36,6 +36,20 @@ class BridgeTest : public ::testing::Test {
     EXPECT_EQ(client.exit_code(), 0) << st::Slurp(dir_ / "client.json") << st::Slurp(dir_ / "client.err");
     return json::parse(st::Slurp(dir_ / "client.json"), nullptr, false);
   }
+  // locaid-server on a given loopback port (logs in `dir`); null when it
+  // did not come up within 10 s.
+  static std::unique_ptr<st::ChildProcess> StartServerAt(const std::filesystem::path& dir, int port) {
+    std::filesystem::create_directories(dir);
+    auto server = std::make_unique<st::ChildProcess>(
+        std::vector<std::string>{std::string(LOCAID_BIN_DIR) + "/locaid-server", "--listen",
+                                 "127.0.0.1:" + std::to_string(port), "--port-file", (dir / "port").string(),
+                                 "--work-dir", (dir / "work").string()},
+        st::ChildProcess::Options{dir / "out", dir / "err", 0});
+    for (int i = 0; i < 1000 && !std::filesystem::exists(dir / "port"); ++i) {  // at most 10 s
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return std::filesystem::exists(dir / "port") ? std::move(server) : nullptr;
+  }
   static std::vector<std::string> NamedSessions(const json& result) {
     std::vector<std::string> ids;
     for (const auto& id : result["server_infos"]) {
@@ -257,18 +271,45 @@ TEST_F(BridgeTest, ReconnectsWhenTheServerComesBack) {
   ft::BridgeProcess bridge(dir_, grpc_port, ft::FreeLoopbackPort());
   ASSERT_TRUE(bridge.WaitForLog("ListSessions failed", 20)) << bridge.log();
   // The server the bridge was told about starts late, on that port.
-  std::filesystem::create_directories(dir_ / "server");
-  st::ChildProcess server({std::string(LOCAID_BIN_DIR) + "/locaid-server", "--listen",
-                           "127.0.0.1:" + std::to_string(grpc_port), "--port-file", (dir_ / "server/port").string(),
-                           "--work-dir", (dir_ / "server/work").string()},
-                          st::ChildProcess::Options{dir_ / "server/out", dir_ / "server/err", 0});
-  for (int i = 0; i < 1000 && !std::filesystem::exists(dir_ / "server/port"); ++i) {  // at most 10 s
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  ASSERT_TRUE(std::filesystem::exists(dir_ / "server/port")) << st::Slurp(dir_ / "server/err");
+  auto server = StartServerAt(dir_ / "server", grpc_port);
+  ASSERT_TRUE(server) << st::Slurp(dir_ / "server/err");
   auto stub = st::MakeStub(grpc_port);
   const std::string id = ft::StartSynthetic(stub.get(), 7, kFrames, 1.0);
   EXPECT_TRUE(bridge.WaitForLog("following session " + id, 30)) << bridge.log();
+}
+
+// The server goes away mid-session and a new one comes up on the same port:
+// a Foxglove client connected to the bridge the whole time gets a new
+// serverInfo and the new server's session, without reconnecting itself.
+TEST_F(BridgeTest, AFoxgloveClientStaysConnectedAcrossAServerRestart) {
+  if (!ft::HaveNode()) GTEST_SKIP() << "node is not installed; the Foxglove client (@foxglove/ws-protocol) needs it";
+  const int grpc_port = ft::FreeLoopbackPort();
+  auto server = StartServerAt(dir_ / "server1", grpc_port);
+  ASSERT_TRUE(server) << st::Slurp(dir_ / "server1/err");
+  const int ws_port = ft::FreeLoopbackPort();
+  ft::BridgeProcess bridge(dir_, grpc_port, ws_port);
+  ASSERT_TRUE(bridge.WaitForLog("listening on", 10)) << bridge.log();
+  auto client = StartClient(ws_port, 2, 5);
+  ASSERT_TRUE(bridge.WaitForLog("subscribed to /locaid/update", 30)) << bridge.log();
+
+  auto stub = st::MakeStub(grpc_port);
+  const std::string first = ft::StartSynthetic(stub.get(), 7, kFrames, 1.0);
+  st::WaitStats(stub.get(), first, 60, [](const auto& s) { return s.poses_published() >= 10; });
+  ASSERT_TRUE(server->Signal(SIGTERM));
+  ASSERT_TRUE(server->Wait(20)) << st::Slurp(dir_ / "server1/err");
+  server = StartServerAt(dir_ / "server2", grpc_port);
+  ASSERT_TRUE(server) << st::Slurp(dir_ / "server2/err");
+  stub = st::MakeStub(grpc_port);
+  const std::string second = ft::StartSynthetic(stub.get(), 8, kFrames, 1.0);
+
+  const json result = ClientResult(*client);
+  ASSERT_FALSE(result.is_discarded());
+  EXPECT_EQ(result["errors"], json::array());
+  EXPECT_EQ(NamedSessions(result), (std::vector<std::string>{first, second}));
+  EXPECT_GT(result["counts_by_session"][first].value("/locaid/update", 0), 0);
+  EXPECT_GE(result["counts_by_session"][second].value("/locaid/update", 0), 5);
+  EXPECT_EQ(result["update_session_mismatches"], 0);
+  EXPECT_NE(bridge.log().find("lost: UNAVAILABLE"), std::string::npos) << bridge.log();
 }
 
 TEST_F(BridgeTest, SendsTheTokenFromTokenFile) {
