@@ -48,7 +48,7 @@ struct McapOptions {
   // killed recorder loses at most that much (0: chunks close by size only).
   uint64_t chunk_max_span_ns = 1'000'000'000;
   bool zstd = true;                   // compress chunks with zstd; false: stored uncompressed
-  int zstd_level = 3;
+  int zstd_level = 1;  // measured on 1 s chunks of poses: faster and smaller than 3 (docs/benchmarks.md)
   std::string profile = "";  // Header profile, e.g. "ros2"; empty: none
   std::string library = "locaid";
 };
