@@ -98,6 +98,7 @@ TEST_F(BridgeClientTest, ServesEveryChannelToTheFoxgloveClient) {
   ASSERT_FALSE(result.is_discarded());
 
   EXPECT_EQ(result["errors"], json::array());
+  EXPECT_EQ(result["subprotocol"], "foxglove.websocket.v1");
   EXPECT_EQ(NamedSessions(result), std::vector<std::string>{id});
   const std::map<std::string, std::string> schemas = {
       {"/locaid/pose", "foxglove.PoseInFrame"},   {"/tf", "foxglove.FrameTransforms"},

@@ -74,6 +74,7 @@ function parseArgs(argv) {
 function main() {
   const args = parseArgs(process.argv.slice(2));
   const result = {
+    subprotocol: null,
     server_infos: [],
     channels: {},
     counts: {},
@@ -91,7 +92,9 @@ function main() {
   const subscriptions = new Map(); // subscription id -> channel id
   let session = null;
 
-  const client = new FoxgloveClient({ ws: new WebSocket(args.url, [FoxgloveClient.SUPPORTED_SUBPROTOCOL]) });
+  const ws = new WebSocket(args.url, [FoxgloveClient.SUPPORTED_SUBPROTOCOL]);
+  ws.on("open", () => { result.subprotocol = ws.protocol; }); // what the server selected
+  const client = new FoxgloveClient({ ws });
   const finish = (code) => {
     console.log(JSON.stringify(result, null, 2));
     client.close();
