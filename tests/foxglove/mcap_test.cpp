@@ -45,6 +45,19 @@ class McapSubscribeTest : public ::testing::Test {
     return run.out.is_discarded() ? json::object() : run.out["indexed"];
   }
 
+  // `locaid subscribe ID --format mcap --out FILE` running live while a
+  // real-time session plays, once the session has published `poses` poses
+  // to it; returns the session's stats at that moment.
+  locaid::v1::SessionStats RecordLive(const std::string& id, const std::filesystem::path& file, uint64_t poses,
+                                      std::unique_ptr<st::ChildProcess>& cli) {
+    cli = std::make_unique<st::ChildProcess>(
+        st::CliArgv(server_->port(), {"subscribe", id, "--format", "mcap", "--out", file.string()}),
+        st::ChildProcess::Options{dir_ / "cli.out", dir_ / "cli.err", 0});
+    return st::WaitStats(stub_.get(), id, 60, [poses](const auto& s) {
+      return s.poses_published() >= poses && s.subscribers() >= 1;
+    });
+  }
+
   std::filesystem::path dir_;
   std::unique_ptr<st::ServerProcess> server_;
   std::unique_ptr<locaid::v1::Localization::Stub> stub_;
@@ -76,14 +89,11 @@ TEST_F(McapSubscribeTest, RecordsTheBridgeChannelsOfAFinishedSession) {
 TEST_F(McapSubscribeTest, SigkillLeavesEveryCompleteChunkReadable) {
   const std::string id = ft::StartSynthetic(stub_.get(), 7, 80, 1.0);  // 8 s of real time
   const auto file = dir_ / "killed.mcap";
-  st::ChildProcess cli(st::CliArgv(server_->port(), {"subscribe", id, "--format", "mcap", "--out", file.string()}),
-                       st::ChildProcess::Options{dir_ / "cli.out", dir_ / "cli.err", 0});
-  const auto stats = st::WaitStats(stub_.get(), id, 60, [](const auto& s) {
-    return s.poses_published() >= 40 && s.subscribers() >= 1;
-  });
+  std::unique_ptr<st::ChildProcess> cli;
+  const auto stats = RecordLive(id, file, 40, cli);
   ASSERT_GE(stats.poses_published(), 40u);
-  ASSERT_TRUE(cli.Signal(SIGKILL));
-  ASSERT_TRUE(cli.Wait(10));
+  ASSERT_TRUE(cli->Signal(SIGKILL));
+  ASSERT_TRUE(cli->Wait(10));
   const ft::NodeRun run = ft::RunNode(kMcapJsDir / "read_mcap.mjs", {"--stream", file.string()});
   ASSERT_EQ(run.exit_code, 0) << run.text;
   EXPECT_TRUE(run.out["truncated"].get<bool>()) << "no footer: the recorder never closed the file";
@@ -99,12 +109,11 @@ TEST_F(McapSubscribeTest, SigkillLeavesEveryCompleteChunkReadable) {
 TEST_F(McapSubscribeTest, SigtermClosesTheFileProperly) {
   const std::string id = ft::StartSynthetic(stub_.get(), 7, 60, 1.0);  // 6 s of real time
   const auto file = dir_ / "live.mcap";
-  st::ChildProcess cli(st::CliArgv(server_->port(), {"subscribe", id, "--format", "mcap", "--out", file.string()}),
-                       st::ChildProcess::Options{dir_ / "cli.out", dir_ / "cli.err", 0});
-  st::WaitStats(stub_.get(), id, 60, [](const auto& s) { return s.poses_published() >= 10 && s.subscribers() >= 1; });
-  ASSERT_TRUE(cli.Signal(SIGTERM));
-  ASSERT_TRUE(cli.Wait(10)) << st::Slurp(dir_ / "cli.err");
-  EXPECT_EQ(cli.exit_code(), 0) << st::Slurp(dir_ / "cli.err");
+  std::unique_ptr<st::ChildProcess> cli;
+  RecordLive(id, file, 10, cli);
+  ASSERT_TRUE(cli->Signal(SIGTERM));
+  ASSERT_TRUE(cli->Wait(10)) << st::Slurp(dir_ / "cli.err");
+  EXPECT_EQ(cli->exit_code(), 0) << st::Slurp(dir_ / "cli.err");
   const json read = ReadFully(file);  // complete: summary and footer were written
   ASSERT_TRUE(read.contains("topics")) << read.dump(2);
   EXPECT_GE(read["topics"]["/locaid/update"]["count"].get<uint64_t>(), 1u);
