@@ -16,7 +16,6 @@ double MsSince(std::chrono::steady_clock::time_point t0) {
 
 fusion::EkfConfig EffectiveEkfConfig(const LocalizerOptions& options, const fusion::Scenario& s) {
   fusion::EkfConfig c = options.ekf;
-  c.use_imu = options.use_imu;
   if (s.imu_grade == fusion::ImuGrade::kMems) {
     // The filter must know the IMU is worse than the RT3003.
     c.accel_noise_mps2_sqrt_hz = std::max(c.accel_noise_mps2_sqrt_hz, 2 * s.imu_accel_noise_mps2_sqrt_hz);
@@ -140,7 +139,7 @@ FrameResult Localizer::FuseSensors(const SensorBatch& batch) {
 }
 
 void Localizer::FeedImu(const fusion::ImuSample& imu, FrameResult& r) {
-  if (!options_.use_imu) return;
+  if (!options_.ekf.use_imu) return;
   ekf_->PropagateImu(imu);
   ++r.imu_samples;
 }
@@ -183,7 +182,7 @@ void Localizer::FeedSensors(const SensorBatch& batch, FrameResult& r) {
       imu.t_ns = s.t_ns;
       imu.accel_mps2 = {s.record.ax_mps2, s.record.ay_mps2, s.record.az_mps2};
       imu.gyro_radps = {s.record.wx_radps, s.record.wy_radps, s.record.wz_radps};
-      if (options_.use_imu) FeedImu(imu_->Apply(imu), r);
+      if (options_.ekf.use_imu) FeedImu(imu_->Apply(imu), r);
       // The true attitude places a simulated antenna (Scenario::gps_antenna_body_m).
       const Eigen::Matrix3d R_enu_imu =
           kitti::OxtsAttitude(s.record.roll_rad, s.record.pitch_rad, s.record.yaw_rad);

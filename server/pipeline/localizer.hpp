@@ -30,8 +30,7 @@ namespace locaid::pipeline {
 
 struct LocalizerOptions {
   std::string vo_method = "default";  // vo::MakeStereoOdometry method
-  bool use_imu = true;                // false: VO + GPS only (overrides ekf.use_imu)
-  fusion::EkfConfig ekf;
+  fusion::EkfConfig ekf;               // ekf.use_imu false: VO + GPS only (no IMU fed)
 };
 
 // One degraded fix produced during a frame, and what the gate did with it.

@@ -53,7 +53,7 @@ struct VoErrorPair {
   Eigen::Isometry3d T_prev_curr_vo = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d T_prev_curr_gt = Eigen::Isometry3d::Identity();
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Identity();  // as reported
-  Eigen::Matrix<double, 6, 6> model_covariance = Eigen::Matrix<double, 6, 6>::Identity();  // fusion::VoNoiseModel
+  Eigen::Matrix<double, 6, 6> model_covariance = Eigen::Matrix<double, 6, 6>::Identity();  // fusion::Ekf::VoNoise
 };
 
 struct VoErrorStats {

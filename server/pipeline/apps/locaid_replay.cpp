@@ -229,7 +229,7 @@ int main(int argc, char** argv) {
 
     pipeline::LocalizerOptions options;
     options.vo_method = vo_method;
-    options.use_imu = !no_imu;
+    options.ekf.use_imu = !no_imu;
     for (const auto& setting : ekf_settings) ApplyEkfSetting(options.ekf, setting);
     const std::string cache_header =
         VoCacheHeader(std::filesystem::weakly_canonical(drive_dir).string(), vo_method, n_frames);
@@ -303,7 +303,7 @@ int main(int argc, char** argv) {
         const auto g0 = gt_at(r.vo_body.t_prev_ns), g1 = gt_at(r.vo_body.t_ns);
         if (g0 && g1)
           vo_pairs.push_back({r.vo_body.T_prev_curr, g0->inverse() * *g1, r.vo_body.covariance,
-                              fusion::VoNoiseModel(localizer.ekf().config(), r.vo_body.covariance, r.vo_body.T_prev_curr)});
+                              localizer.ekf().VoNoise(r.vo_body.covariance, r.vo_body.T_prev_curr)});
       }
       vo_motion.push_back(r.vo.status == vo::Status::kLost ? Eigen::Isometry3d::Identity()
                                                            : r.vo_body.T_prev_curr);
