@@ -2,6 +2,7 @@
 // the algorithm; each stage is a method below (keyframe stages in
 // default_keyframe.cpp, the list in default_odometry.hpp).
 #include "vo/default_odometry.hpp"
+#include "core/stereo_camera.hpp"
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/video/tracking.hpp>
@@ -21,7 +22,7 @@ double Median(std::vector<double> v) {
   return v[mid];
 }
 
-void CheckCamera(const kitti::StereoCamera& cam) {
+void CheckCamera(const StereoCamera& cam) {
   if (!(cam.fx > 0 && cam.fy > 0 && cam.baseline_m > 0 && cam.width > 0 && cam.height > 0))
     throw std::invalid_argument(
         "StereoCamera needs fx, fy, baseline_m, width, height > 0 (got fx " +
@@ -33,7 +34,7 @@ const cv::TermCriteria kKltCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::
 
 }  // namespace
 
-DefaultOdometry::DefaultOdometry(const kitti::StereoCamera& camera, const DefaultConfig& config)
+DefaultOdometry::DefaultOdometry(const StereoCamera& camera, const DefaultConfig& config)
     : cam_(camera), cfg_(config) {
   CheckCamera(cam_);
   K_ = (cv::Mat_<double>(3, 3) << cam_.fx, 0, cam_.cx, 0, cam_.fy, cam_.cy, 0, 0, 1);
@@ -288,7 +289,7 @@ RelativeMotion DefaultOdometry::Fail(RelativeMotion out, const Images& im) {
 
 }  // namespace detail
 
-std::unique_ptr<StereoOdometry> MakeDefaultOdometry(const kitti::StereoCamera& camera,
+std::unique_ptr<StereoOdometry> MakeDefaultOdometry(const StereoCamera& camera,
                                                     const DefaultConfig& config) {
   return std::make_unique<detail::DefaultOdometry>(camera, config);
 }

@@ -13,6 +13,7 @@
 // default_keyframe.cpp.
 #pragma once
 
+#include "core/stereo_camera.hpp"
 #include "vo/odometry_common.hpp"
 #include "vo/stereo_geometry.hpp"
 #include "vo/stereo_odometry.hpp"
@@ -53,7 +54,7 @@ inline bool Inside(const cv::Point2f& p, const cv::Size& size, float margin) {
 
 class DefaultOdometry final : public StereoOdometry {
  public:
-  DefaultOdometry(const kitti::StereoCamera& camera, const DefaultConfig& config);
+  DefaultOdometry(const StereoCamera& camera, const DefaultConfig& config);
 
   RelativeMotion Track(const StereoFrame& frame) override;
   void Reset() override {
@@ -138,7 +139,7 @@ class DefaultOdometry final : public StereoOdometry {
   std::vector<float> StereoDisparities(const Images& im, const std::vector<cv::Point2f>& uv,
                                        const std::vector<float>* predicted) const;
 
-  kitti::StereoCamera cam_;
+  StereoCamera cam_;
   DefaultConfig cfg_;
   cv::Mat K_;
   bool has_ref_ = false;

@@ -1,5 +1,5 @@
 // vo_bench: VO drift and speed on one drive with ground truth, for one or all
-// methods. Drift uses the devkit definition (kitti/eval/devkit.hpp: segments
+// methods. Drift uses the devkit definition (eval/devkit.hpp: segments
 // starting every 10 frames, plain mean over all segments) with the segment
 // lengths given by --lengths (default 25 50 75 100 m for short drives), plus
 // the final position error as % of the ground-truth path length.
@@ -33,7 +33,7 @@
 // --klt-guess full|rotation, --frame-step N (devkit segments then start every
 // 10 tracked frames).
 #include "kitti/dataset.hpp"
-#include "kitti/eval/devkit.hpp"
+#include "eval/devkit.hpp"
 #include "kitti/oxts_pose.hpp"
 #include "kitti/pose_io.hpp"
 #include "kitti/raw_drive.hpp"
@@ -53,7 +53,7 @@
 
 namespace {
 
-using locaid::kitti::eval::SegmentError;
+using locaid::eval::SegmentError;
 
 struct SplitError {
   double horizontal = 0, vertical = 0;  // mean over segments, fraction of the length
@@ -164,7 +164,7 @@ std::vector<Eigen::Isometry3d> RotateFrame(const std::vector<Eigen::Isometry3d>&
 
 std::optional<BoresightFit> FitBoresight(const std::vector<Eigen::Isometry3d>& gt,
                                          const std::vector<Eigen::Isometry3d>& est,
-                                         const locaid::kitti::eval::DevkitConfig& dc) {
+                                         const locaid::eval::DevkitConfig& dc) {
   std::optional<BoresightFit> best;
   constexpr int kSteps = 20;  // +-1 deg in 0.05 deg steps
   for (int iy = -kSteps; iy <= kSteps; ++iy) {
@@ -173,7 +173,7 @@ std::optional<BoresightFit> FitBoresight(const std::vector<Eigen::Isometry3d>& g
       const Eigen::Matrix3d R = (Eigen::AngleAxisd(yaw * M_PI / 180, Eigen::Vector3d::UnitY()) *
                                  Eigen::AngleAxisd(pitch * M_PI / 180, Eigen::Vector3d::UnitX()))
                                     .toRotationMatrix();
-      const auto r = locaid::kitti::eval::EvaluateDevkit(gt, RotateFrame(est, R), dc);
+      const auto r = locaid::eval::EvaluateDevkit(gt, RotateFrame(est, R), dc);
       if (!r.t_err || !r.r_err_rad_per_m) return std::nullopt;
       if (!best || *r.t_err * 100 < best->t_rel_pct)
         best = BoresightFit{yaw, pitch, *r.t_err * 100, *r.r_err_rad_per_m * 180 / M_PI * 100};
@@ -185,7 +185,7 @@ std::optional<BoresightFit> FitBoresight(const std::vector<Eigen::Isometry3d>& g
 // Drift of `est` against `gt` (anchored pairs, devkit result `r`): path
 // length, devkit t_rel / r_rel overall and per length, final error.
 nlohmann::json DriftJson(const std::vector<Eigen::Isometry3d>& gt, const std::vector<Eigen::Isometry3d>& est,
-                         const locaid::kitti::eval::DevkitResult& r) {
+                         const locaid::eval::DevkitResult& r) {
   double length = 0;
   for (size_t i = 1; i < gt.size(); ++i) length += (gt[i].translation() - gt[i - 1].translation()).norm();
   const double final_err = (est.back().translation() - gt.back().translation()).norm();
@@ -269,9 +269,9 @@ int main(int argc, char** argv) {
         kitti::WriteKittiPoses(out_poses + "_gt.txt", gt);
         kitti::WriteKittiPoses(out_poses + "_" + m + ".txt", est);
       }
-      kitti::eval::DevkitConfig dc;
+      eval::DevkitConfig dc;
       dc.lengths_m = lengths;
-      const kitti::eval::DevkitResult r = kitti::eval::EvaluateDevkit(gt, est, dc);
+      const eval::DevkitResult r = eval::EvaluateDevkit(gt, est, dc);
       const vo::TimingSummary s = vo::Summarize(run);
       nlohmann::json j = DriftJson(gt, est, r);
       j["method"] = m;
@@ -332,9 +332,9 @@ int main(int argc, char** argv) {
       std::vector<Eigen::Isometry3d> gt, est;
       AnchoredPairs(ref_both, scored, &gt, &est);
       if (gt.size() < 2) throw std::runtime_error("--reference-floor: no frame has both OXTS trajectories");
-      kitti::eval::DevkitConfig dc;
+      eval::DevkitConfig dc;
       dc.lengths_m = lengths;
-      const kitti::eval::DevkitResult r = kitti::eval::EvaluateDevkit(gt, est, dc);
+      const eval::DevkitResult r = eval::EvaluateDevkit(gt, est, dc);
       nlohmann::json j = DriftJson(gt, est, r);
       j["method"] = "reference_floor";
       j["scored"] = other;
