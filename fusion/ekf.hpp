@@ -1,6 +1,7 @@
-// Error-state EKF: IMU propagation, VO relative-motion and GPS position
-// updates with a chi-square gate, or (use_imu = false) VO-driven propagation
-// with GPS updates for cars without an IMU. Single-threaded, no I/O.
+// Error-state EKF: GPS position updates with a chi-square gate over one of
+// two process models (fusion/process_model.hpp), chosen once from
+// EkfConfig::use_imu: IMU propagation with VO relative-motion updates, or
+// VO-driven propagation for cars without an IMU. Single-threaded, no I/O.
 //
 // Call order per camera frame (the pipeline does this):
 //   for each IMU sample / GPS fix since the last frame, in time order:
@@ -15,17 +16,20 @@
 
 #include "fusion/ekf_models.hpp"
 #include "fusion/geodesy.hpp"
+#include "fusion/process_model.hpp"
 #include "fusion/types.hpp"
 
 #include <Eigen/Core>
 
-#include <deque>
 #include <optional>
 #include <vector>
 
 namespace locaid::fusion {
 
 struct EkfConfig {
+  // The process model: IMU propagation with VO updates (true), or VO-driven
+  // propagation without an IMU (false). The one switch between the two;
+  // locaid-replay's --no-imu sets it.
   bool use_imu = true;
   double gravity_mps2 = 9.81;
   // IMU noise (continuous densities) and bias random walks.
@@ -39,7 +43,7 @@ struct EkfConfig {
   // covariances say (running mean of the normalised squared rotation
   // innovation per body axis above 1), that axis' VO rotation variance is
   // scaled up, at most adaptive_vo_rotation_noise_max_scale times, never below
-  // the model (VoNoiseModel). On the real excerpt the sparse OXTS records
+  // the model (Ekf::VoNoise). On the real excerpt the sparse OXTS records
   // (30-250 ms apart) predict the roll/pitch over a frame 2-7 mrad away from
   // the VO: the scale settles at ~5 / 8 / 1 (roll / pitch / yaw) and the VO
   // updates the gate refuses drop from 47 to ~4 per run; synthetic drives
@@ -66,7 +70,7 @@ struct EkfConfig {
   // VO noise model per frame and axis (body axes x forward, y left, z up; 1-sigma):
   //   sigma_i^2 = vo_cov_scale * reported variance_i + (k_i * |t|)^2 (translation,
   //   IMU mode only; k = vo_sigma_t_per_m along, _lateral_, _vertical_),
-  //   then floored at vo_min_sigma_t_m / vo_min_sigma_rot_rad (VoNoiseModel).
+  //   then floored at vo_min_sigma_t_m / vo_min_sigma_rot_rad (Ekf::VoNoise).
   // Calibrated with locaid-replay's "vo_error" (VO vs ground truth, after the
   // missing-frame fix of RelativeMotion::t_prev_ns):
   //  - real extract 2011_09_26_drive_unknown_extract (195 frames, ~0.85 m/frame):
@@ -123,16 +127,16 @@ struct EkfConfig {
   double vo_only_after_periods = 1.5; // VO_ONLY when no fix for this x GPS period
 };
 
-// The filter's VO noise (body axes, [dt, dtheta]) for one motion: the VO's
-// reported covariance scaled by vo_cov_scale, plus (vo_sigma_t_per_m * |t|)^2
-// on each translation axis (IMU mode), floored at vo_min_sigma_t_m /
-// vo_min_sigma_rot_rad. locaid-replay scores real VO errors against it
-// ("vo_error": nees6_mean_model).
-Mat6 VoNoiseModel(const EkfConfig& config, const Mat6& reported, const Eigen::Isometry3d& motion);
-
 class Ekf {
  public:
   explicit Ekf(EkfConfig config = {});
+
+  // The filter's VO noise (body axes, [dt, dtheta]) for one motion: the VO's
+  // reported covariance scaled by vo_cov_scale, plus (vo_sigma_t_per_m * |t|)^2
+  // on each translation axis (IMU mode), floored at vo_min_sigma_t_m /
+  // vo_min_sigma_rot_rad. locaid-replay scores real VO errors against it
+  // ("vo_error": nees6_mean_model).
+  Mat6 VoNoise(const Mat6& reported, const Eigen::Isometry3d& motion) const;
 
   void PropagateImu(const ImuSample& sample);
   // Returns true if the fix was accepted: its horizontal part fused (false:
@@ -148,13 +152,13 @@ class Ekf {
   FusedPose Output(int64_t t_ns, bool vo_ok) const;
 
   const EkfConfig& config() const { return config_; }
-  bool initialized() const { return initialized_; }
+  bool initialized() const { return s_.initialized; }
   const EnuFrame& enu() const { return enu_; }
-  const NominalState& state() const { return x_; }
+  const NominalState& state() const { return s_.x; }
   // Estimated VO calibration (IMU mode; identity / 0 otherwise).
-  const Mat3& vo_boresight() const { return R_boresight_; }
-  double vo_scale_error() const { return vo_scale_error_; }
-  const Eigen::MatrixXd& covariance() const { return P_; }
+  const Mat3& vo_boresight() const { return model_->vo_boresight(); }
+  double vo_scale_error() const { return model_->vo_scale_error(); }
+  const Eigen::MatrixXd& covariance() const { return s_.P; }
   double last_gps_nis() const { return last_nis_; }  // horizontal (2 dof)
   double last_gps_nis_vertical() const { return last_nis_v_; }
   double last_vo_nis() const { return last_vo_nis_; }
@@ -168,7 +172,7 @@ class Ekf {
   double gps_gate_vertical() const { return gate_v_; }
   int gps_resets() const { return gps_resets_; }
   // adaptive_vo_rotation_noise: VO rotation variance scale per body axis (x, y, z).
-  const Vec3& vo_rotation_noise_scale() const { return vo_rotation_noise_scale_; }
+  const Vec3& vo_rotation_noise_scale() const { return model_->vo_rotation_noise_scale(); }
   // Fixes whose vertical part the gate refused (the horizontal part may have been used).
   int gps_rejected_vertical() const { return gps_rejected_vertical_; }
   int gps_used() const { return gps_used_; }
@@ -179,56 +183,32 @@ class Ekf {
 
  private:
   void TryInitialize(int64_t t_ns);
-  void PropagateTo(int64_t t_ns);
-  void Correct(const Eigen::VectorXd& dx);
-  void Clone();
   Vec3 GpsEnu(const GpsFix& fix);
-  void AdaptVoRotationNoise(const Vec3& r_rot, const Mat3& S_rot);
   struct GpsGateResult {
     double nis_h = 0, nis_v = 0;
     bool h_ok = false, v_ok = false;
   };
-  // Measurement Jacobian of the fix (3 x n) for the current state.
-  Eigen::MatrixXd GpsMeasurementJacobian(double latency_s) const;
   static bool GpsFixUsable(const GpsFix& fix);
-  void UpdateGpsVelocity(const GpsFix& fix, double late_s);
   GpsGateResult GateGps(const Vec3& y, const Mat3& R, const Eigen::MatrixXd& H) const;
   void ResetPositionToGps(const Vec3& y, const Mat3& R, bool horizontal, bool vertical);
   void ApplyGpsUpdate(const Vec3& y, const Mat3& R, const Eigen::MatrixXd& H, bool horizontal, bool vertical);
 
   EkfConfig config_;
+  ProcessModelHolder model_;  // chosen once from config_.use_imu
   EnuFrame enu_;
-  bool initialized_ = false;
-  int64_t t_ns_ = 0;
-  NominalState x_;
-  Eigen::MatrixXd P_;
-  // Clone of the pose at the last VO frame (IMU mode).
-  Vec3 p_clone_ = Vec3::Zero();
-  Mat3 R_clone_ = Mat3::Identity();
-  // VO calibration estimate (IMU mode).
-  Mat3 R_boresight_ = Mat3::Identity();
-  double vo_scale_error_ = 0;
-  // Last IMU sample (zero-order hold between samples).
-  std::optional<ImuSample> last_imu_;
+  FilterState s_;
   Vec3 last_vo_velocity_body_mps_ = Vec3::Zero();
   // VO anchor: the frame the next VO motion starts from (the clone's time with
   // IMU), and the motion coasted since it while VO was lost.
   std::optional<int64_t> vo_anchor_ns_, last_frame_ns_;
   Eigen::Isometry3d T_coast_ = Eigen::Isometry3d::Identity();
   int vo_anchor_mismatches_ = 0;
-  Vec3 vo_rotation_noise_scale_ = Vec3::Ones(), rot_nis_mean_ = Vec3::Ones();  // adaptive_vo_rotation_noise
   // Initialisation buffers: VO-chained body poses and fixes.
   struct InitFix { int64_t t_ns; Vec3 p_enu; double sigma_h; Eigen::Isometry3d T_start_body; };
   std::vector<InitFix> init_fixes_;
   Eigen::Isometry3d T_start_body_ = Eigen::Isometry3d::Identity();
-  int64_t init_t_ns_ = 0;
-  std::deque<Vec3> init_accel_;
-  std::vector<GravitySample> init_gravity_;  // per tracked frame before initialisation
-  std::optional<int64_t> init_fit_t0_ns_;
-  double vo_gate_ = 0;
-  int vo_consecutive_rejections_ = 0;
   // Bookkeeping.
-  double gate_h_ = 0, gate_v_ = 0, gate_vel_ = 0;
+  double gate_h_ = 0, gate_v_ = 0;
   int gps_velocity_used_ = 0, gps_velocity_rejected_ = 0;
   double last_nis_ = 0, last_nis_v_ = 0, last_vo_nis_ = 0;
   int vo_rejected_ = 0;

@@ -39,23 +39,23 @@ bool Ekf::UpdateGps(const GpsFix& fix) {
     }
   }
   last_gps_received_ns_ = fix.t_ns;
-  if (!initialized_) {
+  if (!s_.initialized) {
     // The start-up fit weighs fixes by their horizontal sigma.
     init_fixes_.push_back({fix.t_ns, z, fix.horizontal_sigma_m(), Eigen::Isometry3d::Identity()});
     init_fixes_.back().T_start_body.matrix()(0, 0) = std::numeric_limits<double>::quiet_NaN();
     return false;
   }
-  PropagateTo(fix.t_ns);
+  model_->PropagateTo(s_, fix.t_ns);
   // The antenna, latency before the state time (lever arm and latency; both
   // 0 by default). A fix older than the state (it arrived after later IMU
   // data, as live fixes do) is compared with where the antenna was then.
-  const double late_s = config_.use_imu ? std::max(0.0, Seconds(t_ns_, fix.t_ns)) : 0.0;
+  const double late_s = model_->GpsLateness(s_, fix.t_ns);
   // How late fixes arrive after their frames: the recent worst, slowly
   // forgotten (a receiver's latency jitters).
   gps_lag_s_ = std::max(0.95 * gps_lag_s_, std::max(0.0, Seconds(last_frame_ns_.value_or(fix.t_ns), fix.t_ns)));
   const double latency_s = config_.gps_latency_s + late_s;
   Vec3 predicted =
-      GpsAntennaPrediction(x_.p_enu_m, x_.v_enu_mps, x_.R_enu_body, config_.gps_lever_arm_body_m, latency_s);
+      GpsAntennaPrediction(s_.x.p_enu_m, s_.x.v_enu_mps, s_.x.R_enu_body, config_.gps_lever_arm_body_m, latency_s);
   Mat3 R = Mat3::Zero();
   if (fix.cov_enu_m2) {
     R = *fix.cov_enu_m2;
@@ -63,14 +63,10 @@ bool Ekf::UpdateGps(const GpsFix& fix) {
     R.diagonal() << fix.sigma_h_m * fix.sigma_h_m, fix.sigma_h_m * fix.sigma_h_m,
         fix.sigma_v_m * fix.sigma_v_m;
   }
-  if (!config_.use_imu) {
-    // State lives at the last frame: extrapolate with the VO velocity.
-    const double dt = Seconds(fix.t_ns, t_ns_);
-    predicted += x_.v_enu_mps * dt;
-    R.diagonal().array() += std::pow(0.3 * dt, 2);
-  }
+  model_->ExtrapolateGps(s_, fix.t_ns, predicted, R);
   const Vec3 y = z - predicted;
-  const Eigen::MatrixXd H = GpsMeasurementJacobian(latency_s);
+  const Eigen::MatrixXd H =
+      model_->GpsJacobian(s_, GpsAntennaJacobian(s_.x.R_enu_body, config_.gps_lever_arm_body_m, latency_s));
   // Horizontal (E, N) and vertical (U) are gated on their own, so that a
   // vertical disagreement does not throw away the horizontal information.
   const GpsGateResult gate = GateGps(y, R, H);
@@ -104,7 +100,13 @@ bool Ekf::UpdateGps(const GpsFix& fix) {
   }
   ++gps_used_;
   last_gps_accepted_ns_ = fix.t_ns;
-  if (fix.v_enu_mps) UpdateGpsVelocity(fix, late_s);
+  // The fix's velocity, where velocity is a state (IMU model).
+  if (fix.v_enu_mps) {
+    if (const std::optional<bool> used = model_->FuseGpsVelocity(s_, fix, late_s)) {
+      if (*used) ++gps_velocity_used_;
+      else ++gps_velocity_rejected_;
+    }
+  }
   return true;
 }
 
@@ -123,50 +125,8 @@ bool Ekf::GpsFixUsable(const GpsFix& fix) {
   return !fix.v_enu_mps || (fix.v_enu_mps->allFinite() && std::isfinite(fix.sigma_v_enu_mps) && fix.sigma_v_enu_mps > 0);
 }
 
-void Ekf::UpdateGpsVelocity(const GpsFix& fix, double late_s) {
-  // Velocity is a state only with IMU. The antenna moves with the body plus
-  // the lever arm's rotation; the gyro's rate (bias removed) gives that part.
-  if (!config_.use_imu || !initialized_) return;
-  const Vec3 w = last_imu_ ? Vec3(last_imu_->gyro_radps - x_.gyro_bias_radps) : Vec3::Zero();
-  const Vec3 predicted = x_.v_enu_mps + x_.R_enu_body * w.cross(config_.gps_lever_arm_body_m);
-  const Vec3 y = *fix.v_enu_mps - predicted;
-  const int n = static_cast<int>(P_.rows());
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(3, n);
-  H.middleCols<3>(kV).setIdentity();
-  // A late fix's velocity is compared with the current one: the acceleration
-  // since then is noise.
-  const Mat3 R = Mat3::Identity() * (std::pow(fix.sigma_v_enu_mps, 2) + std::pow(0.5 * late_s, 2));
-  const Mat3 S = H * P_ * H.transpose() + R;
-  const double nis = y.dot(S.ldlt().solve(y));
-  if (!std::isfinite(nis) || nis > gate_vel_) {
-    ++gps_velocity_rejected_;
-    return;
-  }
-  const Eigen::MatrixXd PHt = P_ * H.transpose();
-  const Eigen::MatrixXd K = PHt * S.inverse();
-  const Eigen::MatrixXd IKH = Eigen::MatrixXd::Identity(n, n) - K * H;
-  P_ = IKH * P_ * IKH.transpose() + K * R * K.transpose();
-  Symmetrize(P_);
-  Correct(K * y);
-  ++gps_velocity_used_;
-}
-
-Eigen::MatrixXd Ekf::GpsMeasurementJacobian(double latency_s) const {
-  const int n = static_cast<int>(P_.rows());
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(3, n);
-  const auto J = GpsAntennaJacobian(x_.R_enu_body, config_.gps_lever_arm_body_m, latency_s);
-  H.middleCols<3>(0) = J.middleCols<3>(0);
-  if (config_.use_imu) {
-    H.middleCols<3>(kV) = J.middleCols<3>(3);
-    H.middleCols<3>(kTh) = J.middleCols<3>(6);
-  } else {
-    H.middleCols<3>(3) = J.middleCols<3>(6);  // [p, theta]; velocity is not a state
-  }
-  return H;
-}
-
 Ekf::GpsGateResult Ekf::GateGps(const Vec3& y, const Mat3& R, const Eigen::MatrixXd& H) const {
-  const Mat3 S = H * P_ * H.transpose() + R;
+  const Mat3 S = H * s_.P * H.transpose() + R;
   GpsGateResult g;
   const Eigen::Vector2d y_h = y.head<2>();
   g.nis_h = y_h.dot(S.topLeftCorner<2, 2>().ldlt().solve(y_h));
@@ -182,26 +142,21 @@ void Ekf::ResetPositionToGps(const Vec3& y, const Mat3& R, bool horizontal, bool
   // does the clone (a reset is not motion: the next VO update must not see
   // it), the position covariance of those axes becomes the fix's, and the
   // velocity (a state that drifted that far has a wrong velocity too) gets its
-  // start-up uncertainty back plus the drift rate since the last used fix.
+  // start-up uncertainty back plus the drift rate since the last used fix
+  // (the clone and velocity parts: ProcessModel::ResetPosition).
   const Vec3 mask(horizontal ? 1.0 : 0.0, horizontal ? 1.0 : 0.0, vertical ? 1.0 : 0.0);
   const Vec3 jump = y.cwiseProduct(mask);
-  x_.p_enu_m += jump;
-  const bool clone = config_.use_imu;
-  if (clone) p_clone_ += jump;
-  const double gap_s = last_gps_accepted_ns_ ? std::max(1.0, Seconds(t_ns_, *last_gps_accepted_ns_)) : 1.0;
+  s_.x.p_enu_m += jump;
+  const double gap_s = last_gps_accepted_ns_ ? std::max(1.0, Seconds(s_.t_ns, *last_gps_accepted_ns_)) : 1.0;
+  Eigen::MatrixXd& P = s_.P;
   for (int i = 0; i < 3; ++i) {
     if (mask[i] == 0.0) continue;
-    P_.row(i).setZero();
-    P_.col(i).setZero();
-    P_(i, i) = R(i, i);
-    if (clone) {
-      P_.row(kPc + i).setZero();
-      P_.col(kPc + i).setZero();
-      P_(kPc + i, kPc + i) = P_(i, kPc + i) = P_(kPc + i, i) = R(i, i);
-      P_(kV + i, kV + i) += std::pow(config_.init_velocity_sigma_mps, 2) + std::pow(jump[i] / gap_s, 2);
-    }
+    P.row(i).setZero();
+    P.col(i).setZero();
+    P(i, i) = R(i, i);
   }
-  Symmetrize(P_);
+  model_->ResetPosition(s_, jump, mask, R, gap_s);
+  Symmetrize(P);
   ++gps_resets_;
 }
 
@@ -210,7 +165,7 @@ void Ekf::ApplyGpsUpdate(const Vec3& y, const Mat3& R, const Eigen::MatrixXd& H3
   if (horizontal) rows = {0, 1};
   if (vertical) rows.push_back(2);
   const int m = static_cast<int>(rows.size());
-  const int n = static_cast<int>(P_.rows());
+  const int n = static_cast<int>(s_.P.rows());
   Eigen::MatrixXd H(m, n);
   Eigen::VectorXd ym(m);
   Eigen::MatrixXd Rm(m, m);
@@ -219,13 +174,13 @@ void Ekf::ApplyGpsUpdate(const Vec3& y, const Mat3& R, const Eigen::MatrixXd& H3
     ym(i) = y(rows[static_cast<size_t>(i)]);
     for (int j = 0; j < m; ++j) Rm(i, j) = R(rows[static_cast<size_t>(i)], rows[static_cast<size_t>(j)]);
   }
-  const Eigen::MatrixXd PHt = P_ * H.transpose();
+  const Eigen::MatrixXd PHt = s_.P * H.transpose();
   const Eigen::MatrixXd S = H * PHt + Rm;
   const Eigen::MatrixXd K = PHt * S.inverse();
   const Eigen::MatrixXd IKH = Eigen::MatrixXd::Identity(n, n) - K * H;
-  P_ = IKH * P_ * IKH.transpose() + K * Rm * K.transpose();
-  Symmetrize(P_);
-  Correct(K * ym);
+  s_.P = IKH * s_.P * IKH.transpose() + K * Rm * K.transpose();
+  Symmetrize(s_.P);
+  model_->Correct(s_, K * ym);
 }
 
 }  // namespace locaid::fusion

@@ -34,13 +34,8 @@ void Ekf::TryInitialize(int64_t t_ns) {
 
   // Roll / pitch of the start frame from gravity (IMU), else level.
   Mat3 R_level_start = Mat3::Identity();
-  const GravityFit gravity = FitGravity(init_gravity_);
   double tilt_var = std::pow(config_.init_roll_pitch_sigma_rad, 2);
-  if (config_.use_imu && gravity.ok) {
-    tilt_var += std::pow(gravity.accel_sigma_mps2 / config_.gravity_mps2, 2);
-    const Vec3 up = gravity.up_start;  // "up" in start axes
-    R_level_start = Eigen::Quaterniond::FromTwoVectors(up, Vec3::UnitZ()).toRotationMatrix();
-  }
+  model_->LevelStart(R_level_start, tilt_var);
   // 2D Procrustes: p_i ~= Rz(psi) q_i + t, robust (drop > 3 sigma, twice).
   std::vector<char> use(fixes.size(), 1);
   double psi = 0;
@@ -84,10 +79,10 @@ void Ekf::TryInitialize(int64_t t_ns) {
   const Mat3 R_enu_start = Eigen::AngleAxisd(psi, Vec3::UnitZ()).toRotationMatrix() * R_level_start;
   const Vec3 q_now = R_level_start * T_start_body_.translation();
   const Eigen::Vector2d p_now_xy = Eigen::Rotation2Dd(psi) * (q_now.head<2>() - q_mean) + p_mean;
-  x_ = NominalState{};
-  x_.p_enu_m = Vec3(p_now_xy.x(), p_now_xy.y(), q_now.z() + z_off);
-  x_.R_enu_body = R_enu_start * T_start_body_.linear();
-  x_.v_enu_mps = x_.R_enu_body * last_vo_velocity_body_mps_;
+  s_.x = NominalState{};
+  s_.x.p_enu_m = Vec3(p_now_xy.x(), p_now_xy.y(), q_now.z() + z_off);
+  s_.x.R_enu_body = R_enu_start * T_start_body_.linear();
+  s_.x.v_enu_mps = s_.x.R_enu_body * last_vo_velocity_body_mps_;
 
   // Covariance: centroid noise + yaw lever arm.
   const double k = std::max(1.0, config_.init_cov_inflation);
@@ -95,27 +90,19 @@ void Ekf::TryInitialize(int64_t t_ns) {
   const double sigma_psi = std::sqrt(k) * sigma_h / std::sqrt(spread2);
   const Vec3 lever(p_now_xy.x() - p_mean.x(), p_now_xy.y() - p_mean.y(), 0);
   const Vec3 J_psi = Vec3::UnitZ().cross(lever);
-  const int n = config_.use_imu ? kImuStates + kCloneStates + kVoCalibStates : kPoseStates;
-  const int th = config_.use_imu ? kTh : 3;
-  P_ = Eigen::MatrixXd::Zero(n, n);
+  const int n = model_->StateSize();
+  const int th = model_->AttitudeIndex();
+  Eigen::MatrixXd& P = s_.P;
+  P = Eigen::MatrixXd::Zero(n, n);
   const double sigma_v = std::max(3.0, 1.5 * sigma_h);
-  P_.block<3, 3>(0, 0).diagonal() << var_c, var_c, sigma_v * sigma_v / used;
-  P_.block<3, 3>(0, 0) += J_psi * J_psi.transpose() * sigma_psi * sigma_psi;
-  P_.block<3, 3>(th, th).diagonal() << tilt_var, tilt_var, sigma_psi * sigma_psi;
-  P_.block<3, 1>(0, th + 2) = J_psi * sigma_psi * sigma_psi;
-  P_.block<1, 3>(th + 2, 0) = (J_psi * sigma_psi * sigma_psi).transpose();
-  if (config_.use_imu) {
-    P_.block<3, 3>(kV, kV).diagonal().setConstant(std::pow(config_.init_velocity_sigma_mps, 2));
-    P_.block<3, 3>(kBa, kBa).diagonal().setConstant(std::pow(config_.init_accel_bias_sigma_mps2, 2));
-    P_.block<3, 3>(kBg, kBg).diagonal().setConstant(std::pow(config_.init_gyro_bias_sigma_radps, 2));
-    P_.block<3, 3>(kCal, kCal).diagonal().setConstant(std::pow(config_.vo_boresight_sigma_rad, 2));
-    P_(kCal + 3, kCal + 3) = std::pow(config_.vo_scale_sigma, 2);
-    R_boresight_ = Mat3::Identity();
-    vo_scale_error_ = 0;
-    Clone();
-  }
-  t_ns_ = t_ns;
-  initialized_ = true;
+  P.block<3, 3>(0, 0).diagonal() << var_c, var_c, sigma_v * sigma_v / used;
+  P.block<3, 3>(0, 0) += J_psi * J_psi.transpose() * sigma_psi * sigma_psi;
+  P.block<3, 3>(th, th).diagonal() << tilt_var, tilt_var, sigma_psi * sigma_psi;
+  P.block<3, 1>(0, th + 2) = J_psi * sigma_psi * sigma_psi;
+  P.block<1, 3>(th + 2, 0) = (J_psi * sigma_psi * sigma_psi).transpose();
+  model_->Initialize(s_);
+  s_.t_ns = t_ns;
+  s_.initialized = true;
   gps_used_ += used;
   gps_rejected_ += static_cast<int>(fixes.size()) - used;
   last_gps_accepted_ns_ = fixes.back()->t_ns;

@@ -1,4 +1,4 @@
-// Shared by the EKF's translation units (ekf.cpp, ekf_gps.cpp, ekf_init.cpp):
+// Shared by the EKF's translation units (ekf*.cpp, *_process_model.cpp):
 // the error-state layout and two small helpers. Not part of the public API.
 #pragma once
 

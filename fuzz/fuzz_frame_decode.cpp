@@ -4,6 +4,7 @@
 // throws std::invalid_argument / cv::Exception. OpenCV and libpng are not
 // instrumented, so coverage feedback stops at DecodeLiveImage: this target
 // catches crashes and memory errors, it does not explore libpng in depth.
+#include "core/stereo_camera.hpp"
 #include "fuzz/fuzz_support.hpp"
 #include "server/frame_source.hpp"
 
@@ -18,7 +19,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   // size, 1392x512 (KITTI extract frames, the real seeds) or 64x48 (small
   // seeds). Raw: bits 1-7 pick a small size so inputs of matching length occur.
   const bool png = (data[0] & 1) != 0;
-  locaid::kitti::StereoCamera camera;
+  locaid::StereoCamera camera;
   if (png) {
     const bool kitti_size = (data[0] & 2) != 0;
     camera.width = kitti_size ? 1392 : 64;

@@ -1,11 +1,11 @@
-// libFuzzer target: scenario YAML (server/pipeline/scenario_yaml.hpp).
+// libFuzzer target: scenario YAML (pipeline/scenario_yaml.hpp).
 // Contract: ParseScenarioYaml returns a scenario or throws
 // pipeline::ScenarioError (no yaml-cpp or std exception escapes); an accepted
 // scenario passes fusion::ValidateScenario and drives a GpsScenario over a
 // short synthetic drive without undefined behaviour.
 #include "fuzz/fuzz_support.hpp"
 #include "fusion/scenario.hpp"
-#include "server/pipeline/scenario_yaml.hpp"
+#include "pipeline/scenario_yaml.hpp"
 
 #include <exception>
 #include <typeinfo>

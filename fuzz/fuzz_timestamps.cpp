@@ -8,6 +8,7 @@
 #include "kitti/types.hpp"
 
 #include <cmath>
+#include <vector>
 
 namespace {
 

@@ -1,4 +1,5 @@
 #include "kitti/calib.hpp"
+#include "core/stereo_camera.hpp"
 
 #include "kitti/parse_number.hpp"
 

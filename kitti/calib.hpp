@@ -6,6 +6,7 @@
 // "FILE:LINE: key 'K_00': 8 numbers, expected 9" / "FILE: missing key 'P_rect_01'".
 #pragma once
 
+#include "core/stereo_camera.hpp"
 #include "kitti/types.hpp"
 
 #include <Eigen/Core>

@@ -3,6 +3,7 @@
 // server read frames through this interface only.
 #pragma once
 
+#include "core/stereo_camera.hpp"
 #include "kitti/types.hpp"
 
 #include <opencv2/core.hpp>
@@ -12,6 +13,7 @@
 #include <optional>
 #include <string>
 #include <vector>
+#include <Eigen/Geometry>
 
 namespace locaid::kitti {
 

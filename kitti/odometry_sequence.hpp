@@ -3,6 +3,7 @@
 // sequences/NN/../../poses/NN.txt when that file exists.
 #pragma once
 
+#include "core/stereo_camera.hpp"
 #include "kitti/calib.hpp"
 #include "kitti/dataset.hpp"
 

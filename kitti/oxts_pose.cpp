@@ -1,4 +1,5 @@
 #include "kitti/oxts_pose.hpp"
+#include "core/timed_pose.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -2,6 +2,7 @@
 // cam0 ground truth at image times (what raw drives expose as ground_truth()).
 #pragma once
 
+#include "core/timed_pose.hpp"
 #include "kitti/types.hpp"
 
 #include <GeographicLib/LocalCartesian.hpp>

@@ -6,6 +6,7 @@
 // *_sync images are already rectified.
 #pragma once
 
+#include "core/stereo_camera.hpp"
 #include "kitti/calib.hpp"
 #include "kitti/dataset.hpp"
 #include "kitti/oxts_pose.hpp"

@@ -1,22 +1,10 @@
-// Core data types shared by every locaid module.
-//
-// Naming scheme (used everywhere in locaid):
-//   T_a_b   rigid transform that maps points expressed in frame b into frame a
-//           (p_a = T_a_b * p_b); Eigen::Isometry3d.
-//   p_a_x   position of x expressed in frame a.   t_ns  int64 nanoseconds.
-// Frames:
-//   cam0    left rectified camera: x right, y down, z forward.
-//   imu     OXTS/vehicle body: x forward, y left, z up.
-//   enu     local East-North-Up, origin at the first GPS fix.
-//   world   the frame of a pose file (KITTI: cam0 at frame 0).
+// KITTI dataset types: the reader error and the OXTS record. Types that are
+// not KITTI's (StereoCamera, TimedPose) and the naming scheme: core/.
 #pragma once
-
-#include <Eigen/Geometry>
 
 #include <cstdint>
 #include <stdexcept>
 #include <string>
-#include <vector>
 
 namespace locaid::kitti {
 
@@ -45,19 +33,6 @@ struct OxtsSample {
   int64_t t_ns = 0;
   int index = 0;  // file index in oxts/data (0000000017.txt -> 17)
   OxtsRecord record;
-};
-
-// Rectified stereo pinhole pair: both cameras share fx, fy, cx, cy; the right
-// camera sits baseline_m along +x of the left one.
-struct StereoCamera {
-  double fx = 0, fy = 0, cx = 0, cy = 0;
-  double baseline_m = 0;
-  int width = 0, height = 0;
-};
-
-struct TimedPose {
-  int64_t t_ns = 0;
-  Eigen::Isometry3d T_world_cam = Eigen::Isometry3d::Identity();
 };
 
 }  // namespace locaid::kitti

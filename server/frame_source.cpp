@@ -1,4 +1,5 @@
 #include "server/frame_source.hpp"
+#include "core/stereo_camera.hpp"
 
 #include "kitti/oxts.hpp"
 
@@ -104,7 +105,7 @@ std::optional<PngSize> ReadPngSize(const std::string& bytes) {
   return PngSize{be32(16), be32(20)};
 }
 
-std::string PngSizeMismatch(const std::string& bytes, const kitti::StereoCamera& camera, const char* which) {
+std::string PngSizeMismatch(const std::string& bytes, const StereoCamera& camera, const char* which) {
   const auto size = ReadPngSize(bytes);
   if (!size) return "";
   if (size->width == static_cast<uint32_t>(camera.width) && size->height == static_cast<uint32_t>(camera.height)) {
@@ -115,7 +116,7 @@ std::string PngSizeMismatch(const std::string& bytes, const kitti::StereoCamera&
          std::to_string(camera.height) + " px";
 }
 
-cv::Mat DecodeLiveImage(const std::string& bytes, bool png, const kitti::StereoCamera& camera,
+cv::Mat DecodeLiveImage(const std::string& bytes, bool png, const StereoCamera& camera,
                         const char* which) {
   const std::string prefix = std::string(which) + " image: ";
   if (bytes.empty()) throw std::invalid_argument(prefix + "empty");

@@ -4,6 +4,7 @@
 // Both turn bad input into counted, skipped items instead of errors.
 #pragma once
 
+#include "core/stereo_camera.hpp"
 #include "fusion/types.hpp"
 #include "kitti/dataset.hpp"
 #include "server/session_pipeline.hpp"
@@ -20,6 +21,7 @@
 #include <optional>
 #include <string>
 #include <vector>
+#include <Eigen/Geometry>
 
 namespace locaid::server {
 
@@ -54,7 +56,7 @@ class FrameSource {
   virtual void Wake() {}
   virtual int64_t total_frames() const { return 0; }
   virtual double duration_s() const { return 0; }  // sensor time span, 0 = unknown
-  virtual const kitti::StereoCamera& camera() const = 0;
+  virtual const StereoCamera& camera() const = 0;
   virtual Eigen::Isometry3d T_cam0_imu() const = 0;
   // Counters of typed live input (any thread).
   virtual LiveInputStats input_stats() const { return {}; }
@@ -69,7 +71,7 @@ class DatasetFrameSource : public FrameSource {
   SourceItem Next() override;
   int64_t total_frames() const override { return end_ - first_; }
   double duration_s() const override;
-  const kitti::StereoCamera& camera() const override { return dataset_->camera(); }
+  const StereoCamera& camera() const override { return dataset_->camera(); }
   Eigen::Isometry3d T_cam0_imu() const override { return dataset_->T_cam0_imu(); }
 
  private:
@@ -99,7 +101,7 @@ struct LiveItem {
 };
 
 struct LiveCameraSetup {
-  kitti::StereoCamera camera;
+  StereoCamera camera;
   Eigen::Isometry3d T_cam0_imu = Eigen::Isometry3d::Identity();
   // A fix older than the newest frame by more than this is dropped (counted).
   double max_gps_delay_s = 0.5;
@@ -125,7 +127,7 @@ class LiveFrameSource : public FrameSource {
   SourceItem Next() override;
   void Cancel() override;
   void Wake() override;
-  const kitti::StereoCamera& camera() const override { return setup_.camera; }
+  const StereoCamera& camera() const override { return setup_.camera; }
   Eigen::Isometry3d T_cam0_imu() const override { return setup_.T_cam0_imu; }
   LiveInputStats input_stats() const override;
 
@@ -174,13 +176,13 @@ std::optional<PngSize> ReadPngSize(const std::string& bytes);
 // "" when the PNG header declares the camera size (or is not a PNG header:
 // decoding reports that), else "left image: PNG declares WxH px, session
 // camera is WxH px".
-std::string PngSizeMismatch(const std::string& bytes, const kitti::StereoCamera& camera, const char* which);
+std::string PngSizeMismatch(const std::string& bytes, const StereoCamera& camera, const char* which);
 
 // Decodes one pushed image into CV_8UC1 of the camera size; throws
 // std::invalid_argument "left image: ..." on failure. A PNG's declared size
 // is checked before decoding, so a small file declaring a huge image is
 // never decoded.
-cv::Mat DecodeLiveImage(const std::string& bytes, bool png, const kitti::StereoCamera& camera,
+cv::Mat DecodeLiveImage(const std::string& bytes, bool png, const StereoCamera& camera,
                         const char* which);
 
 }  // namespace locaid::server

@@ -3,8 +3,8 @@
 
 #include "server/pose_message.hpp"
 
-#include "server/pipeline/localizer.hpp"
-#include "server/pipeline/scenario_yaml.hpp"
+#include "pipeline/localizer.hpp"
+#include "pipeline/scenario_yaml.hpp"
 
 #include <stdexcept>
 

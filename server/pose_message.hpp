@@ -4,7 +4,7 @@
 #pragma once
 
 #include "locaid/v1/localization.pb.h"
-#include "server/pipeline/localizer.hpp"
+#include "pipeline/localizer.hpp"
 #include "server/session_pipeline.hpp"
 
 #include <vector>

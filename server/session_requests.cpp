@@ -1,6 +1,7 @@
 // Request translation for starting sessions: every field of a
 // StartSessionRequest (and a PushSensorData start) is checked here, before
 // the RPC answers OK, and turned into a session's pipeline.
+#include "core/stereo_camera.hpp"
 #include "server/service.hpp"
 
 #include "kitti/dataset.hpp"
@@ -40,7 +41,7 @@ Status ParseLiveSource(const v1::LiveSource& l, LiveCameraSetup* out) {
     return Invalid("live.width/height: must be in [16, 8192], got " + std::to_string(l.width()) + "x" +
                    std::to_string(l.height()));
   }
-  out->camera = kitti::StereoCamera{l.fx(), l.fy(), l.cx(), l.cy(), l.baseline_m(), l.width(), l.height()};
+  out->camera = StereoCamera{l.fx(), l.fy(), l.cx(), l.cy(), l.baseline_m(), l.width(), l.height()};
   if (l.t_cam0_imu_size() == 0) {
     out->T_cam0_imu = KittiRigTcam0Imu();
   } else if (l.t_cam0_imu_size() == 12) {

@@ -2,10 +2,11 @@
 // Localizer (VO -> EKF) in the server; tests and benchmarks may plug another.
 #pragma once
 
+#include "core/stereo_camera.hpp"
 #include "server/frame_source.hpp"
 #include "server/gps_receiver.hpp"
 #include "fusion/geodesy.hpp"
-#include "server/pipeline/localizer.hpp"
+#include "pipeline/localizer.hpp"
 #include "server/session_pipeline.hpp"
 
 #include <atomic>
@@ -43,7 +44,7 @@ class FrameEstimator {
 };
 
 struct EstimatorSetup {
-  kitti::StereoCamera camera;
+  StereoCamera camera;
   Eigen::Isometry3d T_cam0_imu = Eigen::Isometry3d::Identity();
   fusion::Scenario scenario;
   std::string vo_method = "default";

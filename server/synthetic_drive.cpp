@@ -1,6 +1,6 @@
 #include "server/synthetic_drive.hpp"
 
-#include "kitti/synth/synth.hpp"
+#include "synth/synth.hpp"
 
 #include <Eigen/Core>
 #include <yaml-cpp/yaml.h>
@@ -26,8 +26,8 @@ Eigen::Isometry3d KittiRigTcam0Imu() {
 
 namespace {
 
-kitti::synth::SynthConfig ParseOptions(const std::string& yaml, uint64_t seed, size_t frames) {
-  kitti::synth::SynthConfig config;
+synth::SynthConfig ParseOptions(const std::string& yaml, uint64_t seed, size_t frames) {
+  synth::SynthConfig config;
   config.seed = seed;
   config.frames = static_cast<int>(frames);
   if (yaml.empty()) return config;
@@ -71,9 +71,9 @@ std::mutex& FolderLock(const std::string& key) {
 }  // namespace
 
 void ValidateSyntheticRequest(uint64_t seed, size_t frames, const std::string& options_yaml, size_t max_frames) {
-  const kitti::synth::SynthConfig config = ParseOptions(options_yaml, seed, frames);
+  const synth::SynthConfig config = ParseOptions(options_yaml, seed, frames);
   try {
-    kitti::synth::ValidateSynthConfig(config);
+    synth::ValidateSynthConfig(config);
   } catch (const kitti::Error& e) {
     throw SyntheticError(std::string("synthetic.options_yaml: ") + e.what());
   }
@@ -109,7 +109,7 @@ size_t RemoveStaleSyntheticDrives(const std::string& work_dir) {
 std::unique_ptr<kitti::StereoDataset> MakeSyntheticDrive(const std::filesystem::path& dir, uint64_t seed,
                                                          size_t frames, const std::string& options_yaml,
                                                          const std::atomic<bool>* cancel) {
-  const kitti::synth::SynthConfig config = ParseOptions(options_yaml, seed, frames);
+  const synth::SynthConfig config = ParseOptions(options_yaml, seed, frames);
   std::lock_guard lock(FolderLock(dir.string()));
   try {
     const auto marker = dir / "complete";
@@ -119,9 +119,9 @@ std::unique_ptr<kitti::StereoDataset> MakeSyntheticDrive(const std::filesystem::
       const auto stop_if_cancelled = [cancel](int, int) {
         if (cancel && cancel->load()) throw SyntheticCancelled();
       };
-      kitti::synth::SynthSummary summary;
+      synth::SynthSummary summary;
       try {
-        summary = kitti::synth::GenerateDrive(config, dir, stop_if_cancelled);
+        summary = synth::GenerateDrive(config, dir, stop_if_cancelled);
       } catch (const SyntheticCancelled&) {
         std::error_code ec;
         std::filesystem::remove_all(dir, ec);

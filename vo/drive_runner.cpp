@@ -7,6 +7,8 @@
 #include <cmath>
 #include <ctime>
 #include <exception>
+#include <Eigen/Geometry>
+#include <vector>
 
 namespace locaid::vo {
 namespace {

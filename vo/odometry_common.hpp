@@ -1,6 +1,7 @@
 // Helpers shared by the VO methods (internal to vo/).
 #pragma once
 
+#include "core/stereo_camera.hpp"
 #include "vo/stereo_odometry.hpp"
 
 #include <opencv2/core.hpp>
@@ -14,7 +15,7 @@ namespace locaid::vo {
 // Checks: non-empty, CV_8UC1 (CV_8UC3 is accepted and converted by the caller),
 // the camera's size, and an intensity standard deviation >= min_stddev (black,
 // saturated and flat images fail it). Sampled on a sparse grid to stay cheap.
-std::string ImageProblem(const cv::Mat& image, const kitti::StereoCamera& camera,
+std::string ImageProblem(const cv::Mat& image, const StereoCamera& camera,
                          double min_stddev);
 
 // Grey CV_8UC1 view of `image` (converts colour).
@@ -25,7 +26,7 @@ RelativeMotion NoMotion(int64_t t_ns, Status status);
 
 // Both images present, of the camera's size and not blank/saturated
 // (ImageProblem empty for left and right).
-bool FrameUsable(const StereoFrame& frame, const kitti::StereoCamera& camera, double min_stddev);
+bool FrameUsable(const StereoFrame& frame, const StereoCamera& camera, double min_stddev);
 
 // Milliseconds on the given clock (arbitrary origin).
 double NowMs(TimingClock clock);

@@ -1,4 +1,5 @@
 #include "vo/stereo_geometry.hpp"
+#include "core/stereo_camera.hpp"
 
 #include <Eigen/Cholesky>
 
@@ -32,14 +33,14 @@ bool IsFinite(const Eigen::Isometry3d& T) { return T.matrix().allFinite(); }
 
 Matrix6d LargeCovariance() { return Matrix6d::Identity(); }
 
-Eigen::Vector3d TriangulateStereo(const kitti::StereoCamera& camera, double u_left, double v_left,
+Eigen::Vector3d TriangulateStereo(const StereoCamera& camera, double u_left, double v_left,
                                   double u_right) {
   const double disparity = u_left - u_right;
   const double z = camera.fx * camera.baseline_m / disparity;
   return {(u_left - camera.cx) * z / camera.fx, (v_left - camera.cy) * z / camera.fy, z};
 }
 
-int ProjectRows(const kitti::StereoCamera& cam, const Eigen::Vector3d& q,
+int ProjectRows(const StereoCamera& cam, const Eigen::Vector3d& q,
                 const Eigen::Vector2d& uv_left, double u_right, bool has_right,
                 double min_depth_m, Eigen::Ref<Eigen::Vector3d> r, Eigen::Matrix3d& dproj) {
   if (!(q.z() > min_depth_m)) return 0;
@@ -70,7 +71,7 @@ using RowsJ = Eigen::Matrix<double, 6, 6>;
 // delta (T_ref_curr * Exp(delta)): the forward rows (p_ref in the current
 // images) first, then, when reverse and ob.has_reverse, the rows of p_curr in
 // the reference images. Returns the row count (0: forward point behind).
-int Residuals(const StereoObservation& ob, const kitti::StereoCamera& cam,
+int Residuals(const StereoObservation& ob, const StereoCamera& cam,
               const Eigen::Isometry3d& T_ref_curr, const Eigen::Isometry3d& T_curr_ref,
               double min_depth_m, bool reverse, Rows& r, RowsJ& J) {
   Eigen::Matrix3d dproj;
@@ -107,7 +108,7 @@ double MaxAbs(const Rows& r, int rows) {
 }
 
 Linearization Linearize(const std::vector<StereoObservation>& obs, const std::vector<char>& use,
-                        const kitti::StereoCamera& cam, const Eigen::Isometry3d& T_ref_curr,
+                        const StereoCamera& cam, const Eigen::Isometry3d& T_ref_curr,
                         const RefineOptions& opt, bool reverse) {
   Linearization lin;
   const Eigen::Isometry3d T_curr_ref = T_ref_curr.inverse();
@@ -145,7 +146,7 @@ Matrix6d CovarianceFrom(const Linearization& lin, const RefineOptions& opt, doub
 }  // namespace
 
 PoseRefinement RefineStereoPose(const std::vector<StereoObservation>& obs,
-                                const kitti::StereoCamera& cam,
+                                const StereoCamera& cam,
                                 const Eigen::Isometry3d& T_ref_curr_init,
                                 const RefineOptions& opt) {
   PoseRefinement out;
@@ -193,7 +194,7 @@ PoseRefinement RefineStereoPose(const std::vector<StereoObservation>& obs,
   return out;
 }
 
-Matrix6d PoseCovariance(const std::vector<StereoObservation>& obs, const kitti::StereoCamera& cam,
+Matrix6d PoseCovariance(const std::vector<StereoObservation>& obs, const StereoCamera& cam,
                         const Eigen::Isometry3d& T_ref_curr, const RefineOptions& opt) {
   const std::vector<char> use(obs.size(), 1);
   const Linearization lin = Linearize(obs, use, cam, T_ref_curr, opt, false);

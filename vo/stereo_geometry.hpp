@@ -6,7 +6,7 @@
 // t = rho). To first order this is the usual SE(3) right perturbation.
 #pragma once
 
-#include "kitti/types.hpp"
+#include "core/stereo_camera.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -30,7 +30,7 @@ Matrix6d LargeCovariance();
 
 // Point in the left (cam0) frame from a rectified stereo observation; the
 // disparity u_left - u_right must be > 0.
-Eigen::Vector3d TriangulateStereo(const kitti::StereoCamera& camera, double u_left, double v_left,
+Eigen::Vector3d TriangulateStereo(const StereoCamera& camera, double u_left, double v_left,
                                   double u_right);
 
 // Stereo reprojection rows of a point q (camera frame) observed at uv_left
@@ -38,7 +38,7 @@ Eigen::Vector3d TriangulateStereo(const kitti::StereoCamera& camera, double u_le
 // (u, v, u_right) and dproj = d r / d q. All three rows are filled; the
 // return value is how many count (2 without has_right), 0 when q is not
 // deeper than min_depth_m.
-int ProjectRows(const kitti::StereoCamera& cam, const Eigen::Vector3d& q,
+int ProjectRows(const StereoCamera& cam, const Eigen::Vector3d& q,
                 const Eigen::Vector2d& uv_left, double u_right, bool has_right,
                 double min_depth_m, Eigen::Ref<Eigen::Vector3d> r, Eigen::Matrix3d& dproj);
 
@@ -84,14 +84,14 @@ struct PoseRefinement {
 // Minimises the reprojection error of p_ref into the current left and right
 // images over T_ref_curr (Huber-weighted Gauss-Newton), starting at T_ref_curr_init.
 PoseRefinement RefineStereoPose(const std::vector<StereoObservation>& observations,
-                                const kitti::StereoCamera& camera,
+                                const StereoCamera& camera,
                                 const Eigen::Isometry3d& T_ref_curr_init,
                                 const RefineOptions& options = {});
 
 // Covariance of T_ref_curr (same convention) from the given observations at a
 // fixed pose (no iteration); used by the baseline.
 Matrix6d PoseCovariance(const std::vector<StereoObservation>& observations,
-                        const kitti::StereoCamera& camera, const Eigen::Isometry3d& T_ref_curr,
+                        const StereoCamera& camera, const Eigen::Isometry3d& T_ref_curr,
                         const RefineOptions& options = {});
 
 }  // namespace locaid::vo

@@ -1,4 +1,5 @@
 #include "vo/stereo_odometry.hpp"
+#include "core/stereo_camera.hpp"
 
 #include "vo/odometry_common.hpp"
 #include "vo/stereo_geometry.hpp"
@@ -21,7 +22,7 @@ const char* ToString(Status status) {
   return "UNKNOWN";
 }
 
-std::string ImageProblem(const cv::Mat& image, const kitti::StereoCamera& camera,
+std::string ImageProblem(const cv::Mat& image, const StereoCamera& camera,
                          double min_stddev) {
   if (image.empty()) return "image missing";
   if (image.depth() != CV_8U || (image.channels() != 1 && image.channels() != 3))
@@ -55,7 +56,7 @@ cv::Mat ToGrey(const cv::Mat& image) {
   return grey;
 }
 
-bool FrameUsable(const StereoFrame& frame, const kitti::StereoCamera& camera, double min_stddev) {
+bool FrameUsable(const StereoFrame& frame, const StereoCamera& camera, double min_stddev) {
   return ImageProblem(frame.left, camera, min_stddev).empty() &&
          ImageProblem(frame.right, camera, min_stddev).empty();
 }
@@ -87,13 +88,13 @@ double SumTimings(const StageTimings& timings) {
 }
 
 std::unique_ptr<StereoOdometry> MakeStereoOdometry(const std::string& method,
-                                                   const kitti::StereoCamera& camera,
+                                                   const StereoCamera& camera,
                                                    TimingClock clock) {
   return MakeStereoOdometry(method, camera, clock, DefaultConfig{});
 }
 
 std::unique_ptr<StereoOdometry> MakeStereoOdometry(const std::string& method,
-                                                   const kitti::StereoCamera& camera,
+                                                   const StereoCamera& camera,
                                                    TimingClock clock,
                                                    const DefaultConfig& default_config) {
   if (method == "default") {

@@ -1,7 +1,7 @@
 // Stereo visual odometry: one rectified stereo pair in, relative motion out.
 #pragma once
 
-#include "kitti/types.hpp"
+#include "core/stereo_camera.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -133,17 +133,17 @@ struct ThesisConfig {
 // Methods: "default" (locaid's design) and "thesis" (baseline). Throws
 // std::invalid_argument for an unknown name.
 std::unique_ptr<StereoOdometry> MakeStereoOdometry(const std::string& method,
-                                                   const kitti::StereoCamera& camera,
+                                                   const StereoCamera& camera,
                                                    TimingClock clock = TimingClock::kWall);
 // The same, with the settings of the "default" method (its timing_clock is
 // replaced by `clock`; ignored for other methods).
 std::unique_ptr<StereoOdometry> MakeStereoOdometry(const std::string& method,
-                                                   const kitti::StereoCamera& camera,
+                                                   const StereoCamera& camera,
                                                    TimingClock clock,
                                                    const DefaultConfig& default_config);
-std::unique_ptr<StereoOdometry> MakeDefaultOdometry(const kitti::StereoCamera& camera,
+std::unique_ptr<StereoOdometry> MakeDefaultOdometry(const StereoCamera& camera,
                                                     const DefaultConfig& config = {});
-std::unique_ptr<StereoOdometry> MakeThesisOdometry(const kitti::StereoCamera& camera,
+std::unique_ptr<StereoOdometry> MakeThesisOdometry(const StereoCamera& camera,
                                                    const ThesisConfig& config = {});
 std::vector<std::string> StereoOdometryMethods();
 

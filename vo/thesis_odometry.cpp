@@ -5,6 +5,7 @@
 // test and an angle filter -> depth map of the previous frame (StereoBM) ->
 // rotation from the essential matrix (5-point RANSAC, left camera only) ->
 // translation from PnP RANSAC on the previous frame's stereo depth.
+#include "core/stereo_camera.hpp"
 #include "vo/odometry_common.hpp"
 #include "vo/stereo_geometry.hpp"
 #include "vo/stereo_odometry.hpp"
@@ -22,7 +23,7 @@ namespace {
 
 class ThesisOdometry final : public StereoOdometry {
  public:
-  ThesisOdometry(const kitti::StereoCamera& camera, const ThesisConfig& config)
+  ThesisOdometry(const StereoCamera& camera, const ThesisConfig& config)
       : cam_(camera), cfg_(config) {
     if (!(cam_.fx > 0 && cam_.fy > 0 && cam_.baseline_m > 0 && cam_.width > 0 && cam_.height > 0))
       throw std::invalid_argument("StereoCamera needs fx, fy, baseline_m, width, height > 0");
@@ -38,7 +39,7 @@ class ThesisOdometry final : public StereoOdometry {
  private:
   std::vector<cv::KeyPoint> DetectGrid(const cv::Mat& left) const;
 
-  kitti::StereoCamera cam_;
+  StereoCamera cam_;
   ThesisConfig cfg_;
   cv::Mat K_;
   cv::Ptr<cv::ORB> orb_;
@@ -216,7 +217,7 @@ RelativeMotion ThesisOdometry::Track(const StereoFrame& frame) {
 
 }  // namespace
 
-std::unique_ptr<StereoOdometry> MakeThesisOdometry(const kitti::StereoCamera& camera,
+std::unique_ptr<StereoOdometry> MakeThesisOdometry(const StereoCamera& camera,
                                                    const ThesisConfig& config) {
   return std::make_unique<ThesisOdometry>(camera, config);
 }

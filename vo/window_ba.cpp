@@ -1,4 +1,5 @@
 #include "vo/window_ba.hpp"
+#include "core/stereo_camera.hpp"
 
 #include "vo/stereo_geometry.hpp"
 
@@ -24,7 +25,7 @@ struct Linearised {
 };
 
 Linearised Linearise(const WindowObservation& o, const Eigen::Isometry3d& T_c_w,
-                     const Eigen::Vector3d& p_w, const kitti::StereoCamera& cam,
+                     const Eigen::Vector3d& p_w, const StereoCamera& cam,
                      double min_depth_m) {
   Linearised l;
   l.p_c = T_c_w * p_w;
@@ -55,7 +56,7 @@ struct State {
 
 class Solver {
  public:
-  Solver(const WindowProblem& problem, const kitti::StereoCamera& cam, const WindowOptions& opt)
+  Solver(const WindowProblem& problem, const StereoCamera& cam, const WindowOptions& opt)
       : problem_(problem), cam_(cam), opt_(opt) {
     const int frames = static_cast<int>(problem.T_w_c.size());
     fixed_ = std::clamp(problem.fixed_frames, 0, frames);
@@ -180,7 +181,7 @@ class Solver {
 
  private:
   const WindowProblem& problem_;
-  const kitti::StereoCamera& cam_;
+  const StereoCamera& cam_;
   const WindowOptions& opt_;
   int fixed_ = 0, n_poses_ = 0, used_observations_ = 0;
   std::vector<int> points_;                     // slot -> point
@@ -194,7 +195,7 @@ class Solver {
 
 }  // namespace
 
-WindowResult SolveWindow(WindowProblem& problem, const kitti::StereoCamera& camera,
+WindowResult SolveWindow(WindowProblem& problem, const StereoCamera& camera,
                          const WindowOptions& options) {
   WindowResult result;
   result.outlier.assign(problem.observations.size(), 0);

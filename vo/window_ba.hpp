@@ -5,7 +5,7 @@
 // Schur complement. Free function with explicit inputs, so tests can drive it.
 #pragma once
 
-#include "kitti/types.hpp"
+#include "core/stereo_camera.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -52,7 +52,7 @@ struct WindowResult {
 // Refines problem.T_w_c (frames >= fixed_frames) and problem.p_w in place. Points
 // seen in a single frame are left unchanged (they carry no pose information).
 // On failure (non-finite, singular) the inputs are left unchanged and ok = false.
-WindowResult SolveWindow(WindowProblem& problem, const kitti::StereoCamera& camera,
+WindowResult SolveWindow(WindowProblem& problem, const StereoCamera& camera,
                          const WindowOptions& options = {});
 
 }  // namespace locaid::vo

@@ -1,5 +1,5 @@
 // vo_bench: VO drift and speed on one drive with ground truth, for one or all
-// methods. Drift uses the devkit definition (kitti/eval/devkit.hpp: segments
+// methods. Drift uses the devkit definition (eval/devkit.hpp: segments
 // starting every 10 frames, plain mean over all segments) with the segment
 // lengths given by --lengths (default 25 50 75 100 m for short drives), plus
 // the final position error as % of the ground-truth path length.
@@ -25,14 +25,19 @@
 //     camera-IMU extrinsics) shows up as such a rotation. It is fitted on the
 //     evaluated frames themselves: a diagnostic, never a result.
 //
-//   vo_bench --drive DIR [--method NAME|all] [--lengths 25 50 75 100] [--max-frames N]
-//            [--reference oxts|oxts-velocity] [--reference-floor] [--fit-boresight]
-//            [--frame-step N]
+//   vo_bench --drive DIR [--lengths 25 50 75 100] [--reference oxts|oxts-velocity]
+//            [--reference-floor] [--fit-boresight] [--out-poses PREFIX] [VO flags]
+//
+// VO flags (vo/apps/vo_flags.hpp, shared with locaid-vo): --method NAME|all (all
+// by default), --max-frames N, --cpu-time, --window-keyframes N,
+// --klt-guess full|rotation, --frame-step N (devkit segments then start every
+// 10 tracked frames).
 #include "kitti/dataset.hpp"
-#include "kitti/eval/devkit.hpp"
+#include "eval/devkit.hpp"
 #include "kitti/oxts_pose.hpp"
 #include "kitti/pose_io.hpp"
 #include "kitti/raw_drive.hpp"
+#include "vo/apps/vo_flags.hpp"
 #include "vo/drive_runner.hpp"
 #include "vo/stereo_odometry.hpp"
 
@@ -48,7 +53,7 @@
 
 namespace {
 
-using locaid::kitti::eval::SegmentError;
+using locaid::eval::SegmentError;
 
 struct SplitError {
   double horizontal = 0, vertical = 0;  // mean over segments, fraction of the length
@@ -159,7 +164,7 @@ std::vector<Eigen::Isometry3d> RotateFrame(const std::vector<Eigen::Isometry3d>&
 
 std::optional<BoresightFit> FitBoresight(const std::vector<Eigen::Isometry3d>& gt,
                                          const std::vector<Eigen::Isometry3d>& est,
-                                         const locaid::kitti::eval::DevkitConfig& dc) {
+                                         const locaid::eval::DevkitConfig& dc) {
   std::optional<BoresightFit> best;
   constexpr int kSteps = 20;  // +-1 deg in 0.05 deg steps
   for (int iy = -kSteps; iy <= kSteps; ++iy) {
@@ -168,7 +173,7 @@ std::optional<BoresightFit> FitBoresight(const std::vector<Eigen::Isometry3d>& g
       const Eigen::Matrix3d R = (Eigen::AngleAxisd(yaw * M_PI / 180, Eigen::Vector3d::UnitY()) *
                                  Eigen::AngleAxisd(pitch * M_PI / 180, Eigen::Vector3d::UnitX()))
                                     .toRotationMatrix();
-      const auto r = locaid::kitti::eval::EvaluateDevkit(gt, RotateFrame(est, R), dc);
+      const auto r = locaid::eval::EvaluateDevkit(gt, RotateFrame(est, R), dc);
       if (!r.t_err || !r.r_err_rad_per_m) return std::nullopt;
       if (!best || *r.t_err * 100 < best->t_rel_pct)
         best = BoresightFit{yaw, pitch, *r.t_err * 100, *r.r_err_rad_per_m * 180 / M_PI * 100};
@@ -180,7 +185,7 @@ std::optional<BoresightFit> FitBoresight(const std::vector<Eigen::Isometry3d>& g
 // Drift of `est` against `gt` (anchored pairs, devkit result `r`): path
 // length, devkit t_rel / r_rel overall and per length, final error.
 nlohmann::json DriftJson(const std::vector<Eigen::Isometry3d>& gt, const std::vector<Eigen::Isometry3d>& est,
-                         const locaid::kitti::eval::DevkitResult& r) {
+                         const locaid::eval::DevkitResult& r) {
   double length = 0;
   for (size_t i = 1; i < gt.size(); ++i) length += (gt[i].translation() - gt[i - 1].translation()).norm();
   const double final_err = (est.back().translation() - gt.back().translation()).norm();
@@ -211,26 +216,15 @@ std::optional<double> MedianOxtsPositionAccuracy(const locaid::kitti::StereoData
 int main(int argc, char** argv) {
   using namespace locaid;
   CLI::App app{"VO drift and timing benchmark"};
-  std::string drive, method = "all";
+  std::string drive;
   std::vector<float> lengths = {25, 50, 75, 100};
-  size_t max_frames = 0;
+  vo::VoFlags flags;
+  flags.method = "all";
   app.add_option("--drive", drive, "drive folder with ground truth")->required();
-  app.add_option("--method", method, "default | thesis | all");
+  std::vector<std::string> methods = vo::StereoOdometryMethods();
+  methods.push_back("all");
+  vo::AddVoFlags(app, flags, methods);
   app.add_option("--lengths", lengths, "devkit segment lengths in metres");
-  app.add_option("--max-frames", max_frames, "at most N frames (0: all)");
-  bool cpu_time = false;
-  app.add_flag("--cpu-time", cpu_time,
-               "per-stage timings on the thread CPU clock instead of wall time");
-  int window_keyframes = -1;
-  app.add_option("--window-keyframes", window_keyframes,
-                 "default method: sliding bundle-adjustment window in keyframes (0: off; "
-                 "unset: the method's default)")
-      ->check(CLI::Range(0, 50));
-  std::string klt_guess;
-  app.add_option("--klt-guess", klt_guess,
-                 "default method: KLT start from the full constant-velocity prediction (full, the default) "
-                 "or from its rotation only (rotation)")
-      ->check(CLI::IsMember({"full", "rotation"}));
   std::string reference = "oxts";
   app.add_option("--reference", reference,
                  "raw drives: ground truth from the OXTS position solution (oxts, the devkit's) or from "
@@ -242,11 +236,6 @@ int main(int argc, char** argv) {
   app.add_option("--out-poses", out_poses,
                  "write the evaluated frames as KITTI pose files PREFIX_gt.txt and PREFIX_<method>.txt "
                  "(both anchored at the first frame with ground truth)");
-  size_t frame_step = 1;
-  app.add_option("--frame-step", frame_step,
-                 "track frames 0, N, 2N, ... only (a lower frame rate); devkit segments then start every "
-                 "10 tracked frames")
-      ->check(CLI::Range(size_t{1}, size_t{100}));
   bool reference_floor = false, fit_boresight = false;
   app.add_flag("--reference-floor", reference_floor,
                "raw drives: also score the other OXTS trajectory (velocity integral or position solution) "
@@ -255,12 +244,8 @@ int main(int argc, char** argv) {
                "per method: the constant camera-frame rotation (yaw, pitch within +-1 deg) that minimises "
                "t_rel, fitted on the evaluated frames (a calibration diagnostic, not a result)");
   CLI11_PARSE(app, argc, argv);
-  if (window_keyframes >= 0 && method == "thesis") {
-    std::cerr << "vo_bench: --window-keyframes applies to the default method only\n";
-    return 2;
-  }
-  if (!klt_guess.empty() && method == "thesis") {
-    std::cerr << "vo_bench: --klt-guess applies to the default method only\n";
+  if (const std::string problem = vo::VoFlagsProblem(flags); !problem.empty()) {
+    std::cerr << "vo_bench: " << problem << "\n";
     return 2;
   }
   cv::setNumThreads(1);
@@ -270,18 +255,11 @@ int main(int argc, char** argv) {
       throw std::runtime_error("--reference-floor needs a raw drive with OXTS records");
     const std::vector<std::optional<Eigen::Isometry3d>> reference_poses = ReferencePoses(*dataset, reference);
     const std::optional<double> oxts_pos_accuracy_m = MedianOxtsPositionAccuracy(*dataset);
-    std::vector<std::string> methods = vo::StereoOdometryMethods();
-    if (method != "all") methods = {method};
+    std::vector<std::string> run_methods = vo::StereoOdometryMethods();
+    if (flags.method != "all") run_methods = {flags.method};
     nlohmann::json out = nlohmann::json::array();
-    for (const std::string& m : methods) {
-      vo::DriveRunConfig config;
-      config.method = m;
-      config.max_frames = max_frames;
-      config.clock = cpu_time ? vo::TimingClock::kThreadCpu : vo::TimingClock::kWall;
-      config.window_keyframes = window_keyframes;
-      if (!klt_guess.empty()) config.klt_guess_translation = klt_guess == "full";
-      config.frame_step = frame_step;
-      const vo::DriveRun run = vo::RunOnDataset(*dataset, config);
+    for (const std::string& m : run_methods) {
+      const vo::DriveRun run = vo::RunOnDataset(*dataset, vo::MakeDriveRunConfig(flags, m));
       std::vector<std::optional<Eigen::Isometry3d>> reference_visited;  // one per run.frames entry
       for (const vo::FrameResult& f : run.frames) reference_visited.push_back(reference_poses[f.index]);
       std::vector<Eigen::Isometry3d> gt, est;
@@ -291,15 +269,15 @@ int main(int argc, char** argv) {
         kitti::WriteKittiPoses(out_poses + "_gt.txt", gt);
         kitti::WriteKittiPoses(out_poses + "_" + m + ".txt", est);
       }
-      kitti::eval::DevkitConfig dc;
+      eval::DevkitConfig dc;
       dc.lengths_m = lengths;
-      const kitti::eval::DevkitResult r = kitti::eval::EvaluateDevkit(gt, est, dc);
+      const eval::DevkitResult r = eval::EvaluateDevkit(gt, est, dc);
       const vo::TimingSummary s = vo::Summarize(run);
       nlohmann::json j = DriftJson(gt, est, r);
       j["method"] = m;
-      if (m == "default" && window_keyframes >= 0) j["window_keyframes"] = window_keyframes;
-      if (m == "default" && !klt_guess.empty()) j["klt_guess"] = klt_guess;
-      if (frame_step > 1) j["frame_step"] = frame_step;
+      if (m == "default" && flags.window_keyframes >= 0) j["window_keyframes"] = flags.window_keyframes;
+      if (m == "default" && !flags.klt_guess.empty()) j["klt_guess"] = flags.klt_guess;
+      if (flags.frame_step > 1) j["frame_step"] = flags.frame_step;
       j["drive"] = drive;
       j["reference"] = reference;
       if (oxts_pos_accuracy_m) j["oxts_pos_accuracy_median_m"] = *oxts_pos_accuracy_m;
@@ -332,7 +310,7 @@ int main(int argc, char** argv) {
       j["cpu_ms_per_frame_median"] = s.cpu_ms_per_frame_median;
       j["cpu_ms_per_frame_p95"] = s.cpu_ms_per_frame_p95;
       j["stage_median_ms"] = s.stage_median_ms;
-      j["stage_clock"] = cpu_time ? "thread_cpu" : "wall";
+      j["stage_clock"] = vo::StageClockName(flags);
       std::fprintf(stderr, "%s: t_rel %.3f %%, final %.3f %%, %.2f ms median (cpu %.2f)\n",
                    m.c_str(), r.t_err ? *r.t_err * 100 : -1.0, j["final_error_pct"].get<double>(),
                    s.ms_per_frame_median, s.cpu_ms_per_frame_median);
@@ -345,8 +323,8 @@ int main(int argc, char** argv) {
       std::vector<std::optional<Eigen::Isometry3d>> ref_both;
       std::vector<Eigen::Isometry3d> scored;
       size_t n = dataset->size();
-      if (max_frames > 0) n = std::min(n, max_frames);
-      for (size_t i = 0; i < n; i += frame_step) {
+      if (flags.max_frames > 0) n = std::min(n, flags.max_frames);
+      for (size_t i = 0; i < n; i += flags.frame_step) {
         const bool both = reference_poses[i] && other_poses[i];
         ref_both.push_back(both ? reference_poses[i] : std::nullopt);
         scored.push_back(both ? *other_poses[i] : Eigen::Isometry3d::Identity());
@@ -354,9 +332,9 @@ int main(int argc, char** argv) {
       std::vector<Eigen::Isometry3d> gt, est;
       AnchoredPairs(ref_both, scored, &gt, &est);
       if (gt.size() < 2) throw std::runtime_error("--reference-floor: no frame has both OXTS trajectories");
-      kitti::eval::DevkitConfig dc;
+      eval::DevkitConfig dc;
       dc.lengths_m = lengths;
-      const kitti::eval::DevkitResult r = kitti::eval::EvaluateDevkit(gt, est, dc);
+      const eval::DevkitResult r = eval::EvaluateDevkit(gt, est, dc);
       nlohmann::json j = DriftJson(gt, est, r);
       j["method"] = "reference_floor";
       j["scored"] = other;

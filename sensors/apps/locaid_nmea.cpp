@@ -9,7 +9,7 @@
 #include "kitti/dataset.hpp"
 #include "kitti/oxts_pose.hpp"
 #include "sensors/nmea.hpp"
-#include "server/pipeline/scenario_yaml.hpp"
+#include "pipeline/scenario_yaml.hpp"
 
 #include <CLI/CLI.hpp>
 

@@ -1,3 +1,4 @@
+#include "core/stereo_camera.hpp"
 #include "kitti/calib.hpp"
 
 #include <gtest/gtest.h>

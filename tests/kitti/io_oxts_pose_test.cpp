@@ -1,3 +1,4 @@
+#include "core/timed_pose.hpp"
 #include "kitti/oxts_pose.hpp"
 
 #include <gtest/gtest.h>

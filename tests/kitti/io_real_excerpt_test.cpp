@@ -1,5 +1,6 @@
 // Reads the real KITTI excerpts in LOCAID_SHARED_DATA (KITTI, CC BY-NC-SA 3.0;
 // see data/kitti/README.md). Skipped when the data is absent.
+#include "core/stereo_camera.hpp"
 #include "kitti/dataset.hpp"
 #include "kitti/odometry_sequence.hpp"
 #include "kitti/raw_drive.hpp"

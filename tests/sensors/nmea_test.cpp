@@ -3,7 +3,7 @@
 // for a rendered drive with a scripted outage.
 #include "sensors/nmea.hpp"
 
-#include "fusion/cli_support.hpp"
+#include "pipeline/cli_support.hpp"
 
 #include <gtest/gtest.h>
 
@@ -58,7 +58,7 @@ TEST(Nmea, Iso8601UtcIsParsedAndBadTextNamed) {
   }
 }
 
-// Shell commands run as a user runs them (tests/fusion/cli_support.hpp).
+// Shell commands run as a user runs them (tests/pipeline/cli_support.hpp).
 test::CommandResult Shell(const std::string& cmd) { return test::RunCommand(cmd); }
 
 int Count(const std::string& text, const std::string& needle) {

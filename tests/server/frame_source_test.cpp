@@ -1,5 +1,6 @@
 // Pushed-image decoding: the PNG size is read from the IHDR header and
 // checked before any pixel is decoded.
+#include "core/stereo_camera.hpp"
 #include "server/frame_source.hpp"
 
 #include <gtest/gtest.h>
@@ -11,7 +12,7 @@
 namespace locaid::server {
 namespace {
 
-kitti::StereoCamera Camera(int w, int h) { return kitti::StereoCamera{30, 30, w / 2.0, h / 2.0, 0.5, w, h}; }
+StereoCamera Camera(int w, int h) { return StereoCamera{30, 30, w / 2.0, h / 2.0, 0.5, w, h}; }
 
 std::string EncodePng(int w, int h) {
   cv::Mat img(h, w, CV_8UC1);
@@ -31,7 +32,7 @@ std::string DeclareSize(std::string png, uint32_t w, uint32_t h) {
   return png;
 }
 
-std::string DecodeError(const std::string& bytes, const kitti::StereoCamera& cam) {
+std::string DecodeError(const std::string& bytes, const StereoCamera& cam) {
   try {
     DecodeLiveImage(bytes, true, cam, "left");
   } catch (const std::invalid_argument& e) {

@@ -1,4 +1,5 @@
 // Free functions of vo/stereo_geometry.hpp.
+#include "core/stereo_camera.hpp"
 #include "vo/stereo_geometry.hpp"
 
 #include "tests/vo/synthetic_scene.hpp"
@@ -24,7 +25,7 @@ TEST(StereoGeometry, ExpLogRoundTripAndScale) {
 }
 
 TEST(StereoGeometry, TriangulateInvertsProjection) {
-  const kitti::StereoCamera cam = testing::SyntheticCamera();
+  const StereoCamera cam = testing::SyntheticCamera();
   const Eigen::Vector3d p(1.5, -0.4, 12.0);
   const double u = cam.fx * p.x() / p.z() + cam.cx, v = cam.fy * p.y() / p.z() + cam.cy;
   const double ur = cam.fx * (p.x() - cam.baseline_m) / p.z() + cam.cx;
@@ -32,7 +33,7 @@ TEST(StereoGeometry, TriangulateInvertsProjection) {
 }
 
 TEST(StereoGeometry, RefineRecoversPoseWithNoiseAndOutliers) {
-  const kitti::StereoCamera cam = testing::SyntheticCamera();
+  const StereoCamera cam = testing::SyntheticCamera();
   std::mt19937 rng(42);
   std::uniform_real_distribution<double> ux(-8, 8), uy(-2, 1.5), uz(4, 40);
   std::normal_distribution<double> noise(0, 0.3);
@@ -69,7 +70,7 @@ TEST(StereoGeometry, RefineRecoversPoseWithNoiseAndOutliers) {
 // (p_curr in the reference images) with pose B = A rotated by a small yaw: the
 // symmetric solution lies between them; without reverse rows it is A.
 TEST(StereoGeometry, ReverseRowsPullTowardsTheirPose) {
-  const kitti::StereoCamera cam = testing::SyntheticCamera();
+  const StereoCamera cam = testing::SyntheticCamera();
   std::mt19937 rng(7);
   std::uniform_real_distribution<double> ux(-8, 8), uy(-2, 1.5), uz(4, 40);
   Vector6d a;

@@ -1,5 +1,6 @@
 // Both VO methods on synthetic scenes with known motion, degenerate inputs,
 // standstill, recovery, and (when the shared excerpt is present) real frames.
+#include "core/stereo_camera.hpp"
 #include "kitti/dataset.hpp"
 #include "tests/vo/synthetic_scene.hpp"
 #include "vo/stereo_geometry.hpp"
@@ -53,7 +54,7 @@ class SyntheticDrive {
     static const SyntheticDrive drive(24);
     return drive;
   }
-  kitti::StereoCamera camera = SyntheticCamera();
+  StereoCamera camera = SyntheticCamera();
   std::vector<Eigen::Isometry3d> T_world_cam;
   std::vector<StereoFrame> frames;
 
@@ -235,8 +236,8 @@ TEST(DefaultOdometry, MotionAfterMissingFramesStartsAtTheLastTrackedFrame) {
 
 TEST(StereoOdometryFactory, RejectsUnknownMethodAndBadCamera) {
   EXPECT_THROW(MakeStereoOdometry("nope", SyntheticCamera()), std::invalid_argument);
-  EXPECT_THROW(MakeStereoOdometry("default", kitti::StereoCamera{}), std::invalid_argument);
-  EXPECT_THROW(MakeStereoOdometry("thesis", kitti::StereoCamera{}), std::invalid_argument);
+  EXPECT_THROW(MakeStereoOdometry("default", StereoCamera{}), std::invalid_argument);
+  EXPECT_THROW(MakeStereoOdometry("thesis", StereoCamera{}), std::invalid_argument);
 }
 
 // Real frames (shared excerpt): the travelled distance over the first frames

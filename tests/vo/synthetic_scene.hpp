@@ -2,7 +2,7 @@
 // (floor), two walls and a far wall, rendered for any cam0 pose. Fixed seed.
 #pragma once
 
-#include "kitti/types.hpp"
+#include "core/stereo_camera.hpp"
 
 #include <Eigen/Geometry>
 #include <opencv2/core.hpp>
@@ -13,8 +13,8 @@
 
 namespace locaid::vo::testing {
 
-inline kitti::StereoCamera SyntheticCamera() {
-  kitti::StereoCamera cam;
+inline StereoCamera SyntheticCamera() {
+  StereoCamera cam;
   cam.fx = cam.fy = 400;
   cam.cx = 320;
   cam.cy = 120;
@@ -38,7 +38,7 @@ class CorridorScene {
   }
 
   // Renders the left (cam0) or right image seen from T_world_cam0.
-  cv::Mat Render(const kitti::StereoCamera& cam, const Eigen::Isometry3d& T_world_cam0,
+  cv::Mat Render(const StereoCamera& cam, const Eigen::Isometry3d& T_world_cam0,
                  bool right) const {
     cv::Mat image(cam.height, cam.width, CV_8UC1);
     Eigen::Isometry3d T_world_cam = T_world_cam0;

@@ -1,5 +1,6 @@
 // vo/window_ba.hpp: the sliding-window stereo bundle adjustment on scenes with
 // known poses and points.
+#include "core/stereo_camera.hpp"
 #include "vo/window_ba.hpp"
 
 #include "tests/vo/synthetic_scene.hpp"
@@ -31,7 +32,7 @@ struct Scene {
 // Five frames 1 m apart along z with a slow turn; points in front of all of
 // them, each observed in every frame (left + right), with pixel noise sigma_px.
 Scene MakeScene(double sigma_px, uint32_t seed) {
-  const kitti::StereoCamera cam = testing::SyntheticCamera();
+  const StereoCamera cam = testing::SyntheticCamera();
   Scene s;
   for (int f = 0; f < 5; ++f) {
     Vector6d d;

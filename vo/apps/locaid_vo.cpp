@@ -2,8 +2,11 @@
 // extract) or an odometry sequence; writes cam0 poses (world = cam0 at the
 // first tracked frame).
 //
-//   locaid-vo --drive DIR --out-tum FILE [--out-kitti FILE] [--method NAME]
-//             [--max-frames N] [--json]
+//   locaid-vo --drive DIR --out-tum FILE [--out-kitti FILE] [--json] [VO flags]
+//
+// VO flags (vo/apps/vo_flags.hpp, shared with vo_bench): --method NAME,
+// --max-frames N, --cpu-time, --window-keyframes N, --klt-guess full|rotation,
+// --frame-step N.
 //
 // Frames whose images are missing are skipped (Track is not called; the next
 // motion spans the gap) and listed on stderr and in the JSON. The TUM file has
@@ -12,6 +15,7 @@
 // object on stdout with timings of the VO alone (image loading excluded).
 #include "kitti/dataset.hpp"
 #include "kitti/pose_io.hpp"
+#include "vo/apps/vo_flags.hpp"
 #include "vo/drive_runner.hpp"
 #include "vo/stereo_odometry.hpp"
 
@@ -26,46 +30,25 @@
 int main(int argc, char** argv) {
   using namespace locaid;
   CLI::App app{"Stereo visual odometry on a KITTI drive"};
-  std::string drive, out_tum, out_kitti, method = "default";
-  size_t max_frames = 0;
+  std::string drive, out_tum, out_kitti;
   bool json = false;
+  vo::VoFlags flags;
   app.add_option("--drive", drive, "raw drive folder or odometry sequence folder")->required();
   app.add_option("--out-tum", out_tum, "TUM pose file to write")->required();
   app.add_option("--out-kitti", out_kitti, "KITTI pose file to write (one line per tracked frame index)");
-  app.add_option("--method", method, "VO method: default | thesis")
-      ->check(CLI::IsMember(vo::StereoOdometryMethods()));
-  app.add_option("--max-frames", max_frames, "process at most N frames (0: all)");
+  vo::AddVoFlags(app, flags, vo::StereoOdometryMethods());
   app.add_flag("--json", json, "print a JSON summary on stdout");
-  bool cpu_time = false;
-  app.add_flag("--cpu-time", cpu_time,
-               "per-stage timings on the thread CPU clock instead of wall time");
-  int window_keyframes = -1;
-  app.add_option("--window-keyframes", window_keyframes,
-                 "default method: sliding bundle-adjustment window in keyframes (0: off; "
-                 "unset: the method's default)")
-      ->check(CLI::Range(0, 50));
-  size_t frame_step = 1;
-  app.add_option("--frame-step", frame_step,
-                 "track frames 0, N, 2N, ... only (a lower frame rate: more motion between frames)")
-      ->check(CLI::Range(size_t{1}, size_t{100}));
   CLI11_PARSE(app, argc, argv);
-  if (window_keyframes >= 0 && method != "default") {
-    std::cerr << "locaid-vo: --window-keyframes applies to --method default only (got --method "
-              << method << ")\n";
+  if (const std::string problem = vo::VoFlagsProblem(flags); !problem.empty()) {
+    std::cerr << "locaid-vo: " << problem << "\n";
     return 2;
   }
 
   cv::setNumThreads(1);
   try {
     const auto dataset = kitti::OpenDataset(drive);
-    vo::DriveRunConfig config;
-    config.method = method;
-    config.max_frames = max_frames;
-    config.clock = cpu_time ? vo::TimingClock::kThreadCpu : vo::TimingClock::kWall;
-    config.window_keyframes = window_keyframes;
-    config.frame_step = frame_step;
     const vo::DriveRun run = vo::RunOnDataset(
-        *dataset, config, [](const vo::FrameResult& f, size_t total) {
+        *dataset, vo::MakeDriveRunConfig(flags, flags.method), [](const vo::FrameResult& f, size_t total) {
           if (f.missing) {
             std::fprintf(stderr, "frame %zu: skipped (%s)\n", f.index, f.missing_reason.c_str());
           } else if (f.index % 50 == 0 || f.index + 1 == total ||
@@ -88,8 +71,8 @@ int main(int argc, char** argv) {
     if (json) {
       nlohmann::json j;
       j["drive"] = drive;
-      j["method"] = method;
-      j["frame_step"] = frame_step;
+      j["method"] = flags.method;
+      j["frame_step"] = flags.frame_step;
       j["frames"] = s.frames;
       j["failed_frames"] = s.lost_frames;
       j["degraded_frames"] = s.degraded_frames;
@@ -103,7 +86,7 @@ int main(int argc, char** argv) {
       j["cpu_ms_per_frame_median"] = s.cpu_ms_per_frame_median;
       j["cpu_ms_per_frame_p95"] = s.cpu_ms_per_frame_p95;
       j["stage_median_ms"] = s.stage_median_ms;
-      j["stage_clock"] = cpu_time ? "thread_cpu" : "wall";
+      j["stage_clock"] = vo::StageClockName(flags);
       std::cout << j.dump(2) << std::endl;
     }
   } catch (const std::exception& e) {

@@ -1,0 +1,291 @@
+// ImuProcessModel (fusion/process_model.hpp): strapdown IMU propagation, the
+// VO motion as a gated relative-pose measurement against a clone of the pose
+// at the VO anchor, and the VO's boresight / scale as random constants.
+#include "fusion/ekf.hpp"
+#include "fusion/ekf_internal.hpp"
+#include "fusion/process_model.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <vector>
+
+namespace locaid::fusion {
+namespace {
+
+using namespace detail;
+constexpr double kMaxImuStepS = 0.01;
+
+class ImuProcessModel final : public ProcessModel {
+ public:
+  explicit ImuProcessModel(const EkfConfig& config)
+      : config_(config),
+        vo_gate_(ChiSquareQuantile(config.vo_gate_probability, 6)),
+        gate_vel_(ChiSquareQuantile(config.gps_gate_probability, 3)) {}
+
+  std::unique_ptr<ProcessModel> Copy() const override { return std::make_unique<ImuProcessModel>(*this); }
+  int StateSize() const override { return kImuStates + kCloneStates + kVoCalibStates; }
+  int AttitudeIndex() const override { return kTh; }
+
+  Mat6 VoNoise(const Mat6& reported, const Eigen::Isometry3d& motion) const override {
+    // The per-metre term: VO is a measurement checked against the IMU here.
+    const Vec3 per_m(config_.vo_sigma_t_per_m, config_.vo_sigma_lateral_per_m, config_.vo_sigma_vertical_per_m);
+    return ScaledVoNoise(config_, reported, per_m * motion.translation().norm());
+  }
+
+  bool AddImu(FilterState& s, const ImuSample& sample) override {
+    // A non-finite sample would poison the state: refuse it.
+    if (!sample.accel_mps2.allFinite() || !sample.gyro_radps.allFinite()) return false;
+    if (!s.initialized) {
+      init_accel_.push_back(sample.accel_mps2);
+      last_imu_ = sample;
+      return true;
+    }
+    if (sample.t_ns > s.t_ns && last_imu_) {
+      // Interval [t_ns, sample.t_ns]: mean of the two samples bounding it.
+      ImuSample mid = *last_imu_;
+      mid.accel_mps2 = 0.5 * (last_imu_->accel_mps2 + sample.accel_mps2);
+      mid.gyro_radps = 0.5 * (last_imu_->gyro_radps + sample.gyro_radps);
+      last_imu_ = mid;
+      PropagateTo(s, sample.t_ns);
+    }
+    last_imu_ = sample;
+    return true;
+  }
+
+  void AddStartupFrame(const VoMeasurement& m, const Eigen::Isometry3d& T_start_body,
+                       const Eigen::Isometry3d& motion, double dt_s, bool vo_ok) override {
+    // Specific force and VO motion in the start frame, for the gravity fit
+    // (FitGravity) at initialisation; coasted frames carry no position.
+    if (!init_accel_.empty() && vo_ok) {
+      Vec3 f_mean = Vec3::Zero();
+      for (const auto& a : init_accel_) f_mean += a;
+      f_mean /= static_cast<double>(init_accel_.size());
+      GravitySample g;
+      g.t_s = Seconds(m.t_ns, m.t_prev_ns) * 0.5 + Seconds(m.t_prev_ns, init_fit_t0_ns_.value_or(m.t_prev_ns));
+      if (!init_fit_t0_ns_) init_fit_t0_ns_ = m.t_prev_ns;
+      g.R_start_body = T_start_body.linear();
+      g.f_body_mps2 = f_mean;
+      g.v_body_mps = motion.translation() / dt_s;
+      g.w_body_radps = LogSO3(motion.linear()) / dt_s;
+      init_gravity_.push_back(g);
+    }
+    init_accel_.clear();
+  }
+
+  void LevelStart(Mat3& R_level_start, double& tilt_var) const override {
+    const GravityFit gravity = FitGravity(init_gravity_);
+    if (!gravity.ok) return;
+    tilt_var += std::pow(gravity.accel_sigma_mps2 / config_.gravity_mps2, 2);
+    const Vec3 up = gravity.up_start;  // "up" in start axes
+    R_level_start = Eigen::Quaterniond::FromTwoVectors(up, Vec3::UnitZ()).toRotationMatrix();
+  }
+
+  void Initialize(FilterState& s) override {
+    Eigen::MatrixXd& P = s.P;
+    P.block<3, 3>(kV, kV).diagonal().setConstant(std::pow(config_.init_velocity_sigma_mps, 2));
+    P.block<3, 3>(kBa, kBa).diagonal().setConstant(std::pow(config_.init_accel_bias_sigma_mps2, 2));
+    P.block<3, 3>(kBg, kBg).diagonal().setConstant(std::pow(config_.init_gyro_bias_sigma_radps, 2));
+    P.block<3, 3>(kCal, kCal).diagonal().setConstant(std::pow(config_.vo_boresight_sigma_rad, 2));
+    P(kCal + 3, kCal + 3) = std::pow(config_.vo_scale_sigma, 2);
+    R_boresight_ = Mat3::Identity();
+    vo_scale_error_ = 0;
+    Clone(s);
+  }
+
+  void PropagateTo(FilterState& s, int64_t t_ns) override {
+    if (!s.initialized || t_ns <= s.t_ns) return;
+    const double total = Seconds(t_ns, s.t_ns);
+    const Vec3 f = last_imu_ ? last_imu_->accel_mps2 : Vec3(0, 0, config_.gravity_mps2);
+    const Vec3 w = last_imu_ ? last_imu_->gyro_radps : Vec3::Zero();
+    const Vec3 g(0, 0, -config_.gravity_mps2);
+    // Long gaps: the held sample is stale; inflate the noise accordingly.
+    const double gap_scale = total > config_.max_imu_gap_s ? total / config_.max_imu_gap_s : 1.0;
+    // The IMU's own noise densities when its samples state them.
+    const double accel_noise = last_imu_ && last_imu_->accel_noise_mps2_sqrt_hz > 0
+                                   ? last_imu_->accel_noise_mps2_sqrt_hz
+                                   : config_.accel_noise_mps2_sqrt_hz;
+    const double gyro_noise = last_imu_ && last_imu_->gyro_noise_radps_sqrt_hz > 0
+                                  ? last_imu_->gyro_noise_radps_sqrt_hz
+                                  : config_.gyro_noise_radps_sqrt_hz;
+    const int steps = std::max(1, static_cast<int>(std::ceil(total / kMaxImuStepS)));
+    const double dt = total / steps;
+    Eigen::MatrixXd& P = s.P;
+    for (int i = 0; i < steps; ++i) {
+      const Mat15 F = ImuTransitionJacobian(s.x, f, w, dt);
+      const Mat15 Q = ImuProcessNoise(s.x, dt, accel_noise * gap_scale, gyro_noise * gap_scale,
+                                      config_.accel_bias_walk_mps3_sqrt_hz, config_.gyro_bias_walk_radps2_sqrt_hz);
+      s.x = fusion::PropagateImu(s.x, f, w, dt, g);
+      const Eigen::MatrixXd P15 = P.topLeftCorner<15, 15>();
+      const Eigen::Index rest = P.cols() - 15;  // clone and VO calibration
+      P.topLeftCorner<15, 15>() = F * P15 * F.transpose() + Q;
+      P.topRightCorner(15, rest) = F * P.topRightCorner(15, rest);
+      P.bottomLeftCorner(rest, 15) = P.topRightCorner(15, rest).transpose();
+    }
+    Symmetrize(P);
+    s.t_ns = t_ns;
+  }
+
+  std::optional<VoGate> ApplyVo(FilterState& s, const VoStep& vo) override {
+    Mat6 Rvo = vo.R_vo;
+    if (config_.adaptive_vo_rotation_noise)
+      for (int i = 0; i < 3; ++i) Rvo(3 + i, 3 + i) *= vo_rotation_noise_scale_[i];
+    PropagateTo(s, vo.t_ns);
+    std::optional<VoGate> gate;
+    if (vo.vo_ok) gate = UpdateVo(s, vo.motion, Rvo);
+    if (vo.reanchor) Clone(s);  // else the clone stays at the anchor the next motion starts from
+    return gate;
+  }
+
+  double GpsLateness(const FilterState& s, int64_t fix_t_ns) const override {
+    return std::max(0.0, Seconds(s.t_ns, fix_t_ns));
+  }
+  void ExtrapolateGps(const FilterState&, int64_t, Vec3&, Mat3&) const override {}  // compared at its time
+
+  Eigen::MatrixXd GpsJacobian(const FilterState& s, const Eigen::Matrix<double, 3, 9>& J) const override {
+    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(3, s.P.rows());
+    H.middleCols<3>(0) = J.middleCols<3>(0);
+    H.middleCols<3>(kV) = J.middleCols<3>(3);
+    H.middleCols<3>(kTh) = J.middleCols<3>(6);
+    return H;
+  }
+
+  std::optional<bool> FuseGpsVelocity(FilterState& s, const GpsFix& fix, double late_s) override {
+    // The antenna moves with the body plus the lever arm's rotation; the
+    // gyro's rate (bias removed) gives that part.
+    if (!s.initialized) return std::nullopt;
+    const Vec3 w = last_imu_ ? Vec3(last_imu_->gyro_radps - s.x.gyro_bias_radps) : Vec3::Zero();
+    const Vec3 predicted = s.x.v_enu_mps + s.x.R_enu_body * w.cross(config_.gps_lever_arm_body_m);
+    const Vec3 y = *fix.v_enu_mps - predicted;
+    Eigen::MatrixXd& P = s.P;
+    const int n = static_cast<int>(P.rows());
+    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(3, n);
+    H.middleCols<3>(kV).setIdentity();
+    // A late fix's velocity is compared with the current one: the acceleration
+    // since then is noise.
+    const Mat3 R = Mat3::Identity() * (std::pow(fix.sigma_v_enu_mps, 2) + std::pow(0.5 * late_s, 2));
+    const Mat3 S = H * P * H.transpose() + R;
+    const double nis = y.dot(S.ldlt().solve(y));
+    if (!std::isfinite(nis) || nis > gate_vel_) return false;
+    const Eigen::MatrixXd PHt = P * H.transpose();
+    const Eigen::MatrixXd K = PHt * S.inverse();
+    const Eigen::MatrixXd IKH = Eigen::MatrixXd::Identity(n, n) - K * H;
+    P = IKH * P * IKH.transpose() + K * R * K.transpose();
+    Symmetrize(P);
+    Correct(s, K * y);
+    return true;
+  }
+
+  void ResetPosition(FilterState& s, const Vec3& jump, const Vec3& mask, const Mat3& R, double gap_s) override {
+    // A reset is not motion: the clone jumps too, so the next VO update does
+    // not see it; the velocity gets its start-up uncertainty back plus the
+    // drift rate since the last used fix.
+    p_clone_ += jump;
+    Eigen::MatrixXd& P = s.P;
+    for (int i = 0; i < 3; ++i) {
+      if (mask[i] == 0.0) continue;
+      P.row(kPc + i).setZero();
+      P.col(kPc + i).setZero();
+      P(kPc + i, kPc + i) = P(i, kPc + i) = P(kPc + i, i) = R(i, i);
+      P(kV + i, kV + i) += std::pow(config_.init_velocity_sigma_mps, 2) + std::pow(jump[i] / gap_s, 2);
+    }
+  }
+
+  const Mat3& vo_boresight() const override { return R_boresight_; }
+  double vo_scale_error() const override { return vo_scale_error_; }
+  const Vec3& vo_rotation_noise_scale() const override { return vo_rotation_noise_scale_; }
+
+ private:
+  void BoxPlus(FilterState& s, const Eigen::VectorXd& dx) override {
+    s.x = fusion::BoxPlus(s.x, dx.head<15>());
+    p_clone_ += dx.segment<3>(kPc);
+    R_clone_ = ExpSO3(dx.segment<3>(kThc)) * R_clone_;
+    R_boresight_ = ExpSO3(dx.segment<3>(kCal)) * R_boresight_;
+    vo_scale_error_ += dx(kCal + 3);
+  }
+
+  // The VO motion since the clone, with the estimated boresight and scale removed.
+  VoGate UpdateVo(FilterState& s, const Eigen::Isometry3d& motion, const Mat6& Rvo) {
+    Eigen::Isometry3d corrected = motion;
+    corrected.translation() = CorrectVoTranslation(motion.translation(), R_boresight_, vo_scale_error_);
+    const Vec6 r = VoResidual(s.x.p_enu_m, s.x.R_enu_body, p_clone_, R_clone_, corrected);
+    const MatVoH Hs = VoJacobian(s.x.p_enu_m, s.x.R_enu_body, p_clone_, R_clone_, corrected);
+    Eigen::MatrixXd& P = s.P;
+    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(6, P.rows());
+    H.middleCols<3>(kP) = Hs.middleCols<3>(0);
+    H.middleCols<3>(kTh) = Hs.middleCols<3>(3);
+    H.middleCols<3>(kPc) = Hs.middleCols<3>(6);
+    H.middleCols<3>(kThc) = Hs.middleCols<3>(9);
+    H.middleCols<kVoCalibStates>(kCal) =
+        VoCalibrationJacobian(motion.linear(), motion.translation(), R_boresight_, vo_scale_error_);
+    const Mat6 S = H * P * H.transpose() + Rvo;
+    const double nis = r.dot(S.ldlt().solve(r));
+    AdaptVoRotationNoise(r.tail<3>(), S.bottomRightCorner<3, 3>());
+    const bool gate_ok = std::isfinite(nis) && nis < vo_gate_;
+    // A run of rejections means the prediction, not the VO, is off: accept.
+    if (gate_ok || (std::isfinite(nis) && ++vo_consecutive_rejections_ > 2)) {
+      if (gate_ok) vo_consecutive_rejections_ = 0;
+      const Eigen::MatrixXd K = P * H.transpose() * S.inverse();
+      const int n = static_cast<int>(P.rows());
+      const Eigen::MatrixXd IKH = Eigen::MatrixXd::Identity(n, n) - K * H;
+      P = IKH * P * IKH.transpose() + K * Rvo * K.transpose();
+      Symmetrize(P);
+      Correct(s, K * r);
+    }
+    return {nis, !gate_ok};
+  }
+
+  void AdaptVoRotationNoise(const Vec3& r_rot, const Mat3& S_rot) {
+    if (!config_.adaptive_vo_rotation_noise) return;
+    // Per body axis: mean normalised squared rotation innovation (1 when
+    // consistent); one outlier moves it by at most 10 x the rate.
+    constexpr double kRate = 0.05;
+    const double max_scale = std::max(1.0, config_.adaptive_vo_rotation_noise_max_scale);
+    for (int i = 0; i < 3; ++i) {
+      const double q = r_rot[i] * r_rot[i] / S_rot(i, i);
+      if (!std::isfinite(q)) return;
+      rot_nis_mean_[i] = (1 - kRate) * rot_nis_mean_[i] + kRate * std::min(q, 10.0);
+      vo_rotation_noise_scale_[i] =
+          std::clamp(vo_rotation_noise_scale_[i] * std::pow(rot_nis_mean_[i], kRate), 1.0, max_scale);
+    }
+  }
+
+  void Clone(FilterState& s) {
+    p_clone_ = s.x.p_enu_m;
+    R_clone_ = s.x.R_enu_body;
+    Eigen::MatrixXd& P = s.P;
+    const int n = static_cast<int>(P.rows());
+    Eigen::MatrixXd J = Eigen::MatrixXd::Identity(n, n);
+    J.block<3, 3>(kPc, kPc).setZero();
+    J.block<3, 3>(kThc, kThc).setZero();
+    J.block<3, 3>(kPc, kP).setIdentity();
+    J.block<3, 3>(kThc, kTh).setIdentity();
+    P = J * P * J.transpose();
+    Symmetrize(P);
+  }
+
+  EkfConfig config_;
+  double vo_gate_ = 0, gate_vel_ = 0;
+  // Last IMU sample (zero-order hold between samples).
+  std::optional<ImuSample> last_imu_;
+  // Start-up: specific force since the last frame, and the gravity fit's samples.
+  std::deque<Vec3> init_accel_;
+  std::vector<GravitySample> init_gravity_;
+  std::optional<int64_t> init_fit_t0_ns_;
+  // Clone of the pose at the VO anchor.
+  Vec3 p_clone_ = Vec3::Zero();
+  Mat3 R_clone_ = Mat3::Identity();
+  // VO calibration estimate.
+  Mat3 R_boresight_ = Mat3::Identity();
+  double vo_scale_error_ = 0;
+  int vo_consecutive_rejections_ = 0;
+  Vec3 vo_rotation_noise_scale_ = Vec3::Ones(), rot_nis_mean_ = Vec3::Ones();  // adaptive_vo_rotation_noise
+};
+
+}  // namespace
+
+std::unique_ptr<ProcessModel> MakeImuProcessModel(const EkfConfig& config) {
+  return std::make_unique<ImuProcessModel>(config);
+}
+
+}  // namespace locaid::fusion

@@ -1,0 +1,138 @@
+// Per-frame localizer: stereo VO + scenario-degraded GPS (+ IMU) -> EKF ->
+// FusedPose. Shared by locaid-replay and the gRPC server (one per session).
+//
+// What reaches the filter: OXTS accelerations / angular rates (as IMU,
+// optionally degraded to MEMS grade) and the GPS fix degraded by the scenario.
+// OXTS attitude, velocity and the raw position never do.
+//
+// Threading: Process / TrackVo / Fuse / Reset must be called from one thread
+// (the session's). The outage controls and SetScenario may be called from any
+// thread; they take effect at the next Process / Fuse.
+#pragma once
+
+#include "core/stereo_camera.hpp"
+#include "fusion/ekf.hpp"
+#include "fusion/scenario.hpp"
+#include "fusion/types.hpp"
+#include "kitti/types.hpp"
+#include "vo/stereo_odometry.hpp"
+
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace locaid::pipeline {
+
+struct LocalizerOptions {
+  std::string vo_method = "default";  // vo::MakeStereoOdometry method
+  fusion::EkfConfig ekf;               // ekf.use_imu false: VO + GPS only (no IMU fed)
+};
+
+// One degraded fix produced during a frame, and what the gate did with it.
+struct GpsFeed {
+  fusion::GpsFix fix;
+  Eigen::Vector3d p_enu_m = Eigen::Vector3d::Zero();  // fix in the filter's ENU (valid once has_origin)
+  bool accepted = false;   // used by the filter
+  bool rejected = false;   // horizontal part refused by the chi-square gate (false while buffered for init)
+  bool rejected_vertical = false;  // vertical part refused by its gate
+  double nis = 0, gate = 0;        // horizontal NIS (2 dof) and its gate; 0 before the filter runs
+};
+
+// Sensor data that arrived since the previous call, each list in time order.
+struct SensorBatch {
+  std::vector<kitti::OxtsSample> oxts;  // IMU part used as IMU, position degraded by the scenario
+  std::vector<fusion::ImuSample> imu;   // measured IMU samples (typed input): used as they are
+  std::vector<fusion::GpsFix> gps;      // measured fixes: scenario outages apply, its noise does not
+  // The receiver's latest state when it reported one: false after a no-fix
+  // report (an outage until a fix comes), true after a fix.
+  std::optional<bool> receiver_has_fix;
+  bool empty() const { return oxts.empty() && imu.empty() && gps.empty() && !receiver_has_fix; }
+};
+
+struct FrameResult {
+  fusion::FusedPose pose;             // fused pose at the frame time
+  vo::RelativeMotion vo;              // raw VO output (cam0 axes)
+  fusion::VoMeasurement vo_body;      // VO converted to body (imu) axes
+  std::optional<fusion::GpsFix> gps_fix_fed;  // last fix fed to the filter this frame
+  std::vector<GpsFeed> gps_feeds;     // every fix fed this frame
+  bool gps_rejected = false;          // some fix of this frame was rejected by the gate
+  bool gps_reset = false;             // the filter reset its position to GPS this frame
+  bool in_outage = false;             // GPS outage (scheduled or run-time) at the frame time
+  int imu_samples = 0;                // IMU samples fed this frame
+  double vo_ms = 0, fusion_ms = 0;    // wall time of the two stages
+};
+
+class Localizer {
+ public:
+  // T_cam0_imu: cam0 <- imu extrinsic (StereoDataset::T_cam0_imu()).
+  // Throws std::invalid_argument for an unknown VO method or a bad scenario.
+  Localizer(const StereoCamera& camera, const Eigen::Isometry3d& T_cam0_imu,
+            fusion::Scenario scenario, LocalizerOptions options = {});
+  ~Localizer();
+
+  // VO + fusion of one frame. oxts_since_last_frame: the OXTS samples with
+  // t_prev_frame < t_ns <= frame.t_ns, in time order (may be empty).
+  FrameResult Process(const vo::StereoFrame& frame,
+                      std::span<const kitti::OxtsSample> oxts_since_last_frame);
+
+  // The two halves of Process, for callers that run VO on another thread
+  // (TrackVo is the only part that touches the images).
+  vo::RelativeMotion TrackVo(const vo::StereoFrame& frame);
+  FrameResult Fuse(const vo::RelativeMotion& vo_cam,
+                   std::span<const kitti::OxtsSample> oxts_since_last_frame);
+  FrameResult Fuse(const vo::RelativeMotion& vo_cam, const SensorBatch& since_last_frame);
+  // Sensor data between frames (live input), fused now in time order; the
+  // result has no pose, only the GPS feeds and IMU count.
+  FrameResult FuseSensors(const SensorBatch& batch);
+
+  // Run-time outages, absolute times on the frame clock.
+  void ScheduleOutage(int64_t start_ns, int64_t end_ns);
+  void StartOutageNow();
+  void StopOutageNow();
+  // Replaces the degradation scenario (new seed/noise; keeps the filter state
+  // and the run-time outages). Throws std::invalid_argument if invalid.
+  void SetScenario(fusion::Scenario scenario);
+  fusion::Scenario scenario() const;
+
+  // Drops the filter and VO state (new drive).
+  void Reset();
+
+  // The filter's ENU frame (origin at the first degraded fix), for evaluation.
+  bool has_enu_origin() const;
+  Eigen::Vector3d ToEnu(double lat_deg, double lon_deg, double alt_m) const;
+  const fusion::Ekf& ekf() const { return *ekf_; }
+  const Eigen::Isometry3d& T_cam0_imu() const { return T_cam0_imu_; }
+
+ private:
+  void ApplyPendingControls();
+  void FeedSensors(const SensorBatch& batch, FrameResult& r);
+  void FeedImu(const fusion::ImuSample& imu, FrameResult& r);
+  void FeedGps(const fusion::GpsFix& fix, FrameResult& r);
+  bool receiver_has_fix_ = true;
+
+  StereoCamera camera_;
+  Eigen::Isometry3d T_cam0_imu_;
+  LocalizerOptions options_;
+  std::unique_ptr<vo::StereoOdometry> vo_;
+  std::unique_ptr<fusion::Ekf> ekf_;
+  std::unique_ptr<fusion::GpsScenario> gps_;
+  std::unique_ptr<fusion::ImuDegrader> imu_;
+  std::optional<int64_t> last_frame_ns_;
+
+  // Controls written from other threads, applied at the next frame.
+  mutable std::mutex control_mutex_;
+  fusion::Scenario scenario_;
+  std::optional<fusion::Scenario> pending_scenario_;
+  std::vector<std::pair<int64_t, int64_t>> pending_outages_;
+  std::vector<std::pair<int64_t, int64_t>> all_outages_;
+  std::optional<bool> pending_forced_;
+  bool forced_ = false;
+};
+
+}  // namespace locaid::pipeline

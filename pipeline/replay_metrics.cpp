@@ -1,0 +1,151 @@
+#include "pipeline/replay_metrics.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <iomanip>
+#include <stdexcept>
+#include <tuple>
+#include <utility>
+
+#include "fusion/ekf_models.hpp"
+
+namespace locaid::pipeline {
+
+ReplayMetrics ComputeReplayMetrics(const std::vector<ReplaySample>& s, double sigma_h) {
+  ReplayMetrics m;
+  m.frames = static_cast<int>(s.size());
+  auto err_h = [&](size_t i) { return (s[i].p_enu_est_m - s[i].p_enu_gt_m).head<2>().norm(); };
+  // A frame is scored only with a valid pose AND ground truth.
+  auto scored = [&](size_t i) { return s[i].initialized && s[i].has_gt; };
+  double sum2 = 0, nees = 0;
+  int n = 0;
+  for (size_t i = 0; i < s.size(); ++i) {
+    if (!scored(i)) continue;
+    const Eigen::Vector3d e = s[i].p_enu_est_m - s[i].p_enu_gt_m;
+    const double q = e.dot(s[i].P_pos_m2.ldlt().solve(e));
+    if (std::isfinite(q)) { nees += q; ++m.nees_frames; }
+    m.max_vertical_error_m = std::max(m.max_vertical_error_m, std::abs(e.z()));
+    const bool gps_in_use = !s[i].in_outage &&
+        (s[i].mode == fusion::Mode::kGpsFused || s[i].mode == fusion::Mode::kGpsDegraded);
+    if (gps_in_use) { sum2 += err_h(i) * err_h(i); ++n; }
+  }
+  m.rmse_gps_m = n ? std::sqrt(sum2 / n) : std::nan("");
+  m.nees_mean = m.nees_frames ? nees / m.nees_frames : std::nan("");
+  if (m.nees_frames > 0) {
+    // Wilson-Hilferty: the closed-form CDF does not reach thousands of dof.
+    const double k = 3.0 * m.nees_frames, z99 = 2.326347874;
+    const double c = 2.0 / (9.0 * k);
+    m.nees_bound_99 = k * std::pow(1.0 - c + z99 * std::sqrt(c), 3) / m.nees_frames;
+  }
+
+  for (size_t i = 0; i < s.size(); ++i) {
+    if (!s[i].in_outage || (i > 0 && s[i - 1].in_outage)) continue;
+    size_t j = i;
+    while (j + 1 < s.size() && s[j + 1].in_outage) ++j;
+    OutageStats o;
+    o.start_s = s[i].t_s;
+    o.duration_s = (j + 1 < s.size() ? s[j + 1].t_s : s[j].t_s) - s[i].t_s;
+    const size_t first = i > 0 ? i - 1 : i;  // last frame with GPS before the outage
+    // Path length over the frames with ground truth (a gap is bridged).
+    for (size_t k = first, prev = s.size(); k <= j; ++k) {
+      if (!s[k].has_gt) continue;
+      if (prev < s.size()) o.distance_m += (s[k].p_enu_gt_m - s[prev].p_enu_gt_m).norm();
+      prev = k;
+    }
+    for (size_t k = i; k <= j; ++k)
+      if (scored(k)) o.max_error_m = std::max(o.max_error_m, err_h(k));
+    o.end_error_m = scored(j) ? err_h(j) : std::nan("");
+    o.end_error_pct = o.distance_m > 0 ? 100.0 * o.end_error_m / o.distance_m : std::nan("");
+    for (size_t k = j + 1; k < s.size() && !s[k].in_outage; ++k) {
+      if (scored(k) && err_h(k) <= 2 * sigma_h) { o.reconverge_s = s[k].t_s - s[j].t_s; break; }
+    }
+    for (size_t k = j + 1; k < s.size() && s[k].t_s - s[j].t_s <= 10.0; ++k) {
+      if (!scored(k) || !scored(k - 1)) continue;
+      const Eigen::Vector3d d_est = s[k].p_enu_est_m - s[k - 1].p_enu_est_m;
+      const Eigen::Vector3d d_gt = s[k].p_enu_gt_m - s[k - 1].p_enu_gt_m;
+      o.max_jump_m = std::max(o.max_jump_m, (d_est - d_gt).head<2>().norm());
+    }
+    m.outages.push_back(o);
+  }
+  return m;
+}
+
+namespace {
+
+// Mean and median of a list (median reorders it); zeros when empty.
+std::pair<double, double> MeanAndMedian(std::vector<double>& v) {
+  if (v.empty()) return {0.0, 0.0};
+  double sum = 0;
+  for (double q : v) sum += q;
+  std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+  return {sum / static_cast<double>(v.size()), v[v.size() / 2]};
+}
+
+}  // namespace
+
+VoErrorStats ComputeVoErrorStats(const std::vector<VoErrorPair>& pairs) {
+  VoErrorStats st;
+  std::vector<double> nees, nees_model;
+  Eigen::Matrix<double, 6, 1> e2 = Eigen::Matrix<double, 6, 1>::Zero(), s2 = e2, m2 = e2;
+  for (const auto& p : pairs) {
+    const Eigen::Isometry3d E = p.T_prev_curr_gt.inverse() * p.T_prev_curr_vo;
+    Eigen::Matrix<double, 6, 1> d;
+    d.head<3>() = E.translation();
+    d.tail<3>() = fusion::LogSO3(E.linear());
+    if (!d.allFinite() || !p.covariance.allFinite() || !p.model_covariance.allFinite()) continue;
+    e2 += d.cwiseProduct(d);
+    s2 += p.covariance.diagonal();
+    m2 += p.model_covariance.diagonal();
+    const double q = d.dot(p.covariance.ldlt().solve(d));
+    if (std::isfinite(q)) nees.push_back(q);
+    const double qm = d.dot(p.model_covariance.ldlt().solve(d));
+    if (std::isfinite(qm)) nees_model.push_back(qm);
+    ++st.frames;
+  }
+  if (st.frames == 0) return st;
+  st.rms_error = (e2 / st.frames).cwiseSqrt();
+  st.rms_sigma = (s2 / st.frames).cwiseSqrt();
+  st.rms_model_sigma = (m2 / st.frames).cwiseSqrt();
+  std::tie(st.nees_mean, st.nees_median) = MeanAndMedian(nees);
+  std::tie(st.nees_mean_model, st.nees_median_model) = MeanAndMedian(nees_model);
+  return st;
+}
+
+void WritePlotCsv(const std::string& path, const std::vector<ReplaySample>& samples,
+                  const std::vector<PlotExtras>& extras) {
+  if (!extras.empty() && extras.size() != samples.size()) {
+    throw std::invalid_argument("WritePlotCsv: " + std::to_string(extras.size()) + " extras for " +
+                                std::to_string(samples.size()) + " samples");
+  }
+  std::ofstream csv(path);
+  if (!csv) throw std::runtime_error(path + ": cannot write");
+  csv << "t_s,gt_e,gt_n,gt_u,est_e,est_n,est_u,gps_e,gps_n,gps_u,gps_rejected,vo_e,vo_n,vo_u,"
+         "sigma_e,sigma_n,sigma_u,err_h,mode,in_outage,initialized,gps_gt_e,gps_gt_n,gps_gt_u\n";
+  csv << std::fixed << std::setprecision(4);
+  auto xyz = [&csv](const std::optional<Eigen::Vector3d>& p) {
+    if (p) csv << p->x() << ',' << p->y() << ',' << p->z() << ',';
+    else csv << ",,,";
+  };
+  for (size_t k = 0; k < samples.size(); ++k) {
+    const auto& s = samples[k];
+    const PlotExtras none;
+    const PlotExtras& x = extras.empty() ? none : extras[k];
+    csv << s.t_s << ',';
+    xyz(s.has_gt ? std::optional<Eigen::Vector3d>(s.p_enu_gt_m) : std::nullopt);
+    xyz(s.p_enu_est_m);
+    xyz(x.p_enu_gps_m);
+    csv << int(x.gps_rejected) << ',';
+    xyz(x.p_enu_vo_m);
+    csv << std::sqrt(s.P_pos_m2(0, 0)) << ',' << std::sqrt(s.P_pos_m2(1, 1)) << ','
+        << std::sqrt(s.P_pos_m2(2, 2)) << ',';
+    if (s.has_gt) csv << (s.p_enu_est_m - s.p_enu_gt_m).head<2>().norm();
+    csv << ',' << fusion::ToString(s.mode) << ',' << int(s.in_outage) << ',' << int(s.initialized) << ',';
+    if (x.p_enu_gt_at_gps_m) csv << x.p_enu_gt_at_gps_m->x() << ',' << x.p_enu_gt_at_gps_m->y() << ',' << x.p_enu_gt_at_gps_m->z();
+    else csv << ",,";
+    csv << '\n';
+  }
+  if (!csv) throw std::runtime_error(path + ": write failed");
+}
+
+}  // namespace locaid::pipeline

@@ -1,0 +1,180 @@
+#include "pipeline/scenario_yaml.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+namespace locaid::pipeline {
+namespace {
+
+struct Ctx {
+  std::string where;
+  [[noreturn]] void Fail(const YAML::Node& node, const std::string& field, const std::string& why) const {
+    std::ostringstream os;
+    os << where;
+    if (node.IsDefined() && node.Mark().line >= 0) os << ":" << node.Mark().line + 1;
+    os << ": field '" << field << "': " << why;
+    throw ScenarioError(os.str());
+  }
+  void CheckKeys(const YAML::Node& map, const std::string& prefix,
+                 const std::set<std::string>& allowed) const {
+    if (!map.IsMap()) Fail(map, prefix.empty() ? "(root)" : prefix, "expected a mapping");
+    for (const auto& kv : map) {
+      const auto key = kv.first.as<std::string>();
+      if (!allowed.count(key)) {
+        std::string list;
+        for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+        Fail(kv.first, prefix.empty() ? key : prefix + "." + key,
+             "unknown key (allowed: " + list + ")");
+      }
+    }
+  }
+  double Number(const YAML::Node& n, const std::string& field) const {
+    if (!n.IsScalar()) Fail(n, field, "expected a number");
+    try {
+      return n.as<double>();
+    } catch (const YAML::Exception&) {
+      Fail(n, field, "expected a number, got '" + n.Scalar() + "'");
+    }
+  }
+  double NonNegative(const YAML::Node& n, const std::string& field) const {
+    const double v = Number(n, field);
+    if (!(v >= 0)) Fail(n, field, "must be >= 0, got " + n.Scalar());
+    return v;
+  }
+  double Positive(const YAML::Node& n, const std::string& field) const {
+    const double v = Number(n, field);
+    if (!(v > 0)) Fail(n, field, "must be > 0, got " + n.Scalar());
+    return v;
+  }
+};
+
+}  // namespace
+
+fusion::Scenario ParseScenarioYaml(const std::string& text, const std::string& where) {
+  const Ctx c{where};
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::ParserException& e) {
+    throw ScenarioError(where + ":" + std::to_string(e.mark.line + 1) + ": YAML syntax: " + e.msg);
+  }
+  if (!root.IsDefined() || root.IsNull()) throw ScenarioError(where + ": empty scenario file");
+  c.CheckKeys(root, "", {"name", "base", "gps", "imu", "outages", "seed"});
+  fusion::Scenario s;
+  if (root["base"]) {
+    if (!root["base"].IsScalar()) c.Fail(root["base"], "base", "expected a built-in scenario name");
+    try {
+      s = fusion::BuiltinScenario(root["base"].Scalar());
+    } catch (const std::invalid_argument& e) {
+      c.Fail(root["base"], "base", e.what());
+    }
+  }
+  s.name = std::filesystem::path(where).stem().string();
+  if (root["name"]) {
+    if (!root["name"].IsScalar()) c.Fail(root["name"], "name", "expected a string");
+    s.name = root["name"].Scalar();
+  }
+  if (const auto g = root["gps"]) {
+    c.CheckKeys(g, "gps", {"rate_hz", "sigma_h_m", "sigma_v_m", "bias_sigma_m", "bias_tau_s",
+                           "jump_probability", "jump_size_m", "jump_duration_s", "antenna_body_m"});
+    if (g["antenna_body_m"]) {
+      const auto a = g["antenna_body_m"];
+      if (!a.IsSequence() || a.size() != 3) c.Fail(a, "gps.antenna_body_m", "expected [x, y, z] in metres (body frame)");
+      for (int i = 0; i < 3; ++i) s.gps_antenna_body_m[i] = c.Number(a[i], "gps.antenna_body_m");
+    }
+    if (g["rate_hz"]) s.gps_rate_hz = c.Positive(g["rate_hz"], "gps.rate_hz");
+    if (g["sigma_h_m"]) s.gps_sigma_h_m = c.NonNegative(g["sigma_h_m"], "gps.sigma_h_m");
+    if (g["sigma_v_m"]) s.gps_sigma_v_m = c.NonNegative(g["sigma_v_m"], "gps.sigma_v_m");
+    if (g["bias_sigma_m"]) s.gps_bias_sigma_m = c.NonNegative(g["bias_sigma_m"], "gps.bias_sigma_m");
+    if (g["bias_tau_s"]) s.gps_bias_tau_s = c.Positive(g["bias_tau_s"], "gps.bias_tau_s");
+    if (g["jump_probability"]) {
+      s.jump_probability = c.NonNegative(g["jump_probability"], "gps.jump_probability");
+      if (s.jump_probability > 1)
+        c.Fail(g["jump_probability"], "gps.jump_probability", "must be in [0, 1], got " + g["jump_probability"].Scalar());
+    }
+    if (g["jump_size_m"]) s.jump_size_m = c.NonNegative(g["jump_size_m"], "gps.jump_size_m");
+    if (g["jump_duration_s"]) s.jump_duration_s = c.NonNegative(g["jump_duration_s"], "gps.jump_duration_s");
+  }
+  if (const auto m = root["imu"]) {
+    c.CheckKeys(m, "imu", {"grade", "accel_bias_sigma_mps2", "gyro_bias_sigma_radps",
+                           "accel_noise_mps2_sqrt_hz", "gyro_noise_radps_sqrt_hz"});
+    if (m["grade"]) {
+      const std::string g = m["grade"].IsScalar() ? m["grade"].Scalar() : "";
+      if (g == "as-recorded") s.imu_grade = fusion::ImuGrade::kAsRecorded;
+      else if (g == "mems") s.imu_grade = fusion::ImuGrade::kMems;
+      else c.Fail(m["grade"], "imu.grade", "expected 'as-recorded' or 'mems', got '" + g + "'");
+    }
+    if (m["accel_bias_sigma_mps2"]) s.imu_accel_bias_sigma_mps2 = c.NonNegative(m["accel_bias_sigma_mps2"], "imu.accel_bias_sigma_mps2");
+    if (m["gyro_bias_sigma_radps"]) s.imu_gyro_bias_sigma_radps = c.NonNegative(m["gyro_bias_sigma_radps"], "imu.gyro_bias_sigma_radps");
+    if (m["accel_noise_mps2_sqrt_hz"]) s.imu_accel_noise_mps2_sqrt_hz = c.NonNegative(m["accel_noise_mps2_sqrt_hz"], "imu.accel_noise_mps2_sqrt_hz");
+    if (m["gyro_noise_radps_sqrt_hz"]) s.imu_gyro_noise_radps_sqrt_hz = c.NonNegative(m["gyro_noise_radps_sqrt_hz"], "imu.gyro_noise_radps_sqrt_hz");
+  }
+  if (const auto o = root["outages"]) {
+    if (!o.IsSequence()) c.Fail(o, "outages", "expected a list of {start_s, duration_s | end_s}");
+    s.outages.clear();
+    for (size_t i = 0; i < o.size(); ++i) {
+      const std::string f = "outages[" + std::to_string(i) + "]";
+      const auto w = o[i];
+      c.CheckKeys(w, f, {"start_s", "duration_s", "end_s", "centered"});
+      fusion::OutageWindow win;
+      if (!w["start_s"] && !w["centered"]) c.Fail(w, f + ".start_s", "missing");
+      if (w["start_s"]) win.start_s = c.NonNegative(w["start_s"], f + ".start_s");
+      if (w["centered"]) {
+        try { win.centered = w["centered"].as<bool>(); }
+        catch (const YAML::Exception&) { c.Fail(w["centered"], f + ".centered", "expected true or false"); }
+      }
+      if (w["duration_s"] && w["end_s"]) c.Fail(w, f, "give duration_s or end_s, not both");
+      if (w["duration_s"]) {
+        win.duration_s = c.Positive(w["duration_s"], f + ".duration_s");
+      } else if (w["end_s"]) {
+        const double end = c.Number(w["end_s"], f + ".end_s");
+        if (!(end > win.start_s))
+          c.Fail(w["end_s"], f + ".end_s", "outage ends (" + w["end_s"].Scalar() +
+                                             " s) before or at its start (" + std::to_string(win.start_s) + " s)");
+        win.duration_s = end - win.start_s;
+      } else {
+        c.Fail(w, f + ".duration_s", "missing (give duration_s or end_s)");
+      }
+      s.outages.push_back(win);
+    }
+  }
+  if (root["seed"]) {
+    const auto n = root["seed"];
+    try {
+      const long long v = n.as<long long>();
+      if (v < 0) c.Fail(n, "seed", "must be >= 0, got " + n.Scalar());
+      s.seed = static_cast<uint64_t>(v);
+    } catch (const YAML::Exception&) {
+      c.Fail(n, "seed", "expected a non-negative integer, got '" + n.Scalar() + "'");
+    }
+  }
+  try {
+    fusion::ValidateScenario(s);
+  } catch (const std::invalid_argument& e) {
+    throw ScenarioError(where + ": " + e.what());
+  }
+  return s;
+}
+
+fusion::Scenario LoadScenario(const std::string& name_or_path) {
+  for (const auto& n : fusion::BuiltinScenarioNames())
+    if (n == name_or_path) return fusion::BuiltinScenario(n);
+  const std::filesystem::path path(name_or_path);
+  if (!std::filesystem::exists(path)) {
+    std::string known;
+    for (const auto& n : fusion::BuiltinScenarioNames()) known += (known.empty() ? "" : ", ") + n;
+    throw ScenarioError("scenario '" + name_or_path + "': neither a built-in (" + known +
+                        ") nor an existing file");
+  }
+  std::ifstream in(path);
+  if (!in) throw ScenarioError(path.string() + ": cannot open");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ParseScenarioYaml(ss.str(), path.string());
+}
+
+}  // namespace locaid::pipeline

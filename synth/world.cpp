@@ -1,0 +1,365 @@
+#include "synth/world.hpp"
+
+#include "synth/random.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace locaid::synth {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kCurbH = 0.12, kSidewalkW = 3.0;
+
+const Eigen::Vector3d kSun = Eigen::Vector3d(0.35, -0.3, 0.88).normalized();
+
+float Light(const Eigen::Vector3d& n) {
+  return static_cast<float>(0.6 + 0.4 * std::max(0.0, n.normalized().dot(kSun)));
+}
+
+
+// Polygon builder: orients the winding so the normal points along `outward`.
+struct Builder {
+  const std::vector<MipTexture>& tex;
+  std::vector<Poly>* out = nullptr;
+
+  void Tri(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+           double ua, double va, double ub, double vb, double uc, double vc, int t, float shade,
+           const Eigen::Vector3d& outward) {
+    Poly p;
+    p.n = 3;
+    p.tex = t;
+    p.p = {a, b, c, c};
+    // keep texture coordinates small: shift by whole texture periods
+    const int W = tex[t].width(), H = tex[t].height();
+    const double su = std::floor(std::min({ua, ub, uc}) / W) * W, sv = std::floor(std::min({va, vb, vc}) / H) * H;
+    p.u = {float(ua - su), float(ub - su), float(uc - su), 0};
+    p.v = {float(va - sv), float(vb - sv), float(vc - sv), 0};
+    Eigen::Vector3d n = (b - a).cross(c - a);
+    if (n.dot(outward) < 0) {
+      std::swap(p.p[1], p.p[2]);
+      std::swap(p.u[1], p.u[2]);
+      std::swap(p.v[1], p.v[2]);
+      n = -n;
+    }
+    p.shade = shade * Light(n);
+    out->push_back(p);
+  }
+
+  // Rectangle o, o+eu, o+eu+ev, o+ev; texture (u0, v0) at o, u grows along eu,
+  // v grows along ev (both in metres, scaled by the texture's m_per_texel).
+  void Rect(const Eigen::Vector3d& o, const Eigen::Vector3d& eu, const Eigen::Vector3d& ev,
+            double u0_m, double v0_m, double v_sign, int t, float shade, const Eigen::Vector3d& outward,
+            bool two_sided = false) {
+    const double m = tex[t].m_per_texel;
+    const int W = tex[t].width(), H = tex[t].height();
+    const double u0 = u0_m / m, v0 = v0_m / m, du = eu.norm() / m, dv = v_sign * ev.norm() / m;
+    const double su = std::floor(std::min(u0, u0 + du) / W) * W, sv = std::floor(std::min(v0, v0 + dv) / H) * H;
+    Poly p;
+    p.n = 4;
+    p.tex = t;
+    p.two_sided = two_sided;
+    p.p = {o, o + eu, o + eu + ev, o + ev};
+    p.u = {float(u0 - su), float(u0 + du - su), float(u0 + du - su), float(u0 - su)};
+    p.v = {float(v0 - sv), float(v0 - sv), float(v0 + dv - sv), float(v0 + dv - sv)};
+    Eigen::Vector3d n = eu.cross(ev);
+    if (n.dot(outward) < 0) {
+      std::swap(p.p[1], p.p[3]);
+      std::swap(p.u[1], p.u[3]);
+      std::swap(p.v[1], p.v[3]);
+      n = -n;
+    }
+    p.shade = shade * Light(n);
+    out->push_back(p);
+  }
+
+  // Axis-aligned box in a local frame (origin o on the ground, forward f,
+  // left l, up z): x in [x0,x1], y in [y0,y1], z in [z0,z1]. 4 sides + top.
+  void Box(const Eigen::Vector3d& o, const Eigen::Vector3d& f, const Eigen::Vector3d& l, double x0,
+           double x1, double y0, double y1, double z0, double z1, int t, float shade, double u_off = 0) {
+    const Eigen::Vector3d z = Eigen::Vector3d::UnitZ();
+    auto P = [&](double x, double y, double h) { return Eigen::Vector3d(o + f * x + l * y + z * h); };
+    const Eigen::Vector3d H = z * (z1 - z0);
+    // v: from the top down (texture rows grow downwards)
+    Rect(P(x0, y0, z1), f * (x1 - x0), -H, u_off, 0, 1, t, shade, -l);
+    Rect(P(x1, y1, z1), -f * (x1 - x0), -H, u_off, 0, 1, t, shade, l);
+    Rect(P(x1, y0, z1), l * (y1 - y0), -H, u_off + 1.3, 0, 1, t, shade, f);
+    Rect(P(x0, y1, z1), -l * (y1 - y0), -H, u_off + 2.1, 0, 1, t, shade, -f);
+    Rect(P(x0, y0, z1), f * (x1 - x0), l * (y1 - y0), u_off, 0, 1, t, shade, z);
+  }
+};
+
+void AddCar(Builder& b, const Eigen::Vector3d& o, double heading, double length, float shade, int style) {
+  const Eigen::Vector3d f(std::cos(heading), std::sin(heading), 0), l(-std::sin(heading), std::cos(heading), 0);
+  const double L2 = length / 2;
+  const double roof = style == 2 ? 1.85 : 1.45;  // van / car
+  b.Box(o, f, l, -L2, L2, -0.9, 0.9, 0.3, 0.95, kTexCarBody, shade, style * 1.7);
+  if (style == 2)
+    b.Box(o, f, l, -L2, L2 - 1.0, -0.85, 0.85, 0.95, roof, kTexCarBody, shade * 0.95f, 0.7);
+  else
+    b.Box(o, f, l, -L2 + 0.7, L2 - 1.4, -0.78, 0.78, 0.95, roof, kTexGlass, 1.0f);
+  for (double sx : {-1.0, 1.0})
+    for (double sy : {-1.0, 1.0}) {
+      const double cx = sx * (L2 - 0.85), cy = sy * 0.79;
+      b.Box(o, f, l, cx - 0.31, cx + 0.31, cy - 0.11, cy + 0.11, 0.0, 0.62, kTexTire, 1.0f);
+    }
+}
+
+}  // namespace
+
+World::World(const Route& route, const std::vector<MipTexture>& textures, uint64_t seed,
+             double duration_s, const WorldConfig& config)
+    : route_(route), tex_(textures), cfg_(config) {
+  chunk_m_ = cfg_.segment_m * 8;
+  const double L = route.length_m();
+  const int n_chunks = static_cast<int>(std::ceil(L / chunk_m_)) + 1;
+  chunks_.resize(n_chunks);
+  auto chunk_of = [&](double s) -> std::vector<Poly>* {
+    return &chunks_[std::clamp(static_cast<int>(s / chunk_m_), 0, n_chunks - 1)];
+  };
+  Builder b{textures, nullptr};
+  Rng rng(seed, 5);
+  const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+  auto tangent = [&](double s) {
+    const double h = route.Heading(s);
+    return Eigen::Vector3d(std::cos(h), std::sin(h), 0);
+  };
+  auto normal = [&](double s) {
+    const double h = route.Heading(s);
+    return Eigen::Vector3d(-std::sin(h), std::cos(h), 0);
+  };
+  // Max lateral offset on side `side` over [sa, sb] before the tube folds.
+  auto max_offset = [&](double sa, double sb, double side) {
+    double k = 0;
+    for (double s = sa; s <= sb; s += 1.0) k = std::max(k, side * route.Kappa(s));
+    return k > 1e-6 ? 0.85 / k : 1e9;
+  };
+
+  // ---- ground strips
+  ground_floor_z_ = 1e9;
+  const int n_seg = static_cast<int>(L / cfg_.segment_m);
+  const int seg_per_block = static_cast<int>(std::lround(kRoadBlockLength / cfg_.segment_m));
+  int variant = 0;
+  for (int i = 0; i < n_seg; ++i) {
+    const double sa = i * cfg_.segment_m, sb = sa + cfg_.segment_m;
+    b.out = chunk_of(sa);
+    ground_floor_z_ = std::min(ground_floor_z_, route.Elevation(sa));
+    if (i % seg_per_block == 0) variant = rng.Int(0, kRoadVariants - 1);
+    const double vbase = variant * (kRoadBlockLength / 0.02) + (i % seg_per_block) * (cfg_.segment_m / 0.02);
+    const double va = vbase, vb = vbase + cfg_.segment_m / 0.02;
+    const double hw = kRoadHalfWidth;
+    const Eigen::Vector3d A = route.Point(sa, -hw, 0), B = route.Point(sa, hw, 0), C = route.Point(sb, hw, 0),
+                          D = route.Point(sb, -hw, 0);
+    b.Tri(A, B, C, 0, va, 512, va, 512, vb, kTexRoad, 1.0f, up);
+    b.Tri(A, C, D, 0, va, 512, vb, 0, vb, kTexRoad, 1.0f, up);
+    for (double side : {-1.0, 1.0}) {
+      // curb face
+      const Eigen::Vector3d ca = route.Point(sa, side * hw, 0), cb = route.Point(sb, side * hw, 0);
+      const double mc = textures[kTexCurb].m_per_texel;
+      b.Tri(ca, cb, cb + up * kCurbH, sa / mc, 0, sb / mc, 0, sb / mc, kCurbH / mc, kTexCurb, 0.95f, -side * normal(sa));
+      b.Tri(ca, cb + up * kCurbH, ca + up * kCurbH, sa / mc, 0, sb / mc, kCurbH / mc, sa / mc, kCurbH / mc, kTexCurb, 0.95f, -side * normal(sa));
+      // sidewalk, verge bands
+      const double lim = max_offset(sa - 2, sb + 2, side);
+      const double bands[4] = {hw, hw + kSidewalkW, 20.0, 60.0};
+      for (int k = 0; k < 3; ++k) {
+        const double d0 = bands[k], d1 = std::min(bands[k + 1], lim);
+        if (d1 <= d0 + 0.1) break;
+        const int t = k == 0 ? kTexSidewalk : kTexGrass;
+        const double m = textures[t].m_per_texel;
+        const Eigen::Vector3d p00 = route.Point(sa, side * d0, kCurbH), p01 = route.Point(sa, side * d1, kCurbH),
+                              p11 = route.Point(sb, side * d1, kCurbH), p10 = route.Point(sb, side * d0, kCurbH);
+        const float sh = k == 0 ? 1.0f : 0.9f;
+        b.Tri(p00, p01, p11, sa / m, d0 / m, sa / m, d1 / m, sb / m, d1 / m, t, sh, up);
+        b.Tri(p00, p11, p10, sa / m, d0 / m, sb / m, d1 / m, sb / m, d0 / m, t, sh, up);
+      }
+    }
+  }
+
+  // ---- zones and objects per side
+  struct Zone { double s0, s1; bool urban; };
+  std::vector<Zone> zones;
+  for (double s = 0; s < L;) {
+    const bool urban = zones.empty() ? true : !zones.back().urban || rng.Chance(0.3);
+    const double len = urban ? rng.Uniform(150, 450) : rng.Uniform(80, 250);
+    zones.push_back({s, s + len, urban});
+    s += len;
+  }
+  auto is_urban = [&](double s) {
+    for (const auto& z : zones)
+      if (s >= z.s0 && s < z.s1) return z.urban;
+    return true;
+  };
+
+  const double hw = kRoadHalfWidth;
+  for (double side : {-1.0, 1.0}) {
+    const Eigen::Vector3d zero = Eigen::Vector3d::Zero();
+    // Buildings (urban) or vegetation (green), walking along s.
+    double s = rng.Uniform(0, 8);
+    while (s < L - 40) {
+      b.out = chunk_of(s);
+      if (is_urban(s)) {
+        const double w = rng.Uniform(8, 24), depth = rng.Uniform(10, 14);
+        const double d0 = hw + kSidewalkW + rng.Uniform(0.3, 3.5);
+        const double height = rng.Uniform(6, 19.5);
+        const double sa = s, sb = std::min(s + w, L - 30);
+        const double d1 = std::min(d0 + depth, max_offset(sa - 5, sb + 5, side));
+        if (d1 > d0 + 3) {
+          const int ftex = kTexFacade0 + rng.Int(0, kNumFacades - 1);
+          const float shade = static_cast<float>(rng.Uniform(0.8, 1.15));
+          double u = rng.Uniform(0, 20.48);
+          const int pieces = std::max(1, static_cast<int>(std::ceil((sb - sa) / 4.0)));
+          for (int k = 0; k < pieces; ++k) {
+            const double s0 = sa + (sb - sa) * k / pieces, s1 = sa + (sb - sa) * (k + 1) / pieces;
+            const Eigen::Vector3d p0 = route.Point(s0, side * d0, -0.6), p1 = route.Point(s1, side * d0, -0.6);
+            Eigen::Vector3d eu = p1 - p0;
+            eu.z() = 0;
+            const Eigen::Vector3d base(p0.x(), p0.y(), p0.z() + 0.6 + height);
+            // facade texture: row 1024 (= 0) at ground level, rows grow downwards
+            b.Rect(base, eu, -up * (height + 0.6), u, 20.48 - height, 1, ftex, shade, -side * normal(0.5 * (s0 + s1)));
+            u += eu.norm();
+          }
+          // side walls
+          for (int e = 0; e < 2; ++e) {
+            const double se = e == 0 ? sa : sb;
+            const Eigen::Vector3d q0 = route.Point(se, side * d0, -0.6), q1 = route.Point(se, side * d1, -0.6);
+            Eigen::Vector3d ev = q1 - q0;
+            ev.z() = 0;
+            const Eigen::Vector3d top(q0.x(), q0.y(), q0.z() + 0.6 + height);
+            b.Rect(top, ev, -up * (height + 0.6), rng.Uniform(0, 7), 0, 1, kTexWall, shade,
+                   (e == 0 ? -1.0 : 1.0) * tangent(se));
+          }
+        }
+        const double gap = rng.Chance(0.35) ? 0.0 : rng.Uniform(1.5, 9);
+        if (gap > 3 && rng.Chance(0.5)) {  // fence in the gap, at the back of the sidewalk
+          const Eigen::Vector3d f0 = route.Point(sb, side * (hw + kSidewalkW + 0.2), kCurbH);
+          const Eigen::Vector3d f1 = route.Point(sb + gap, side * (hw + kSidewalkW + 0.2), kCurbH);
+          const double fh = rng.Uniform(1.0, 1.8);
+          b.Rect(f0 + up * fh, f1 - f0, -up * fh, 0, 0, 1, kTexFence, 1.0f, -side * normal(sb), true);
+        }
+        s = sb + gap;
+      } else {
+        const double kind = rng.Uniform();
+        if (kind < 0.55) {  // tree
+          const double d = rng.Uniform(hw + kSidewalkW + 1.0, 17);
+          if (d < max_offset(s - 3, s + 3, side)) {
+            const Eigen::Vector3d o = route.Point(s, side * d, kCurbH - 0.2);
+            const double th = rng.Uniform(2.2, 3.5), cw = rng.Uniform(1.5, 2.6), ch = rng.Uniform(2.5, 4.5);
+            const double a = rng.Uniform(0, kPi);
+            const Eigen::Vector3d f(std::cos(a), std::sin(a), 0), l(-std::sin(a), std::cos(a), 0);
+            b.Box(o, f, l, -0.15, 0.15, -0.15, 0.15, 0, th + 0.3, kTexBark, 1.0f, rng.Uniform(0, 1));
+            const float sh = static_cast<float>(rng.Uniform(0.75, 1.1));
+            b.Box(o, f, l, -cw, cw, -cw, cw, th, th + ch, kTexLeaves, sh, rng.Uniform(0, 5));
+            const Eigen::Vector3d f2 = (f + l).normalized(), l2 = (l - f).normalized();
+            b.Box(o, f2, l2, -cw * 0.8, cw * 0.8, -cw * 0.8, cw * 0.8, th + 0.4, th + ch + 0.6, kTexLeaves, sh * 0.9f, rng.Uniform(0, 5));
+          }
+          s += rng.Uniform(5, 14);
+        } else if (kind < 0.8) {  // hedge
+          const double len = rng.Uniform(5, 20), d = hw + kSidewalkW + rng.Uniform(0.2, 1.5);
+          const double h = rng.Uniform(0.8, 1.6), th = rng.Uniform(0.8, 1.4);
+          const int pieces = std::max(1, static_cast<int>(std::ceil(len / 4.0)));
+          for (int k = 0; k < pieces; ++k) {
+            const double s0 = s + len * k / pieces, s1 = s + len * (k + 1) / pieces;
+            const Eigen::Vector3d o = route.Point(s0, side * d, kCurbH);
+            const Eigen::Vector3d t = tangent(s0), l = side * normal(s0);
+            b.Box(o, t, l, 0, (route.Point(s1, side * d, 0) - route.Point(s0, side * d, 0)).norm(), 0, th, -0.1, h,
+                  kTexLeaves, 0.85f, s0);
+          }
+          s += len + rng.Uniform(1, 6);
+        } else {  // small house further back
+          const double w = rng.Uniform(7, 12), d0 = rng.Uniform(16, 28), h = rng.Uniform(4, 7);
+          const double sb = std::min(s + w, L - 30);
+          if (d0 + 9 < max_offset(s - 5, sb + 5, side) && sb > s + 3) {
+            const int ftex = kTexFacade0 + rng.Int(0, kNumFacades - 1);
+            const Eigen::Vector3d p0 = route.Point(s, side * d0, -0.6), p1 = route.Point(sb, side * d0, -0.6);
+            Eigen::Vector3d eu = p1 - p0;
+            eu.z() = 0;
+            const Eigen::Vector3d base(p0.x(), p0.y(), p0.z() + 0.6 + h);
+            b.Rect(base, eu, -up * (h + 0.6), rng.Uniform(0, 20), 20.48 - h, 1, ftex, 1.0f, -side * normal(s));
+            for (int e = 0; e < 2; ++e) {
+              const double se = e == 0 ? s : sb;
+              const Eigen::Vector3d q0 = route.Point(se, side * d0, -0.6), q1 = route.Point(se, side * (d0 + 9), -0.6);
+              Eigen::Vector3d ev = q1 - q0;
+              ev.z() = 0;
+              b.Rect(Eigen::Vector3d(q0.x(), q0.y(), q0.z() + 0.6 + h), ev, -up * (h + 0.6), 0, 0, 1, kTexWall, 1.0f,
+                     (e == 0 ? -1.0 : 1.0) * tangent(se));
+            }
+          }
+          s = sb + rng.Uniform(3, 10);
+        }
+      }
+    }
+    // Lamp poles and signs on the sidewalk edge.
+    for (double sp = rng.Uniform(5, 30); sp < L - 30; sp += rng.Uniform(24, 42)) {
+      b.out = chunk_of(sp);
+      const Eigen::Vector3d o = route.Point(sp, side * (hw + 0.5), kCurbH);
+      const Eigen::Vector3d t = tangent(sp), l = side * normal(sp);
+      const double ph = rng.Uniform(6, 8);
+      b.Box(o, t, l, -0.08, 0.08, -0.08, 0.08, 0, ph, kTexMetal, 1.0f);
+      b.Box(o, t, l, -0.05, 0.05, -1.6, 0.0, ph - 0.12, ph, kTexMetal, 0.9f);     // arm over the road
+      b.Box(o, t, l, -0.18, 0.18, -1.9, -1.3, ph - 0.3, ph - 0.05, kTexMetal, 0.7f);  // lamp head
+      if (rng.Chance(0.35)) {  // traffic sign facing the traffic in our direction
+        const double ss = sp + 6;
+        const Eigen::Vector3d so = route.Point(ss, side * (hw + 0.6), kCurbH);
+        const Eigen::Vector3d st = tangent(ss), sl = side * normal(ss);
+        b.Box(so, st, sl, -0.04, 0.04, -0.04, 0.04, 0, 2.4, kTexMetal, 1.0f);
+        const double sz = rng.Uniform(0.6, 0.9);
+        b.Rect(so + up * (2.4 + sz) - sl * (sz / 2) - st * 0.05, sl * sz, -up * sz, rng.Uniform(0, 1.28), 0, 1,
+               kTexSign, 1.0f, -st);
+        b.Rect(so + up * (2.4 + sz) - sl * (sz / 2) - st * 0.06, sl * sz, -up * sz, 0, 0, 1, kTexMetal, 0.8f, st);
+      }
+    }
+    // Parked cars in the parking strip (urban zones).
+    for (double sp = rng.Uniform(3, 15); sp < L - 30;) {
+      const double len = rng.Uniform(4.0, 5.2);
+      if (is_urban(sp) && rng.Chance(0.55) && std::abs(route.Kappa(sp)) < 0.012) {
+        b.out = chunk_of(sp);
+        const double sc = sp + len / 2;
+        const int style = rng.Chance(0.15) ? 2 : rng.Int(0, 1);
+        const double heading = route.Heading(sc) + rng.Uniform(-0.03, 0.03);
+        AddCar(b, route.Point(sc, side * 4.3, 0), heading, len, static_cast<float>(rng.Uniform(0.25, 1.35)), style);
+      }
+      sp += len + rng.Uniform(0.8, 3.5);
+    }
+    (void)zero;
+  }
+  // Oncoming traffic on the left lane.
+  const double span = L + 15.0 * duration_s;
+  for (double s0 = rng.Uniform(60, 150); s0 < span; s0 += rng.Uniform(0.4, 1.6) * cfg_.oncoming_spacing_m) {
+    movers_.push_back({s0, rng.Uniform(7, 14), rng.Uniform(4.0, 5.0), rng.Uniform(0.25, 1.35),
+                       rng.Chance(0.15) ? 2 : rng.Int(0, 1)});
+  }
+}
+
+void World::Collect(double s_cam, double t, const Eigen::Vector3d& cam_pos_enu,
+                    std::vector<const Poly*>& out) {
+  out.clear();
+  const int c0 = std::max(0, static_cast<int>((s_cam - cfg_.view_behind_m) / chunk_m_));
+  const int c1 = std::min(static_cast<int>(chunks_.size()) - 1,
+                          static_cast<int>((s_cam + cfg_.view_ahead_m) / chunk_m_));
+  for (int c = c0; c <= c1; ++c)
+    for (const Poly& p : chunks_[c]) out.push_back(&p);
+  dynamic_.clear();
+  Builder b{tex_, &dynamic_};
+  for (const Mover& m : movers_) {
+    const double s = m.s0 - m.speed_mps * t;
+    if (s < s_cam - 10 || s > s_cam + cfg_.view_ahead_m || s < 1 || s > route_.length_m() - 1) continue;
+    AddCar(b, route_.Point(s, 1.75, 0), route_.Heading(s) + kPi, m.length_m, static_cast<float>(m.shade), m.style);
+  }
+  // Fallback ground far below the route: fills holes to the horizon.
+  const double R = 2000, z = ground_floor_z_ - 0.6;
+  const Eigen::Vector3d o(cam_pos_enu.x() - R, cam_pos_enu.y() - R, z);
+  const double m = tex_[kTexGrass].m_per_texel;
+  b.Rect(o, Eigen::Vector3d(2 * R, 0, 0), Eigen::Vector3d(0, 2 * R, 0), std::fmod(o.x(), 10.24),
+         std::fmod(o.y(), 10.24), 1, kTexGrass, 0.8f, Eigen::Vector3d::UnitZ());
+  (void)m;
+  dynamic_.back().background = true;
+  for (const Poly& p : dynamic_) out.push_back(&p);
+}
+
+size_t World::num_static_polys() const {
+  size_t n = 0;
+  for (const auto& c : chunks_) n += c.size();
+  return n;
+}
+
+}  // namespace locaid::synth
