@@ -178,6 +178,167 @@ void OnSignal(int) {
   if (g_stream_ctx) g_stream_ctx->TryCancel();
 }
 
+// What `session start` sends.
+struct StartOptions {
+  std::string kitti_path;
+  int64_t first_frame = 0, last_frame = -1;
+  bool synthetic = false;
+  uint64_t synth_seed = 0;
+  uint32_t synth_frames = 0, history = 0;
+  std::string scenario_name, scenario_file, vo_method;
+  double rate = 0;
+};
+
+struct SubscribeOptions {
+  std::string session_id;
+  std::string format = "print", out_path;
+  bool from_start = false, progress = false;
+  uint64_t max_poses = 0;
+  uint32_t queue = 0;
+  double stream_timeout_s = 24 * 3600;
+};
+
+// A built-in scenario by name or a YAML file sent as text (neither: unchanged).
+void FillScenario(const std::string& name, const std::string& file, v1::Scenario* out) {
+  if (!file.empty()) {
+    out->set_yaml(ReadFile(file));
+  } else if (!name.empty()) {
+    out->set_name(name);
+  }
+}
+
+// One unary call with the common deadline and credentials: prints the
+// response with `print` (exit 0) or the error status (exit 1).
+template <typename Response, typename Request, typename Call, typename Print>
+int Unary(const Common& c, const Request& req, Call call, Print print) {
+  grpc::ClientContext ctx;
+  Prepare(c, &ctx, c.timeout_s);
+  Response resp;
+  const grpc::Status s = call(&ctx, req, &resp);
+  if (!s.ok()) return Fail(s);
+  print(resp);
+  return 0;
+}
+
+// grpc.health.v1.Health/Check through the generic stub: the request is
+// {1: service (string)}, the response {1: status (enum, 1 = SERVING)}.
+int Health(const Common& c, const std::shared_ptr<grpc::Channel>& channel, const std::string& service) {
+  grpc::GenericStub generic(channel);
+  grpc::ClientContext ctx;
+  Prepare(c, &ctx, c.timeout_s);
+  std::string req_bytes;
+  if (!service.empty()) {
+    req_bytes.push_back(0x0a);
+    req_bytes.push_back(static_cast<char>(service.size()));
+    req_bytes += service;
+  }
+  grpc::Slice slice(req_bytes);
+  grpc::ByteBuffer request(&slice, 1), response;
+  std::promise<grpc::Status> done;
+  generic.UnaryCall(&ctx, "/grpc.health.v1.Health/Check", grpc::StubOptions(), &request, &response,
+                    [&done](grpc::Status st) { done.set_value(st); });
+  const grpc::Status s = done.get_future().get();
+  if (!s.ok()) return Fail(s);
+  std::vector<grpc::Slice> slices;
+  (void)response.Dump(&slices);
+  std::string resp_bytes;
+  for (const auto& sl : slices) resp_bytes.append(reinterpret_cast<const char*>(sl.begin()), sl.size());
+  const int status = resp_bytes.size() >= 2 && resp_bytes[0] == 0x08 ? resp_bytes[1] : 0;
+  const bool serving = status == 1;
+  std::cout << (serving ? "SERVING" : status == 2 ? "NOT_SERVING" : "UNKNOWN") << "\n";
+  return serving ? 0 : 3;
+}
+
+int StartSession(const Common& c, v1::Localization::Stub& stub, const StartOptions& o) {
+  v1::StartSessionRequest req;
+  if (!o.kitti_path.empty()) {
+    req.mutable_kitti()->set_path(o.kitti_path);
+    req.mutable_kitti()->set_first_frame(o.first_frame);
+    req.mutable_kitti()->set_last_frame(o.last_frame);
+  } else if (o.synthetic) {
+    req.mutable_synthetic()->set_seed(o.synth_seed);
+    req.mutable_synthetic()->set_frames(o.synth_frames);
+  } else {
+    std::cerr << "error: session start needs --kitti PATH or --synthetic SEED\n";
+    return 2;
+  }
+  FillScenario(o.scenario_name, o.scenario_file, req.mutable_scenario());
+  req.set_vo_method(o.vo_method);
+  req.set_playback_rate(o.rate);
+  req.set_history_size(o.history);
+  return Unary<v1::Session>(
+      c, req, [&](auto* ctx, const auto& r, auto* out) { return stub.StartSession(ctx, r, out); },
+      [](const v1::Session& s) { std::cout << s.id() << "\n"; });
+}
+
+// Streams a session's poses into the chosen format until the stream ends,
+// --max poses, or SIGINT/SIGTERM. MCAP: the Foxglove bridge's channels in
+// one indexed file, closed (summary and footer written) also on a signal.
+int Subscribe(const Common& c, v1::Localization::Stub& stub, const SubscribeOptions& o) {
+  std::optional<Recorder> recorder;
+  std::unique_ptr<locaid::foxglove::McapRecording> mcap;
+  if (o.format == "mcap") {
+    if (o.out_path.empty()) throw std::runtime_error("--out is required for --format mcap");
+    mcap = std::make_unique<locaid::foxglove::McapRecording>(o.out_path);
+  } else {
+    recorder.emplace(o.format, o.out_path);
+  }
+  v1::StreamPosesRequest req;
+  req.set_session_id(o.session_id);
+  req.set_from_start(o.from_start);
+  req.set_queue_size(o.queue);
+  g_stream_ctx = std::make_unique<grpc::ClientContext>();
+  Prepare(c, g_stream_ctx.get(), o.stream_timeout_s);
+  std::signal(SIGINT, OnSignal);
+  std::signal(SIGTERM, OnSignal);
+  auto reader = stub.StreamPoses(g_stream_ctx.get(), req);
+  v1::PoseUpdate pose;
+  uint64_t n = 0, dropped = 0;
+  while (reader->Read(&pose)) {
+    const auto now_ns =
+        std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
+            .count();
+    const double delay_ms = static_cast<double>(now_ns - pose.published_unix_ns()) * 1e-6;
+    try {
+      if (mcap) {
+        mcap->Add(pose);
+      } else {
+        recorder->Add(pose, delay_ms);
+      }
+    } catch (const std::runtime_error& e) {  // RecordError, or McapWriter's std::system_error
+      g_stream_ctx->TryCancel();
+      (void)reader->Finish();
+      std::cerr << "error: " << e.what() << "\n";
+      return 4;
+    }
+    ++n;
+    dropped = pose.dropped_for_subscriber();
+    if (o.progress && n % 50 == 0) {
+      std::cerr << "received " << n << " poses (seq " << pose.sequence() << ", dropped " << dropped << ", mode "
+                << ModeName(pose.mode()) << ")\n";
+    }
+    if (o.max_poses > 0 && n >= o.max_poses) {
+      g_stream_ctx->TryCancel();
+      break;
+    }
+  }
+  const grpc::Status s = reader->Finish();
+  try {
+    if (mcap) {
+      mcap->Close();
+    } else {
+      recorder->Close();
+    }
+  } catch (const std::runtime_error& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 4;
+  }
+  if (o.progress || o.format != "print") std::cerr << "received " << n << " poses, dropped " << dropped << "\n";
+  if (o.max_poses > 0 && n >= o.max_poses) return 0;
+  if (!s.ok() && s.error_code() != grpc::CANCELLED) return Fail(s);
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -199,22 +360,18 @@ int main(int argc, char** argv) {
   auto* session = app.add_subcommand("session", "start, list, get or stop sessions");
   session->require_subcommand(1);
   auto* start = session->add_subcommand("start", "start a session; prints its id");
-  std::string kitti_path, scenario_name, scenario_file, vo_method;
-  int64_t first_frame = 0, last_frame = -1;
-  uint64_t synth_seed = 0;
-  uint32_t synth_frames = 0, history = 0;
-  double rate = 0;
-  auto* o_kitti = start->add_option("--kitti", kitti_path, "KITTI raw drive or odometry sequence folder (server side)");
-  auto* o_synth = start->add_option("--synthetic", synth_seed, "render a synthetic drive with this seed");
+  StartOptions so;
+  auto* o_kitti = start->add_option("--kitti", so.kitti_path, "KITTI raw drive or odometry sequence folder (server side)");
+  auto* o_synth = start->add_option("--synthetic", so.synth_seed, "render a synthetic drive with this seed");
   o_kitti->excludes(o_synth);
-  start->add_option("--frames", synth_frames, "synthetic: number of frames");
-  start->add_option("--first", first_frame, "kitti: first frame");
-  start->add_option("--last", last_frame, "kitti: last frame (default: to the end)");
-  start->add_option("--scenario", scenario_name, "built-in GPS scenario");
-  start->add_option("--scenario-file", scenario_file, "scenario YAML file (sent as text)");
-  start->add_option("--vo", vo_method, "VO method");
-  start->add_option("--rate", rate, "playback: 0 = as fast as possible, 1 = real time, N = N x")->capture_default_str();
-  start->add_option("--history", history, "poses kept for --from-start subscribers");
+  start->add_option("--frames", so.synth_frames, "synthetic: number of frames");
+  start->add_option("--first", so.first_frame, "kitti: first frame");
+  start->add_option("--last", so.last_frame, "kitti: last frame (default: to the end)");
+  start->add_option("--scenario", so.scenario_name, "built-in GPS scenario");
+  start->add_option("--scenario-file", so.scenario_file, "scenario YAML file (sent as text)");
+  start->add_option("--vo", so.vo_method, "VO method");
+  start->add_option("--rate", so.rate, "playback: 0 = as fast as possible, 1 = real time, N = N x")->capture_default_str();
+  start->add_option("--history", so.history, "poses kept for --from-start subscribers");
   auto* list = session->add_subcommand("list", "list sessions");
   auto* get = session->add_subcommand("get", "show one session");
   auto* stop = session->add_subcommand("stop", "stop a session");
@@ -225,21 +382,17 @@ int main(int argc, char** argv) {
   stop->add_flag("--remove", remove, "also forget it");
 
   auto* subscribe = app.add_subcommand("subscribe", "stream a session's poses");
-  std::string format = "print", out_path;
-  bool from_start = false, progress = false;
-  uint64_t max_poses = 0;
-  uint32_t queue = 0;
-  double stream_timeout_s = 24 * 3600;
-  subscribe->add_option("id", session_id)->required();
-  subscribe->add_flag("--from-start", from_start, "begin with the session's history");
-  subscribe->add_option("--format", format, "print|tum|kitti|csv|geojson|mcap (Foxglove channels, see docs/api.md)")
+  SubscribeOptions sub;
+  subscribe->add_option("id", sub.session_id)->required();
+  subscribe->add_flag("--from-start", sub.from_start, "begin with the session's history");
+  subscribe->add_option("--format", sub.format, "print|tum|kitti|csv|geojson|mcap (Foxglove channels, see docs/api.md)")
       ->check(CLI::IsMember({"print", "tum", "kitti", "csv", "geojson", "mcap"}))
       ->capture_default_str();
-  subscribe->add_option("--out", out_path, "record file (formats other than print)");
-  subscribe->add_option("--max", max_poses, "stop after N poses (0 = until the stream ends)");
-  subscribe->add_option("--queue", queue, "server-side queue length for this subscriber");
-  subscribe->add_flag("--progress", progress, "print progress to stderr");
-  subscribe->add_option("--stream-timeout-s", stream_timeout_s, "deadline of the stream")->capture_default_str();
+  subscribe->add_option("--out", sub.out_path, "record file (formats other than print)");
+  subscribe->add_option("--max", sub.max_poses, "stop after N poses (0 = until the stream ends)");
+  subscribe->add_option("--queue", sub.queue, "server-side queue length for this subscriber");
+  subscribe->add_flag("--progress", sub.progress, "print progress to stderr");
+  subscribe->add_option("--stream-timeout-s", sub.stream_timeout_s, "deadline of the stream")->capture_default_str();
 
   auto* outage = app.add_subcommand("outage", "inject GPS outages into a running session");
   outage->require_subcommand(1);
@@ -255,6 +408,7 @@ int main(int argc, char** argv) {
   o_window_cmd->add_option("--duration", o_duration, "seconds")->required();
 
   auto* scenario = app.add_subcommand("scenario", "change a running session's GPS scenario");
+  std::string scenario_name, scenario_file;
   scenario->add_option("id", session_id)->required();
   auto* sc_name = scenario->add_option("--name", scenario_name, "built-in scenario");
   auto* sc_file = scenario->add_option("--file", scenario_file, "scenario YAML file");
@@ -271,203 +425,60 @@ int main(int argc, char** argv) {
   // A file size limit (RLIMIT_FSIZE) must show up as EFBIG from write(2),
   // handled like a full disk, not kill the recorder.
   std::signal(SIGXFSZ, SIG_IGN);
+  so.synthetic = o_synth->count() > 0;
 
   try {
     locaid::clients::ResolveToken(c);
     auto channel = locaid::clients::MakeChannel(c);
     auto stub = v1::Localization::NewStub(channel);
-
-    if (health->parsed()) {
-      // grpc.health.v1.Health/Check through the generic stub: the request is
-      // {1: service (string)}, the response {1: status (enum, 1 = SERVING)}.
-      grpc::GenericStub generic(channel);
-      grpc::ClientContext ctx;
-      Prepare(c, &ctx, c.timeout_s);
-      std::string req_bytes;
-      if (!health_service.empty()) {
-        req_bytes.push_back(0x0a);
-        req_bytes.push_back(static_cast<char>(health_service.size()));
-        req_bytes += health_service;
-      }
-      grpc::Slice slice(req_bytes);
-      grpc::ByteBuffer request(&slice, 1), response;
-      std::promise<grpc::Status> done;
-      generic.UnaryCall(&ctx, "/grpc.health.v1.Health/Check", grpc::StubOptions(), &request, &response,
-                        [&done](grpc::Status st) { done.set_value(st); });
-      const grpc::Status s = done.get_future().get();
-      if (!s.ok()) return Fail(s);
-      std::vector<grpc::Slice> slices;
-      (void)response.Dump(&slices);
-      std::string resp_bytes;
-      for (const auto& sl : slices) resp_bytes.append(reinterpret_cast<const char*>(sl.begin()), sl.size());
-      const int status = resp_bytes.size() >= 2 && resp_bytes[0] == 0x08 ? resp_bytes[1] : 0;
-      const bool serving = status == 1;
-      std::cout << (serving ? "SERVING" : status == 2 ? "NOT_SERVING" : "UNKNOWN") << "\n";
-      return serving ? 0 : 3;
-    }
-
-    auto scenario_msg = [&](v1::Scenario* out) {
-      if (!scenario_file.empty()) out->set_yaml(ReadFile(scenario_file));
-      else if (!scenario_name.empty()) out->set_name(scenario_name);
+    auto with_id = [&session_id](auto req) {
+      req.set_session_id(session_id);
+      return req;
     };
+    const auto print_session = [](const v1::Session& s) { PrintSession(s); };
 
-    if (start->parsed()) {
-      v1::StartSessionRequest req;
-      if (!kitti_path.empty()) {
-        req.mutable_kitti()->set_path(kitti_path);
-        req.mutable_kitti()->set_first_frame(first_frame);
-        req.mutable_kitti()->set_last_frame(last_frame);
-      } else if (o_synth->count() > 0) {
-        req.mutable_synthetic()->set_seed(synth_seed);
-        req.mutable_synthetic()->set_frames(synth_frames);
-      } else {
-        std::cerr << "error: session start needs --kitti PATH or --synthetic SEED\n";
-        return 2;
-      }
-      scenario_msg(req.mutable_scenario());
-      req.set_vo_method(vo_method);
-      req.set_playback_rate(rate);
-      req.set_history_size(history);
-      grpc::ClientContext ctx;
-      Prepare(c, &ctx, c.timeout_s);
-      v1::Session resp;
-      const grpc::Status s = stub->StartSession(&ctx, req, &resp);
-      if (!s.ok()) return Fail(s);
-      std::cout << resp.id() << "\n";
-      return 0;
-    }
+    if (health->parsed()) return Health(c, channel, health_service);
+    if (start->parsed()) return StartSession(c, *stub, so);
+    if (subscribe->parsed()) return Subscribe(c, *stub, sub);
     if (list->parsed()) {
-      grpc::ClientContext ctx;
-      Prepare(c, &ctx, c.timeout_s);
-      v1::ListSessionsResponse resp;
-      const grpc::Status s = stub->ListSessions(&ctx, {}, &resp);
-      if (!s.ok()) return Fail(s);
-      for (const auto& sess : resp.sessions()) PrintSession(sess);
-      return 0;
+      return Unary<v1::ListSessionsResponse>(
+          c, v1::ListSessionsRequest{}, [&](auto* ctx, const auto& r, auto* out) { return stub->ListSessions(ctx, r, out); },
+          [](const v1::ListSessionsResponse& r) {
+            for (const auto& s : r.sessions()) PrintSession(s);
+          });
     }
     if (get->parsed()) {
-      grpc::ClientContext ctx;
-      Prepare(c, &ctx, c.timeout_s);
-      v1::GetSessionRequest req;
-      req.set_session_id(session_id);
-      v1::Session resp;
-      const grpc::Status s = stub->GetSession(&ctx, req, &resp);
-      if (!s.ok()) return Fail(s);
-      PrintSession(resp);
-      return 0;
+      return Unary<v1::Session>(
+          c, with_id(v1::GetSessionRequest{}),
+          [&](auto* ctx, const auto& r, auto* out) { return stub->GetSession(ctx, r, out); }, print_session);
     }
     if (stop->parsed()) {
-      grpc::ClientContext ctx;
-      Prepare(c, &ctx, c.timeout_s);
-      v1::StopSessionRequest req;
-      req.set_session_id(session_id);
+      v1::StopSessionRequest req = with_id(v1::StopSessionRequest{});
       req.set_remove(remove);
-      v1::Session resp;
-      const grpc::Status s = stub->StopSession(&ctx, req, &resp);
-      if (!s.ok()) return Fail(s);
-      PrintSession(resp);
-      return 0;
+      return Unary<v1::Session>(
+          c, req, [&](auto* ctx, const auto& r, auto* out) { return stub->StopSession(ctx, r, out); }, print_session);
     }
     if (stats->parsed()) {
-      grpc::ClientContext ctx;
-      Prepare(c, &ctx, c.timeout_s);
-      v1::GetStatsRequest req;
-      req.set_session_id(session_id);
-      v1::SessionStats resp;
-      const grpc::Status s = stub->GetStats(&ctx, req, &resp);
-      if (!s.ok()) return Fail(s);
-      PrintStats(resp);
-      return 0;
+      return Unary<v1::SessionStats>(
+          c, with_id(v1::GetStatsRequest{}),
+          [&](auto* ctx, const auto& r, auto* out) { return stub->GetStats(ctx, r, out); },
+          [](const v1::SessionStats& s) { PrintStats(s); });
     }
     if (outage->parsed()) {
-      v1::InjectOutageRequest req;
-      req.set_session_id(session_id);
+      v1::InjectOutageRequest req = with_id(v1::InjectOutageRequest{});
       req.set_start_s(o_start);
       req.set_duration_s(o_duration);
       req.set_action(o_start_cmd->parsed()  ? v1::InjectOutageRequest::START_NOW
                      : o_stop_cmd->parsed() ? v1::InjectOutageRequest::STOP_NOW
                                             : v1::InjectOutageRequest::WINDOW);
-      grpc::ClientContext ctx;
-      Prepare(c, &ctx, c.timeout_s);
-      v1::Session resp;
-      const grpc::Status s = stub->InjectOutage(&ctx, req, &resp);
-      if (!s.ok()) return Fail(s);
-      PrintSession(resp);
-      return 0;
+      return Unary<v1::Session>(
+          c, req, [&](auto* ctx, const auto& r, auto* out) { return stub->InjectOutage(ctx, r, out); }, print_session);
     }
     if (scenario->parsed()) {
-      v1::SetScenarioRequest req;
-      req.set_session_id(session_id);
-      scenario_msg(req.mutable_scenario());
-      grpc::ClientContext ctx;
-      Prepare(c, &ctx, c.timeout_s);
-      v1::Session resp;
-      const grpc::Status s = stub->SetScenario(&ctx, req, &resp);
-      if (!s.ok()) return Fail(s);
-      PrintSession(resp);
-      return 0;
-    }
-    if (subscribe->parsed()) {
-      // MCAP: the Foxglove bridge's channels in one indexed file, closed
-      // (summary and footer written) when the stream ends, also on a signal.
-      std::optional<Recorder> recorder;
-      std::unique_ptr<locaid::foxglove::McapRecording> mcap;
-      if (format == "mcap") {
-        if (out_path.empty()) throw std::runtime_error("--out is required for --format mcap");
-        mcap = std::make_unique<locaid::foxglove::McapRecording>(out_path);
-      } else {
-        recorder.emplace(format, out_path);
-      }
-      v1::StreamPosesRequest req;
-      req.set_session_id(session_id);
-      req.set_from_start(from_start);
-      req.set_queue_size(queue);
-      g_stream_ctx = std::make_unique<grpc::ClientContext>();
-      Prepare(c, g_stream_ctx.get(), stream_timeout_s);
-      std::signal(SIGINT, OnSignal);
-      std::signal(SIGTERM, OnSignal);
-      auto reader = stub->StreamPoses(g_stream_ctx.get(), req);
-      v1::PoseUpdate pose;
-      uint64_t n = 0, dropped = 0;
-      while (reader->Read(&pose)) {
-        const auto now_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                std::chrono::system_clock::now().time_since_epoch())
-                                .count();
-        const double delay_ms = static_cast<double>(now_ns - pose.published_unix_ns()) * 1e-6;
-        try {
-          if (mcap) mcap->Add(pose);
-          else recorder->Add(pose, delay_ms);
-        } catch (const std::runtime_error& e) {  // RecordError, or McapWriter's std::system_error
-          g_stream_ctx->TryCancel();
-          (void)reader->Finish();
-          std::cerr << "error: " << e.what() << "\n";
-          return 4;
-        }
-        ++n;
-        dropped = pose.dropped_for_subscriber();
-        if (progress && n % 50 == 0) {
-          std::cerr << "received " << n << " poses (seq " << pose.sequence() << ", dropped " << dropped
-                    << ", mode " << ModeName(pose.mode()) << ")\n";
-        }
-        if (max_poses > 0 && n >= max_poses) {
-          g_stream_ctx->TryCancel();
-          break;
-        }
-      }
-      const grpc::Status s = reader->Finish();
-      try {
-        if (mcap) mcap->Close();
-        else recorder->Close();
-      } catch (const std::runtime_error& e) {
-        std::cerr << "error: " << e.what() << "\n";
-        return 4;
-      }
-      if (progress || format != "print") {
-        std::cerr << "received " << n << " poses, dropped " << dropped << "\n";
-      }
-      if (max_poses > 0 && n >= max_poses) return 0;
-      if (!s.ok() && s.error_code() != grpc::CANCELLED) return Fail(s);
-      return 0;
+      v1::SetScenarioRequest req = with_id(v1::SetScenarioRequest{});
+      FillScenario(scenario_name, scenario_file, req.mutable_scenario());
+      return Unary<v1::Session>(
+          c, req, [&](auto* ctx, const auto& r, auto* out) { return stub->SetScenario(ctx, r, out); }, print_session);
     }
   } catch (const RecordError& e) {
     std::cerr << "error: " << e.what() << "\n";
