@@ -1,5 +1,6 @@
 // ATE, RPE, SE(3) alignment, timestamp association and file matching.
 #include "eval/associate.hpp"
+#include "error_of.hpp"
 #include "eval/evaluate.hpp"
 #include "eval/trajectory_metrics.hpp"
 #include "kitti/pose_io.hpp"
@@ -44,14 +45,7 @@ std::vector<Eigen::Isometry3d> Drive(unsigned seed) {
   return poses;
 }
 
-std::string ErrorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const kitti::Error& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
+std::string ErrorOf(const std::function<void()>& f) { return locaid::test_support::ErrorOf<kitti::Error>(f); }
 
 TEST(EvalStats, KnownValues) {
   const ErrorStats s = ComputeStats({3, 1, 4, 2});

@@ -1,4 +1,5 @@
 #include "core/stereo_camera.hpp"
+#include "error_of.hpp"
 #include "kitti/calib.hpp"
 
 #include <gtest/gtest.h>
@@ -22,14 +23,7 @@ const std::string kVeloToCam =
     "delta_f: 0.000000e+00 0.000000e+00\n"
     "delta_c: 0.000000e+00 0.000000e+00\n";
 
-std::string ErrorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
+std::string ErrorOf(const std::function<void()>& f) { return locaid::test_support::ErrorOf<Error>(f); }
 
 // A plausible cam_to_cam with distinct values per camera.
 CamToCamCalib MakeCamToCam() {

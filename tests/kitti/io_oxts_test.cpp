@@ -1,4 +1,5 @@
 #include "kitti/oxts.hpp"
+#include "error_of.hpp"
 
 #include <gtest/gtest.h>
 
@@ -19,12 +20,7 @@ const std::string kRealLine =
     "-0.37680103996804 0.32606901110041 0.035355339059327 4 8 4 4 0";
 
 std::string ErrorOf(const std::string& line) {
-  try {
-    ParseOxtsLine(line, "f.txt:1");
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "(no error)";
+  return locaid::test_support::ErrorOf<Error>([&] { ParseOxtsLine(line, "f.txt:1"); });
 }
 
 // Replaces token `i` (0-based) of kRealLine.

@@ -1,4 +1,5 @@
 #include "kitti/timestamps.hpp"
+#include "error_of.hpp"
 
 #include "kitti/types.hpp"
 
@@ -15,12 +16,7 @@ namespace {
 namespace fs = std::filesystem;
 
 std::string ErrorOf(const std::string& line) {
-  try {
-    ParseTimestamp(line, "ts.txt:4");
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "(no error)";
+  return locaid::test_support::ErrorOf<Error>([&] { ParseTimestamp(line, "ts.txt:4"); });
 }
 
 TEST(IoTimestamps, ParsesExactNanoseconds) {

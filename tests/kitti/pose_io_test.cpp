@@ -1,4 +1,5 @@
 #include "kitti/pose_io.hpp"
+#include "error_of.hpp"
 
 #include <gtest/gtest.h>
 
@@ -51,14 +52,7 @@ std::vector<Eigen::Isometry3d> RandomPoses(size_t n, unsigned seed) {
   return poses;
 }
 
-std::string ErrorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "(no error)";
-}
+std::string ErrorOf(const std::function<void()>& f) { return locaid::test_support::ErrorOf<Error>(f); }
 
 const std::string kIdentityKitti = "1 0 0 0 0 1 0 0 0 0 1 0\n";
 

@@ -1,5 +1,6 @@
 // Server configuration: YAML + validation give precise errors.
 #include "server/config.hpp"
+#include "error_of.hpp"
 
 #include <gtest/gtest.h>
 
@@ -17,14 +18,7 @@ std::filesystem::path WriteTemp(const std::string& name, const std::string& text
   return path;
 }
 
-std::string ErrorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const ConfigError& e) {
-    return e.what();
-  }
-  return "";
-}
+std::string ErrorOf(const std::function<void()>& f) { return locaid::test_support::ErrorOf<ConfigError>(f); }
 
 TEST(ServerConfig, YamlOverridesDefaultsAndValidates) {
   ServerConfig c;

@@ -1,0 +1,20 @@
+// ErrorOf<E>(f): the message of the E that f throws, or "(no error)" when it
+// throws nothing; the tests then check which file, line, field and reason the
+// message names. Shared by every test folder.
+#pragma once
+
+#include <string>
+
+namespace locaid::test_support {
+
+template <typename E, typename F>
+std::string ErrorOf(F&& f) {
+  try {
+    f();
+  } catch (const E& e) {
+    return e.what();
+  }
+  return "(no error)";
+}
+
+}  // namespace locaid::test_support
