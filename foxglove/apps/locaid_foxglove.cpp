@@ -163,11 +163,13 @@ int main(int argc, char** argv) {
   follower_thread.join();
   ws_thread.join();
   const fx::WsServerStats stats = ws->stats();
-  std::ostringstream delay;
-  delay << std::fixed << std::setprecision(2) << "delay from gRPC pose to socket p50 " << stats.delay_p50_ms
-        << " ms, p99 " << stats.delay_p99_ms << " ms, max " << stats.delay_max_ms << " ms";
+  std::ostringstream delay;  // only when there is something to report
+  if (stats.messages_sent > 0) {
+    delay << std::fixed << std::setprecision(2) << "; delay from gRPC pose to socket p50 " << stats.delay_p50_ms
+          << " ms, p99 " << stats.delay_p99_ms << " ms, max " << stats.delay_max_ms << " ms";
+  }
   Log("stopped (" + std::to_string(stats.clients_connected) + " clients served, " +
       std::to_string(stats.messages_sent) + " messages sent, " + std::to_string(stats.messages_dropped) +
-      " dropped; " + delay.str() + ")");
+      " dropped" + delay.str() + ")");
   return 0;
 }
