@@ -36,20 +36,6 @@ class BridgeTest : public ::testing::Test {
     EXPECT_EQ(client.exit_code(), 0) << st::Slurp(dir_ / "client.json") << st::Slurp(dir_ / "client.err");
     return json::parse(st::Slurp(dir_ / "client.json"), nullptr, false);
   }
-  // locaid-server on a given loopback port (logs in `dir`); null when it
-  // did not come up within 10 s.
-  static std::unique_ptr<st::ChildProcess> StartServerAt(const std::filesystem::path& dir, int port) {
-    std::filesystem::create_directories(dir);
-    auto server = std::make_unique<st::ChildProcess>(
-        std::vector<std::string>{std::string(LOCAID_BIN_DIR) + "/locaid-server", "--listen",
-                                 "127.0.0.1:" + std::to_string(port), "--port-file", (dir / "port").string(),
-                                 "--work-dir", (dir / "work").string()},
-        st::ChildProcess::Options{dir / "out", dir / "err", 0});
-    for (int i = 0; i < 1000 && !std::filesystem::exists(dir / "port"); ++i) {  // at most 10 s
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    }
-    return std::filesystem::exists(dir / "port") ? std::move(server) : nullptr;
-  }
   static std::vector<std::string> NamedSessions(const json& result) {
     std::vector<std::string> ids;
     for (const auto& id : result["server_infos"]) {
@@ -272,8 +258,8 @@ TEST_F(BridgeTest, ReconnectsWhenTheServerComesBack) {
   ft::BridgeProcess bridge(dir_, grpc_port, ft::FreeLoopbackPort());
   ASSERT_TRUE(bridge.WaitForLog("ListSessions failed", 20)) << bridge.log();
   // The server the bridge was told about starts late, on that port.
-  auto server = StartServerAt(dir_ / "server", grpc_port);
-  ASSERT_TRUE(server) << st::Slurp(dir_ / "server/err");
+  st::ServerProcess server(dir_ / "server", {}, grpc_port);
+  ASSERT_EQ(server.port(), grpc_port) << server.log();
   auto stub = st::MakeStub(grpc_port);
   const std::string id = ft::StartSynthetic(stub.get(), 7, kFrames, 1.0);
   EXPECT_TRUE(bridge.WaitForLog("following session " + id, 30)) << bridge.log();
@@ -285,8 +271,8 @@ TEST_F(BridgeTest, ReconnectsWhenTheServerComesBack) {
 TEST_F(BridgeTest, AFoxgloveClientStaysConnectedAcrossAServerRestart) {
   if (!ft::HaveNode()) GTEST_SKIP() << "node is not installed; the Foxglove client (@foxglove/ws-protocol) needs it";
   const int grpc_port = ft::FreeLoopbackPort();
-  auto server = StartServerAt(dir_ / "server1", grpc_port);
-  ASSERT_TRUE(server) << st::Slurp(dir_ / "server1/err");
+  auto server = std::make_unique<st::ServerProcess>(dir_ / "server1", std::vector<std::string>{}, grpc_port);
+  ASSERT_EQ(server->port(), grpc_port) << server->log();
   const int ws_port = ft::FreeLoopbackPort();
   ft::BridgeProcess bridge(dir_, grpc_port, ws_port);
   ASSERT_TRUE(bridge.WaitForLog("listening on", 10)) << bridge.log();
@@ -296,10 +282,10 @@ TEST_F(BridgeTest, AFoxgloveClientStaysConnectedAcrossAServerRestart) {
   auto stub = st::MakeStub(grpc_port);
   const std::string first = ft::StartSynthetic(stub.get(), 7, kFrames, 1.0);
   st::WaitStats(stub.get(), first, 60, [](const auto& s) { return s.poses_published() >= 10; });
-  ASSERT_TRUE(server->Signal(SIGTERM));
-  ASSERT_TRUE(server->Wait(20)) << st::Slurp(dir_ / "server1/err");
-  server = StartServerAt(dir_ / "server2", grpc_port);
-  ASSERT_TRUE(server) << st::Slurp(dir_ / "server2/err");
+  ASSERT_TRUE(server->process().Signal(SIGTERM));
+  ASSERT_TRUE(server->process().Wait(20)) << server->log();
+  server = std::make_unique<st::ServerProcess>(dir_ / "server2", std::vector<std::string>{}, grpc_port);
+  ASSERT_EQ(server->port(), grpc_port) << server->log();
   stub = st::MakeStub(grpc_port);
   const std::string second = ft::StartSynthetic(stub.get(), 8, kFrames, 1.0);
 

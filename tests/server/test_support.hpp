@@ -319,11 +319,14 @@ class ChildProcess {
 // read from --port-file. `dir` holds the port file and the server's log.
 class ServerProcess {
  public:
-  explicit ServerProcess(const std::filesystem::path& dir, const std::vector<std::string>& extra_args = {}) {
+  // `port` 0: the OS picks one (see port()).
+  explicit ServerProcess(const std::filesystem::path& dir, const std::vector<std::string>& extra_args = {},
+                         int port = 0) {
     std::filesystem::create_directories(dir);
     const auto port_file = dir / "port";
     std::filesystem::remove(port_file);
-    std::vector<std::string> argv = {std::string(LOCAID_BIN_DIR) + "/locaid-server", "--listen", "127.0.0.1:0",
+    std::vector<std::string> argv = {std::string(LOCAID_BIN_DIR) + "/locaid-server", "--listen",
+                                     "127.0.0.1:" + std::to_string(port),
                                      "--port-file", port_file.string(), "--work-dir", (dir / "work").string()};
     argv.insert(argv.end(), extra_args.begin(), extra_args.end());
     log_out_ = dir / "server.out";
