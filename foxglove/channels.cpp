@@ -59,18 +59,13 @@ json& Element(json& array, size_t k) {
   return array[k];
 }
 
-void PutVector3(json& object, std::string_view key, const v1::Vector3& v) {
+void PutXyz(json& object, std::string_view key, double x, double y, double z) {
   json& m = Member(object, key);
-  Put(m, "x", v.x());
-  Put(m, "y", v.y());
-  Put(m, "z", v.z());
+  Put(m, "x", x);
+  Put(m, "y", y);
+  Put(m, "z", z);
 }
-void PutXyz(json& object, std::string_view key, const std::array<double, 3>& v) {
-  json& m = Member(object, key);
-  Put(m, "x", v[0]);
-  Put(m, "y", v[1]);
-  Put(m, "z", v[2]);
-}
+void PutVector3(json& object, std::string_view key, const v1::Vector3& v) { PutXyz(object, key, v.x(), v.y(), v.z()); }
 void PutQuaternion(json& object, std::string_view key, double x, double y, double z, double w) {
   json& m = Member(object, key);
   Put(m, "x", x);
@@ -195,7 +190,7 @@ void FrameTransformsJson(const v1::PoseUpdate& p, json& body) {
   PutTime(camera, p.t_ns());
   PutString(camera, "parent_frame_id", kBodyFrame);
   PutString(camera, "child_frame_id", "cam0");
-  PutXyz(camera, "translation", cam.translation);
+  PutXyz(camera, "translation", cam.translation[0], cam.translation[1], cam.translation[2]);
   PutQuaternion(camera, "rotation", cam.rotation_xyzw[0], cam.rotation_xyzw[1], cam.rotation_xyzw[2],
                 cam.rotation_xyzw[3]);
 }
