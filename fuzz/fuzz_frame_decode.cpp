@@ -1,12 +1,12 @@
 // libFuzzer target: decoding of frames pushed by clients
-// (server/frame_source.hpp DecodeLiveImage: PNG through cv::imdecode, or raw
+// (pipeline/live_frame_source.hpp DecodeLiveImage: PNG through cv::imdecode, or raw
 // GRAY8 bytes). Contract: returns a CV_8UC1 image of exactly the camera size or
 // throws std::invalid_argument / cv::Exception. OpenCV and libpng are not
 // instrumented, so coverage feedback stops at DecodeLiveImage: this target
 // catches crashes and memory errors, it does not explore libpng in depth.
 #include "core/stereo_camera.hpp"
 #include "fuzz/fuzz_support.hpp"
-#include "server/frame_source.hpp"
+#include "pipeline/live_frame_source.hpp"
 
 #include <opencv2/core.hpp>
 
@@ -30,7 +30,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   }
   const std::string bytes(reinterpret_cast<const char*>(data + 1), size - 1);
   try {
-    const cv::Mat image = locaid::server::DecodeLiveImage(bytes, png, camera, "left");
+    const cv::Mat image = locaid::pipeline::DecodeLiveImage(bytes, png, camera, "left");
     LOCAID_FUZZ_CHECK(image.type() == CV_8UC1, "decoded image is not CV_8UC1");
     LOCAID_FUZZ_CHECK(image.cols == camera.width && image.rows == camera.height,
                       "decoded image has the wrong size");

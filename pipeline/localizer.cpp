@@ -31,11 +31,16 @@ fusion::EkfConfig EffectiveEkfConfig(const LocalizerOptions& options, const fusi
 
 Localizer::Localizer(const StereoCamera& camera, const Eigen::Isometry3d& T_cam0_imu,
                      fusion::Scenario scenario, LocalizerOptions options)
-    : camera_(camera), T_cam0_imu_(T_cam0_imu), options_(std::move(options)),
+    : Localizer(camera, T_cam0_imu, std::move(scenario), options,
+                options.vo_method.empty() || options.vo_method == "none"
+                    ? nullptr
+                    : vo::MakeStereoOdometry(options.vo_method, camera)) {}
+
+Localizer::Localizer(const StereoCamera& camera, const Eigen::Isometry3d& T_cam0_imu, fusion::Scenario scenario,
+                     LocalizerOptions options, std::unique_ptr<vo::StereoOdometry> odometry)
+    : camera_(camera), T_cam0_imu_(T_cam0_imu), options_(std::move(options)), vo_(std::move(odometry)),
       scenario_(std::move(scenario)) {
   fusion::ValidateScenario(scenario_);
-  if (!options_.vo_method.empty() && options_.vo_method != "none")
-    vo_ = vo::MakeStereoOdometry(options_.vo_method, camera_);
   Reset();
 }
 
@@ -99,6 +104,13 @@ void Localizer::ApplyPendingControls() {
 }
 
 bool Localizer::has_enu_origin() const { return ekf_->enu().has_origin(); }
+bool Localizer::origin(double* lat_deg, double* lon_deg, double* alt_m) const {
+  if (!has_enu_origin()) return false;
+  *lat_deg = ekf_->enu().origin_lat_deg();
+  *lon_deg = ekf_->enu().origin_lon_deg();
+  *alt_m = ekf_->enu().origin_alt_m();
+  return true;
+}
 Eigen::Vector3d Localizer::ToEnu(double lat, double lon, double alt) const {
   return ekf_->enu().ToEnu(lat, lon, alt);
 }
@@ -119,15 +131,11 @@ FrameResult Localizer::Process(const vo::StereoFrame& frame,
   const auto t0 = std::chrono::steady_clock::now();
   vo::RelativeMotion motion = TrackVo(frame);
   const double vo_ms = MsSince(t0);
-  FrameResult r = Fuse(motion, oxts);
-  r.vo_ms = vo_ms;
-  return r;
-}
-
-FrameResult Localizer::Fuse(const vo::RelativeMotion& vo_cam, std::span<const kitti::OxtsSample> oxts) {
   SensorBatch batch;
   batch.oxts.assign(oxts.begin(), oxts.end());
-  return Fuse(vo_cam, batch);
+  FrameResult r = Fuse(motion, batch);
+  r.vo_ms = vo_ms;
+  return r;
 }
 
 FrameResult Localizer::FuseSensors(const SensorBatch& batch) {

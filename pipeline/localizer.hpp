@@ -1,11 +1,12 @@
 // Per-frame localizer: stereo VO + scenario-degraded GPS (+ IMU) -> EKF ->
-// FusedPose. Shared by locaid-replay and the gRPC server (one per session).
+// FusedPose. The estimator the frame loop (frame_loop.hpp) runs for
+// locaid-replay and for every session of the gRPC server.
 //
 // What reaches the filter: OXTS accelerations / angular rates (as IMU,
 // optionally degraded to MEMS grade) and the GPS fix degraded by the scenario.
 // OXTS attitude, velocity and the raw position never do.
 //
-// Threading: Process / TrackVo / Fuse / Reset must be called from one thread
+// Threading: Process / FuseSensors / Reset must be called from one thread
 // (the session's). The outage controls and SetScenario may be called from any
 // thread; they take effect at the next Process / Fuse.
 #pragma once
@@ -68,36 +69,50 @@ struct FrameResult {
   double vo_ms = 0, fusion_ms = 0;    // wall time of the two stages
 };
 
-class Localizer {
+// What the frame loop drives, one frame (or batch of sensor data) at a time.
+// Localizer is the one the service and locaid-replay run; tests and
+// benchmarks plug in their own.
+class Estimator {
+ public:
+  virtual ~Estimator() = default;
+  // VO + fusion of one frame. oxts_since_last_frame: the OXTS samples with
+  // t_prev_frame < t_ns <= frame.t_ns, in time order (may be empty).
+  virtual FrameResult Process(const vo::StereoFrame& frame,
+                              std::span<const kitti::OxtsSample> oxts_since_last_frame) = 0;
+  // Sensor data between frames (live input), fused now in time order; the
+  // result has no pose, only the GPS feeds and IMU count.
+  virtual FrameResult FuseSensors(const SensorBatch& batch) = 0;
+  // Run-time outages, absolute times on the frame clock.
+  virtual void ScheduleOutage(int64_t start_ns, int64_t end_ns) = 0;
+  virtual void StartOutageNow() = 0;
+  virtual void StopOutageNow() = 0;
+  // Replaces the degradation scenario (new seed/noise; keeps the filter state
+  // and the run-time outages). Throws std::invalid_argument if invalid.
+  virtual void SetScenario(fusion::Scenario scenario) = 0;
+  // The filter's ENU origin (the first degraded fix) once it has one.
+  virtual bool origin(double* lat_deg, double* lon_deg, double* alt_m) const = 0;
+};
+
+class Localizer final : public Estimator {
  public:
   // T_cam0_imu: cam0 <- imu extrinsic (StereoDataset::T_cam0_imu()).
   // Throws std::invalid_argument for an unknown VO method or a bad scenario.
   Localizer(const StereoCamera& camera, const Eigen::Isometry3d& T_cam0_imu,
             fusion::Scenario scenario, LocalizerOptions options = {});
-  ~Localizer();
+  // With the given odometry instead of options.vo_method's (e.g. recorded
+  // VO results replayed).
+  Localizer(const StereoCamera& camera, const Eigen::Isometry3d& T_cam0_imu, fusion::Scenario scenario,
+            LocalizerOptions options, std::unique_ptr<vo::StereoOdometry> odometry);
+  ~Localizer() override;
 
-  // VO + fusion of one frame. oxts_since_last_frame: the OXTS samples with
-  // t_prev_frame < t_ns <= frame.t_ns, in time order (may be empty).
   FrameResult Process(const vo::StereoFrame& frame,
-                      std::span<const kitti::OxtsSample> oxts_since_last_frame);
-
-  // The two halves of Process, for callers that run VO on another thread
-  // (TrackVo is the only part that touches the images).
-  vo::RelativeMotion TrackVo(const vo::StereoFrame& frame);
-  FrameResult Fuse(const vo::RelativeMotion& vo_cam,
-                   std::span<const kitti::OxtsSample> oxts_since_last_frame);
-  FrameResult Fuse(const vo::RelativeMotion& vo_cam, const SensorBatch& since_last_frame);
-  // Sensor data between frames (live input), fused now in time order; the
-  // result has no pose, only the GPS feeds and IMU count.
-  FrameResult FuseSensors(const SensorBatch& batch);
-
-  // Run-time outages, absolute times on the frame clock.
-  void ScheduleOutage(int64_t start_ns, int64_t end_ns);
-  void StartOutageNow();
-  void StopOutageNow();
-  // Replaces the degradation scenario (new seed/noise; keeps the filter state
-  // and the run-time outages). Throws std::invalid_argument if invalid.
-  void SetScenario(fusion::Scenario scenario);
+                      std::span<const kitti::OxtsSample> oxts_since_last_frame) override;
+  FrameResult FuseSensors(const SensorBatch& batch) override;
+  void ScheduleOutage(int64_t start_ns, int64_t end_ns) override;
+  void StartOutageNow() override;
+  void StopOutageNow() override;
+  void SetScenario(fusion::Scenario scenario) override;
+  bool origin(double* lat_deg, double* lon_deg, double* alt_m) const override;
   fusion::Scenario scenario() const;
 
   // Drops the filter and VO state (new drive).
@@ -110,6 +125,8 @@ class Localizer {
   const Eigen::Isometry3d& T_cam0_imu() const { return T_cam0_imu_; }
 
  private:
+  vo::RelativeMotion TrackVo(const vo::StereoFrame& frame);
+  FrameResult Fuse(const vo::RelativeMotion& vo_cam, const SensorBatch& since_last_frame);
   void ApplyPendingControls();
   void FeedSensors(const SensorBatch& batch, FrameResult& r);
   void FeedImu(const fusion::ImuSample& imu, FrameResult& r);

@@ -17,7 +17,7 @@ int64_t SteadyNowNs() {
 
 }  // namespace
 
-GpsdReceiver::GpsdReceiver(GpsdEndpoint endpoint, LiveFrameSource* sink)
+GpsdReceiver::GpsdReceiver(GpsdEndpoint endpoint, pipeline::LiveFrameSource* sink)
     : endpoint_(std::move(endpoint)), sink_(sink), thread_([this] { Run(); }) {}
 
 GpsdReceiver::~GpsdReceiver() {
@@ -29,7 +29,7 @@ GpsdReceiver::~GpsdReceiver() {
   thread_.join();
 }
 
-void GpsdReceiver::AddStats(LiveInputStats& stats) const {
+void GpsdReceiver::AddStats(pipeline::LiveInputStats& stats) const {
   std::lock_guard lock(mu_);
   stats.has_gpsd = true;
   stats.gpsd_connected = connected_;
@@ -81,8 +81,8 @@ void GpsdReceiver::Run() {
           // that completes it); the first report of an epoch is the fix.
           if (report.t_ns <= last_t_ns) continue;
           last_t_ns = report.t_ns;
-          LiveItem item;
-          item.kind = LiveItem::Kind::kGps;
+          pipeline::LiveItem item;
+          item.kind = pipeline::LiveItem::Kind::kGps;
           item.arrival_steady_ns = SteadyNowNs();
           if (auto fix = sensors::FixFromGpsd(report)) {
             item.t_ns = fix->t_ns;

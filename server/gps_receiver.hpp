@@ -1,10 +1,10 @@
 // A live session's GPS receiver read by the server itself: a gpsd daemon
-// watched on one thread of its own (owned by the session's pipeline). Fixes go
+// watched on one thread of its own (owned by the live source it feeds). Fixes go
 // to the session's LiveFrameSource without blocking; a lost connection is
 // counted and retried with backoff.
 #pragma once
 
-#include "server/frame_source.hpp"
+#include "pipeline/live_frame_source.hpp"
 
 #include <atomic>
 #include <condition_variable>
@@ -20,25 +20,25 @@ struct GpsdEndpoint {
   uint16_t port = 2947;
 };
 
-class GpsdReceiver {
+class GpsdReceiver final : public pipeline::InputFeeder {
  public:
   // Backoff between connection attempts: 0.5 s, doubling up to 5 s.
   static constexpr double kFirstBackoffS = 0.5, kMaxBackoffS = 5.0;
   // `sink` must outlive the receiver.
-  GpsdReceiver(GpsdEndpoint endpoint, LiveFrameSource* sink);
-  ~GpsdReceiver();  // stops and joins the thread
+  GpsdReceiver(GpsdEndpoint endpoint, pipeline::LiveFrameSource* sink);
+  ~GpsdReceiver() override;  // stops and joins the thread
   GpsdReceiver(const GpsdReceiver&) = delete;
   GpsdReceiver& operator=(const GpsdReceiver&) = delete;
 
-  // Connection figures, merged into the session's LiveInputStats. Any thread.
-  void AddStats(LiveInputStats& stats) const;
+  // Connection figures, merged into the session's input stats. Any thread.
+  void AddStats(pipeline::LiveInputStats& stats) const override;
 
  private:
   void Run();
   bool SleepFor(double seconds);  // false when stopping
 
   const GpsdEndpoint endpoint_;
-  LiveFrameSource* const sink_;
+  pipeline::LiveFrameSource* const sink_;
   mutable std::mutex mu_;
   std::condition_variable cv_;
   bool stop_ = false;

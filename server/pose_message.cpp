@@ -29,8 +29,8 @@ locaid::v1::VoStatus ToProtoVo(vo::Status s) {
 
 }  // namespace
 
-void FillPoseUpdate(const StepResult& r, double latency_ms, locaid::v1::PoseUpdate* out) {
-  const fusion::FusedPose& p = r.pose;
+void FillPoseUpdate(const pipeline::StepResult& r, double latency_ms, locaid::v1::PoseUpdate* out) {
+  const fusion::FusedPose& p = r.frame.pose;
   out->set_frame_index(r.frame_index);
   out->set_t_ns(p.t_ns);
   const Eigen::Vector3d t = p.T_enu_body.translation();
@@ -58,14 +58,14 @@ void FillPoseUpdate(const StepResult& r, double latency_ms, locaid::v1::PoseUpda
   }
   out->set_mode(ToProtoMode(p.mode));
   out->set_seconds_since_gps(p.seconds_since_gps);
-  out->set_vo_inliers(r.vo_inliers);
-  out->set_vo_status(ToProtoVo(r.vo_status));
+  out->set_vo_inliers(r.frame.vo.inliers);
+  out->set_vo_status(ToProtoVo(r.frame.vo.status));
   out->set_gps_used(static_cast<uint32_t>(std::max(0, p.gps_used)));
   out->set_gps_rejected(static_cast<uint32_t>(std::max(0, p.gps_rejected)));
   out->set_gps_resets(static_cast<uint32_t>(std::max(0, p.gps_resets)));
-  out->set_gps_outage_active(r.gps_outage_active);
+  out->set_gps_outage_active(r.frame.in_outage);
   out->set_processing_latency_ms(latency_ms);
-  for (const FixSeen& f : r.gps_fixes) {
+  for (const pipeline::GpsFeed& f : r.frame.gps_feeds) {
     auto* g = out->add_gps_fixes();
     g->set_t_ns(f.fix.t_ns);
     g->set_latitude_deg(f.fix.lat_deg);
@@ -73,7 +73,7 @@ void FillPoseUpdate(const StepResult& r, double latency_ms, locaid::v1::PoseUpda
     g->set_altitude_m(f.fix.alt_m);
     g->set_sigma_horizontal_m(f.fix.horizontal_sigma_m());
     g->set_sigma_vertical_m(f.fix.vertical_sigma_m());
-    g->set_used(f.used);
+    g->set_used(f.accepted);
     g->set_rejected_vertical(f.rejected_vertical);
     g->set_nis(f.nis);
     g->set_gate(f.gate);
@@ -96,13 +96,6 @@ void FillPoseUpdate(const StepResult& r, double latency_ms, locaid::v1::PoseUpda
     out->set_truth_altitude_m(r.truth->alt_m);
     out->set_horizontal_error_m((t - T.translation()).head<2>().norm());
   }
-}
-
-std::vector<FixSeen> FixesSeen(const pipeline::FrameResult& r) {
-  std::vector<FixSeen> out;
-  out.reserve(r.gps_feeds.size());
-  for (const auto& f : r.gps_feeds) out.push_back({f.fix, f.accepted, f.rejected_vertical, f.nis, f.gate});
-  return out;
 }
 
 }  // namespace locaid::server

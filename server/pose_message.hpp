@@ -4,16 +4,10 @@
 #pragma once
 
 #include "locaid/v1/localization.pb.h"
-#include "pipeline/localizer.hpp"
-#include "server/session_pipeline.hpp"
-
-#include <vector>
+#include "pipeline/frame_loop.hpp"
 
 namespace locaid::server {
 
-void FillPoseUpdate(const StepResult& r, double latency_ms, locaid::v1::PoseUpdate* out);
-
-// The fixes a Localizer call fed to the filter, as a pose reports them.
-std::vector<FixSeen> FixesSeen(const pipeline::FrameResult& r);
+void FillPoseUpdate(const pipeline::StepResult& r, double latency_ms, locaid::v1::PoseUpdate* out);
 
 }  // namespace locaid::server

@@ -37,8 +37,8 @@ std::string Sigma(const char* field, double v, double fallback, double* out) {
 
 }  // namespace
 
-std::string ImuItemFromProto(const v1::ImuSample& in, LiveItem* out) {
-  out->kind = LiveItem::Kind::kImu;
+std::string ImuItemFromProto(const v1::ImuSample& in, pipeline::LiveItem* out) {
+  out->kind = pipeline::LiveItem::Kind::kImu;
   out->t_ns = in.t_ns();
   out->imu.t_ns = in.t_ns();
   if (!Vec(in.accel_mps2(), &out->imu.accel_mps2)) return "accel_mps2: not finite";
@@ -52,8 +52,8 @@ std::string ImuItemFromProto(const v1::ImuSample& in, LiveItem* out) {
   return Sigma("gyro_noise_radps_sqrt_hz", in.gyro_noise_radps_sqrt_hz(), 0, &out->imu.gyro_noise_radps_sqrt_hz);
 }
 
-std::string GpsItemFromProto(const v1::GpsFix& in, LiveItem* out) {
-  out->kind = LiveItem::Kind::kGps;
+std::string GpsItemFromProto(const v1::GpsFix& in, pipeline::LiveItem* out) {
+  out->kind = pipeline::LiveItem::Kind::kGps;
   out->t_ns = in.t_ns();
   fusion::GpsFix& f = out->gps;
   f.t_ns = in.t_ns();

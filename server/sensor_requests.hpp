@@ -4,7 +4,7 @@
 #pragma once
 
 #include "locaid/v1/localization.pb.h"
-#include "server/frame_source.hpp"
+#include "pipeline/live_frame_source.hpp"
 
 #include <string>
 
@@ -12,7 +12,7 @@ namespace locaid::server {
 
 // Both return "" and fill `out`, or the reason the message is refused (the
 // stream answers it with PushRejected and goes on).
-std::string ImuItemFromProto(const locaid::v1::ImuSample& in, LiveItem* out);
-std::string GpsItemFromProto(const locaid::v1::GpsFix& in, LiveItem* out);
+std::string ImuItemFromProto(const locaid::v1::ImuSample& in, pipeline::LiveItem* out);
+std::string GpsItemFromProto(const locaid::v1::GpsFix& in, pipeline::LiveItem* out);
 
 }  // namespace locaid::server

@@ -147,8 +147,8 @@ std::vector<std::shared_ptr<Session>> LocalizationService::PruneEndedLocked() {
   return pruned;
 }
 
-Status LocalizationService::AddSession(SessionOptions options, std::unique_ptr<SessionPipeline> pipeline,
-                                       LiveFrameSource* live, std::string* id) {
+Status LocalizationService::AddSession(SessionOptions options, std::unique_ptr<pipeline::Pipeline> pipeline,
+                                       pipeline::LiveFrameSource* live, std::string* id) {
   std::vector<std::shared_ptr<Session>> pruned;  // destroyed after the lock
   std::lock_guard lock(mu_);
   pruned = PruneEndedLocked();
@@ -293,16 +293,16 @@ grpc::ServerUnaryReactor* LocalizationService::InjectOutage(grpc::CallbackServer
   }
   switch (req->action()) {
     case v1::InjectOutageRequest::START_NOW:
-      session->Post([duration_s](SessionPipeline& p) { p.StartOutageNow(duration_s); });
+      session->Post([duration_s](pipeline::Pipeline& p) { p.StartOutageNow(duration_s); });
       break;
     case v1::InjectOutageRequest::STOP_NOW:
-      session->Post([](SessionPipeline& p) { p.StopOutage(); });
+      session->Post([](pipeline::Pipeline& p) { p.StopOutage(); });
       break;
     case v1::InjectOutageRequest::WINDOW:
       if (start_s < 0 || duration_s <= 0) {
         return Reply(ctx, Invalid("WINDOW: start_s must be >= 0 and duration_s > 0"));
       }
-      session->Post([start_s, duration_s](SessionPipeline& p) { p.AddOutageWindow(start_s, duration_s); });
+      session->Post([start_s, duration_s](pipeline::Pipeline& p) { p.AddOutageWindow(start_s, duration_s); });
       break;
     default:
       return Reply(ctx, Invalid("action: must be START_NOW, STOP_NOW or WINDOW"));
@@ -321,7 +321,7 @@ grpc::ServerUnaryReactor* LocalizationService::SetScenario(grpc::CallbackServerC
   fusion::Scenario scenario;
   std::string name;
   if (Status s = ResolveScenario(req->scenario(), &scenario, &name); !s.ok()) return Reply(ctx, s);
-  session->Post([scenario](SessionPipeline& p) { p.SetScenario(scenario); });
+  session->Post([scenario](pipeline::Pipeline& p) { p.SetScenario(scenario); });
   session->set_scenario_name(name);
   *resp = session->ToProto();
   return Reply(ctx, Status::OK);

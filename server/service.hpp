@@ -5,7 +5,8 @@
 #include "server/config.hpp"
 #include "server/metrics.hpp"
 #include "server/session.hpp"
-#include "server/source_pipeline.hpp"
+#include "pipeline/live_frame_source.hpp"
+#include "pipeline/localizer.hpp"
 
 #include <grpcpp/grpcpp.h>
 
@@ -22,7 +23,19 @@
 
 namespace locaid::server {
 
-class LiveFrameSource;
+// What a session's estimator is built from.
+struct EstimatorSetup {
+  StereoCamera camera;
+  Eigen::Isometry3d T_cam0_imu = Eigen::Isometry3d::Identity();
+  fusion::Scenario scenario;
+  std::string vo_method = "default";
+  Eigen::Vector3d gps_antenna_body_m = Eigen::Vector3d::Zero();  // lever arm (live sources)
+};
+// Builds a session's estimator; throws std::invalid_argument (unknown VO
+// method, bad scenario). Tests and benchmarks pass their own.
+using EstimatorFactory = std::function<std::unique_ptr<pipeline::Estimator>(const EstimatorSetup&)>;
+// The production one: a pipeline::Localizer.
+std::unique_ptr<pipeline::Estimator> MakeLocalizer(const EstimatorSetup& setup);
 
 // Something that streams to a client and can be woken by the hub or ended by
 // the server. Reached through a Waker so callbacks never touch a deleted
@@ -123,7 +136,7 @@ class LocalizationService final
   grpc::Status FindSession(const std::string& id, std::shared_ptr<Session>* out,
                            std::shared_ptr<PoseEncodings>* encodings = nullptr) const;
   grpc::Status StartLive(const locaid::v1::PushStart& start, std::shared_ptr<Session>* session,
-                         LiveFrameSource** live);
+                         pipeline::LiveFrameSource** live);
   void Register(const std::shared_ptr<Waker>& waker);
   void Unregister(const std::shared_ptr<Waker>& waker);
   const ServerConfig& config() const { return config_; }
@@ -132,14 +145,14 @@ class LocalizationService final
  private:
   struct Entry {
     std::shared_ptr<Session> session;
-    LiveFrameSource* live = nullptr;  // owned by the session's pipeline
+    pipeline::LiveFrameSource* live = nullptr;  // owned by the session's pipeline
     bool live_attached = false;
     std::shared_ptr<PoseEncodings> encodings = std::make_shared<PoseEncodings>();
   };
   grpc::Status DoStart(const locaid::v1::StartSessionRequest& req, std::string* id);
   grpc::Status ResolveScenario(const locaid::v1::Scenario& s, fusion::Scenario* out, std::string* name) const;
-  grpc::Status AddSession(SessionOptions options, std::unique_ptr<SessionPipeline> pipeline,
-                          LiveFrameSource* live, std::string* id);
+  grpc::Status AddSession(SessionOptions options, std::unique_ptr<pipeline::Pipeline> pipeline,
+                          pipeline::LiveFrameSource* live, std::string* id);
 
  public:
   // Everything /metrics serves, read now (server/metrics.hpp).
@@ -177,7 +190,7 @@ class LocalizationServer {
   // Builds and starts the server; throws ConfigError / std::runtime_error
   // (e.g. "listen 127.0.0.1:80: cannot bind", "listen_unix '/run/x.sock':
   // exists and is a regular file, not a socket; not replacing it").
-  LocalizationServer(ServerConfig config, EstimatorFactory estimator_factory = MakeLocalizerEstimator);
+  LocalizationServer(ServerConfig config, EstimatorFactory estimator_factory = MakeLocalizer);
   ~LocalizationServer();
   int port() const { return port_; }
   // "unix:PATH" when config.listen_unix is set, else empty.

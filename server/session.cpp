@@ -20,7 +20,7 @@ int64_t UnixNowNs() {
       .count();
 }
 
-Session::Session(SessionOptions options, std::unique_ptr<SessionPipeline> pipeline)
+Session::Session(SessionOptions options, std::unique_ptr<pipeline::Pipeline> pipeline)
     : options_(std::move(options)),
       pipeline_(std::move(pipeline)),
       hub_(options_.history_size),
@@ -98,16 +98,16 @@ bool Session::Pace(int64_t t_ns) {
   return !stop_;
 }
 
-void Session::Record(const StepResult& r, double latency_ms) {
+void Session::Record(const pipeline::StepResult& r, double latency_ms) {
   std::lock_guard lock(stats_mu_);
-  if (r.kind != StepResult::Kind::kIdle && r.kind != StepResult::Kind::kEnd && r.kind != StepResult::Kind::kFused) {
+  if (r.kind != pipeline::StepResult::Kind::kIdle && r.kind != pipeline::StepResult::Kind::kEnd && r.kind != pipeline::StepResult::Kind::kFused) {
     stats_.set_frames_in(stats_.frames_in() + 1);
   }
   stats_.set_oxts_bad_lines(stats_.oxts_bad_lines() + static_cast<uint64_t>(std::max(0, r.oxts_bad_lines)));
   if (!r.error.empty()) stats_.set_last_input_error(r.error);
-  if (r.kind == StepResult::Kind::kSkipped) stats_.set_frames_skipped(stats_.frames_skipped() + 1);
-  if (r.kind == StepResult::Kind::kCorrupt) stats_.set_frames_corrupt(stats_.frames_corrupt() + 1);
-  if (r.kind == StepResult::Kind::kPose) {
+  if (r.kind == pipeline::StepResult::Kind::kSkipped) stats_.set_frames_skipped(stats_.frames_skipped() + 1);
+  if (r.kind == pipeline::StepResult::Kind::kCorrupt) stats_.set_frames_corrupt(stats_.frames_corrupt() + 1);
+  if (r.kind == pipeline::StepResult::Kind::kPose) {
     stats_.set_frames_processed(stats_.frames_processed() + 1);
     latency_sum_ms_ += latency_ms;
     stats_.set_latency_mean_ms(latency_sum_ms_ / static_cast<double>(stats_.frames_processed()));
@@ -118,14 +118,14 @@ void Session::Record(const StepResult& r, double latency_ms) {
     if (!has_origin_) {
       has_origin_ = pipeline_->origin(&origin_[0], &origin_[1], &origin_[2]);
     }
-    const fusion::FusedPose& p = r.pose;
+    const fusion::FusedPose& p = r.frame.pose;
     last_.has_pose = true;
     last_.mode = p.mode;
     last_.seconds_since_gps = p.seconds_since_gps;
     last_.last_gps_nis = p.last_gps_nis;
     last_.gps_gate = p.gps_gate;
     last_.position_sigma_h_m = std::sqrt(std::max(0.0, p.covariance(0, 0) + p.covariance(1, 1)));
-    last_.vo_inliers = r.vo_inliers;
+    last_.vo_inliers = r.frame.vo.inliers;
     last_.gps_used = p.gps_used;
     last_.gps_rejected = p.gps_rejected;
     const double latency_s = latency_ms / 1000.0;
@@ -140,22 +140,22 @@ void Session::Run() {
     while (!stop_) {
       RunCommands();
       const auto t0 = Clock::now();
-      StepResult r = pipeline_->Step();
+      pipeline::StepResult r = pipeline_->Step();
       const auto t1 = Clock::now();
       auto starting = locaid::v1::SESSION_STATE_STARTING;
       if (pipeline_->ready()) state_.compare_exchange_strong(starting, locaid::v1::SESSION_STATE_RUNNING);
-      if (r.kind == StepResult::Kind::kEnd) {
+      if (r.kind == pipeline::StepResult::Kind::kEnd) {
         if (!stop_) state_ = locaid::v1::SESSION_STATE_FINISHED;
         break;
       }
-      if (r.kind == StepResult::Kind::kIdle || r.kind == StepResult::Kind::kFused) {
+      if (r.kind == pipeline::StepResult::Kind::kIdle || r.kind == pipeline::StepResult::Kind::kFused) {
         if (r.oxts_bad_lines > 0) Record(r, 0);
         continue;
       }
       double latency_ms = r.processing_ms >= 0
                               ? r.processing_ms
                               : std::chrono::duration<double, std::milli>(t1 - t0).count();
-      if (r.kind != StepResult::Kind::kPose) {
+      if (r.kind != pipeline::StepResult::Kind::kPose) {
         Record(r, latency_ms);
         continue;
       }
@@ -213,7 +213,7 @@ locaid::v1::SessionStats Session::Stats() const {
       s.set_fps(span_s > 0 ? static_cast<double>(n - 1) / span_s : 0.0);
     }
   }
-  const LiveInputStats in = pipeline_->input_stats();
+  const pipeline::LiveInputStats in = pipeline_->input_stats();
   s.set_imu_samples(in.imu_samples);
   s.set_gps_fixes_in(in.gps_fixes_in);
   s.set_gps_fixes_late(in.gps_fixes_late);

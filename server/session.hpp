@@ -1,10 +1,10 @@
-// One localization session: a SessionPipeline run by one thread, started by
+// One localization session: a pipeline::Pipeline (pipeline/frame_loop.hpp) run by one thread, started by
 // Start() and joined by Join()/the destructor, publishing into a PoseHub.
 #pragma once
 
 #include "locaid/v1/localization.pb.h"
 #include "server/pose_hub.hpp"
-#include "server/session_pipeline.hpp"
+#include "pipeline/frame_loop.hpp"
 
 #include <array>
 #include <atomic>
@@ -34,9 +34,9 @@ struct SessionOptions {
 
 class Session {
  public:
-  using Command = std::function<void(SessionPipeline&)>;
+  using Command = std::function<void(pipeline::Pipeline&)>;
 
-  Session(SessionOptions options, std::unique_ptr<SessionPipeline> pipeline);
+  Session(SessionOptions options, std::unique_ptr<pipeline::Pipeline> pipeline);
   ~Session();  // Stop() + Join()
   Session(const Session&) = delete;
   Session& operator=(const Session&) = delete;
@@ -82,10 +82,10 @@ class Session {
   // Sleeps until the wall time at which sensor time t_ns is due; false if
   // stopped meanwhile.
   bool Pace(int64_t t_ns);
-  void Record(const StepResult& r, double latency_ms);
+  void Record(const pipeline::StepResult& r, double latency_ms);
 
   SessionOptions options_;
-  std::unique_ptr<SessionPipeline> pipeline_;
+  std::unique_ptr<pipeline::Pipeline> pipeline_;
   Hub hub_;
   std::thread thread_;
   const int64_t created_unix_ns_;

@@ -6,10 +6,13 @@
 
 #include "kitti/dataset.hpp"
 #include "kitti/raw_drive.hpp"
-#include "server/frame_source.hpp"
+#include "pipeline/live_frame_source.hpp"
 #include "server/gps_receiver.hpp"
 #include "server/status.hpp"
 #include "server/synthetic_drive.hpp"
+#include "server/deferred_pipeline.hpp"
+#include "pipeline/frame_source.hpp"
+#include "pipeline/scenario_yaml.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -30,7 +33,7 @@ using grpc::StatusCode;
 
 bool Finite(double x) { return std::isfinite(x); }
 
-Status ParseLiveSource(const v1::LiveSource& l, LiveCameraSetup* out) {
+Status ParseLiveSource(const v1::LiveSource& l, pipeline::LiveCameraSetup* out) {
   for (const auto& [name, v] : {std::pair{"fx", l.fx()}, {"fy", l.fy()}, {"baseline_m", l.baseline_m()}}) {
     if (!Finite(v) || v <= 0) return Invalid(std::string("live.") + name + ": must be finite and > 0, got " + std::to_string(v));
   }
@@ -103,22 +106,31 @@ Status ParseGpsdSource(const v1::LiveSource& l, std::optional<GpsdEndpoint>* out
 
 }  // namespace
 
+std::unique_ptr<pipeline::Estimator> MakeLocalizer(const EstimatorSetup& setup) {
+  pipeline::LocalizerOptions options;
+  options.vo_method = setup.vo_method;
+  options.ekf.gps_lever_arm_body_m = setup.gps_antenna_body_m;
+  return std::make_unique<pipeline::Localizer>(setup.camera, setup.T_cam0_imu, setup.scenario, options);
+}
+
 Status LocalizationService::ResolveScenario(const v1::Scenario& s, fusion::Scenario* out, std::string* name) const {
   try {
     switch (s.kind_case()) {
       case v1::Scenario::kYaml:
-        *out = ScenarioFromYaml(s.yaml());
+        // "yaml" names it (errors read "yaml:LINE: ...") unless it has a name: key.
+        *out = pipeline::ParseScenarioYaml(s.yaml(), "yaml");
         *name = out->name.empty() ? "yaml" : out->name;
         break;
       case v1::Scenario::kName:
-        *out = ScenarioFromName(s.name());
+        *out = fusion::BuiltinScenario(s.name());
         *name = s.name();
         break;
       case v1::Scenario::KIND_NOT_SET:
-        *out = ScenarioFromName(config_.default_scenario);
+        *out = fusion::BuiltinScenario(config_.default_scenario);
         *name = config_.default_scenario;
         break;
     }
+    fusion::ValidateScenario(*out);
   } catch (const std::exception& e) {
     return Invalid(std::string("scenario: ") + e.what());
   }
@@ -143,8 +155,8 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
   setup.vo_method = options.vo_method;
   if (Status s = ResolveScenario(req.scenario(), &setup.scenario, &options.scenario); !s.ok()) return s;
 
-  std::unique_ptr<FrameSource> source;
-  LiveFrameSource* live = nullptr;
+  std::unique_ptr<pipeline::FrameSource> source;
+  pipeline::LiveFrameSource* live = nullptr;
   std::optional<GpsdEndpoint> gpsd;
   try {
     switch (req.source_case()) {
@@ -165,7 +177,7 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
           return Invalid("kitti.last_frame " + std::to_string(k.last_frame()) + ": before first_frame " +
                          std::to_string(k.first_frame()) + " (last_frame <= 0 plays to the end)");
         }
-        // A bad OXTS file mid-drive is skipped and counted (DatasetFrameSource
+        // A bad OXTS file mid-drive is skipped and counted (pipeline::DatasetFrameSource
         // reports it as bad OXTS lines), not a refused drive.
         kitti::RawDriveOptions open_options;
         open_options.skip_bad_oxts = true;
@@ -188,7 +200,7 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
                                                        "] has both a left and a right image (image_00/, image_01/)"};
         }
         options.source = "kitti:" + k.path();
-        source = std::make_unique<DatasetFrameSource>(std::move(dataset), k.first_frame(),
+        source = std::make_unique<pipeline::DatasetFrameSource>(std::move(dataset), k.first_frame(),
                                                       k.last_frame() <= 0 ? -1 : k.last_frame());
         break;
       }
@@ -211,13 +223,13 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
         const std::filesystem::path drive_dir = SyntheticRoot(config_.work_dir) / RandomSessionId();
         auto factory = [drive_dir, seed = s.seed(), frames, yaml = s.options_yaml(), setup,
                         make = estimator_factory_](const std::atomic<bool>& cancel) mutable
-            -> std::unique_ptr<SessionPipeline> {
-          auto src = std::make_unique<DatasetFrameSource>(
+            -> std::unique_ptr<pipeline::Pipeline> {
+          auto src = std::make_unique<pipeline::DatasetFrameSource>(
               MakeSyntheticDrive(drive_dir, seed, frames, yaml, &cancel), 0, -1);
           setup.camera = src->camera();
           setup.T_cam0_imu = src->T_cam0_imu();
-          if (src->duration_s() > 0) setup.scenario = PlaceScenarioOutages(setup.scenario, src->duration_s());
-          return std::make_unique<SourcePipeline>(std::move(src), make(setup));
+          if (src->duration_s() > 0) setup.scenario = fusion::PlaceOutagesForDrive(setup.scenario, src->duration_s());
+          return std::make_unique<pipeline::FrameLoop>(std::move(src), make(setup));
         };
         auto remove_drive = [drive_dir] {
           std::error_code ec;
@@ -229,11 +241,11 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
                           nullptr, id);
       }
       case v1::StartSessionRequest::kLive: {
-        LiveCameraSetup cam;
+        pipeline::LiveCameraSetup cam;
         if (Status st = ParseLiveSource(req.live(), &cam); !st.ok()) return st;
         if (Status st = ParseLeverArm(req.live(), &setup.gps_antenna_body_m); !st.ok()) return st;
         if (Status st = ParseGpsdSource(req.live(), &gpsd); !st.ok()) return st;
-        auto src = std::make_unique<LiveFrameSource>(cam);
+        auto src = std::make_unique<pipeline::LiveFrameSource>(cam);
         live = src.get();
         options.source = gpsd ? "live+gpsd:" + gpsd->host + ":" + std::to_string(gpsd->port) : "live";
         source = std::move(src);
@@ -252,20 +264,20 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
   setup.camera = source->camera();
   setup.T_cam0_imu = source->T_cam0_imu();
   // Scenarios like "tunnel-30s" place their outage relative to the drive.
-  if (source->duration_s() > 0) setup.scenario = PlaceScenarioOutages(setup.scenario, source->duration_s());
-  std::unique_ptr<FrameEstimator> estimator;
+  if (source->duration_s() > 0) setup.scenario = fusion::PlaceOutagesForDrive(setup.scenario, source->duration_s());
+  std::unique_ptr<pipeline::Estimator> estimator;
   try {
     estimator = estimator_factory_(setup);
   } catch (const std::exception& e) {
     return Invalid(std::string("vo_method/scenario: ") + e.what());
   }
-  auto pipeline = std::make_unique<SourcePipeline>(std::move(source), std::move(estimator));
-  if (gpsd) pipeline->set_receiver(std::make_unique<GpsdReceiver>(*gpsd, live));
-  return AddSession(std::move(options), std::move(pipeline), live, id);
+  if (gpsd) live->AttachFeeder(std::make_unique<GpsdReceiver>(*gpsd, live));
+  return AddSession(std::move(options), std::make_unique<pipeline::FrameLoop>(std::move(source), std::move(estimator)),
+                    live, id);
 }
 
 Status LocalizationService::StartLive(const v1::PushStart& start, std::shared_ptr<Session>* session,
-                                      LiveFrameSource** live) {
+                                      pipeline::LiveFrameSource** live) {
   if (!start.session_id().empty()) {
     std::lock_guard lock(mu_);
     auto it = sessions_.find(start.session_id());

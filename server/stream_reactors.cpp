@@ -1,6 +1,6 @@
 #include "server/stream_reactors.hpp"
 
-#include "server/frame_source.hpp"
+#include "pipeline/live_frame_source.hpp"
 #include "server/sensor_requests.hpp"
 #include "server/status.hpp"
 
@@ -220,16 +220,16 @@ class PushReactor final : public HubStream<grpc::ServerBidiReactor<v1::PushReque
           Reject("frame", index, "encoding: must be IMAGE_ENCODING_PNG or IMAGE_ENCODING_GRAY8");
           break;
         }
-        LiveItem item;
-        item.kind = LiveItem::Kind::kFrame;
+        pipeline::LiveItem item;
+        item.kind = pipeline::LiveItem::Kind::kFrame;
         item.t_ns = f.t_ns();
         item.png = f.encoding() == v1::IMAGE_ENCODING_PNG;
         if (item.png) {
           // A PNG declaring another size than the session camera is never
           // decoded (a small file can declare 30000x30000 px): the stream
           // ends with INVALID_ARGUMENT naming both sizes.
-          std::string mismatch = PngSizeMismatch(f.left(), live_->camera(), "left");
-          if (mismatch.empty()) mismatch = PngSizeMismatch(f.right(), live_->camera(), "right");
+          std::string mismatch = pipeline::PngSizeMismatch(f.left(), live_->camera(), "left");
+          if (mismatch.empty()) mismatch = pipeline::PngSizeMismatch(f.right(), live_->camera(), "right");
           if (!mismatch.empty()) {
             // Nothing more is read; the frames before this one are still in
             // the pipeline: their poses are delivered first, then the stream
@@ -247,8 +247,8 @@ class PushReactor final : public HubStream<grpc::ServerBidiReactor<v1::PushReque
         return;
       }
       case v1::PushRequest::kOxts: {
-        LiveItem item;
-        item.kind = LiveItem::Kind::kOxts;
+        pipeline::LiveItem item;
+        item.kind = pipeline::LiveItem::Kind::kOxts;
         item.t_ns = req_.oxts().t_ns();
         item.oxts_line = req_.oxts().line();
         ++oxts_;
@@ -259,7 +259,7 @@ class PushReactor final : public HubStream<grpc::ServerBidiReactor<v1::PushReque
       case v1::PushRequest::kGps: {
         const bool imu = req_.item_case() == v1::PushRequest::kImu;
         const int64_t index = imu ? imu_++ : gps_++;
-        LiveItem item;
+        pipeline::LiveItem item;
         const std::string error = imu ? ImuItemFromProto(req_.imu(), &item) : GpsItemFromProto(req_.gps(), &item);
         if (!error.empty()) {
           Reject(imu ? "imu" : "gps", index, error);
@@ -292,7 +292,7 @@ class PushReactor final : public HubStream<grpc::ServerBidiReactor<v1::PushReque
       return;
     }
     std::shared_ptr<Session> session;
-    LiveFrameSource* live = nullptr;
+    pipeline::LiveFrameSource* live = nullptr;
     const Status status = service_->StartLive(req_.start(), &session, &live);
     std::lock_guard lock(mu_);
     if (!status.ok()) {
@@ -308,7 +308,7 @@ class PushReactor final : public HubStream<grpc::ServerBidiReactor<v1::PushReque
     if (open_locked()) StartRead(&req_);
   }
 
-  void PushToSession(LiveItem item) {
+  void PushToSession(pipeline::LiveItem item) {
     std::weak_ptr<Waker> weak = waker_;
     const bool room = live_->Push(std::move(item), [weak] {
       if (auto w = weak.lock()) w->Resume();
@@ -353,7 +353,7 @@ class PushReactor final : public HubStream<grpc::ServerBidiReactor<v1::PushReque
 
   const std::string peer_;
   v1::PushRequest req_;
-  LiveFrameSource* live_ = nullptr;
+  pipeline::LiveFrameSource* live_ = nullptr;
   std::deque<v1::PushResponse> control_;
   bool reads_done_ = false;
   Status end_status_;  // replaces OK at the end of the stream (a refused frame)

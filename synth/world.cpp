@@ -35,15 +35,7 @@ struct Builder {
     const double su = std::floor(std::min({ua, ub, uc}) / W) * W, sv = std::floor(std::min({va, vb, vc}) / H) * H;
     p.u = {float(ua - su), float(ub - su), float(uc - su), 0};
     p.v = {float(va - sv), float(vb - sv), float(vc - sv), 0};
-    Eigen::Vector3d n = (b - a).cross(c - a);
-    if (n.dot(outward) < 0) {
-      std::swap(p.p[1], p.p[2]);
-      std::swap(p.u[1], p.u[2]);
-      std::swap(p.v[1], p.v[2]);
-      n = -n;
-    }
-    p.shade = shade * Light(n);
-    out->push_back(p);
+    Add(p, (b - a).cross(c - a), outward, shade);
   }
 
   // Rectangle o, o+eu, o+eu+ev, o+ev; texture (u0, v0) at o, u grows along eu,
@@ -62,11 +54,17 @@ struct Builder {
     p.p = {o, o + eu, o + eu + ev, o + ev};
     p.u = {float(u0 - su), float(u0 + du - su), float(u0 + du - su), float(u0 - su)};
     p.v = {float(v0 - sv), float(v0 - sv), float(v0 + dv - sv), float(v0 + dv - sv)};
-    Eigen::Vector3d n = eu.cross(ev);
+    Add(p, eu.cross(ev), outward, shade);
+  }
+
+  // Adds p (normal n) facing `outward`: when n points away, the vertex order
+  // after the first is reversed (swapping vertex 1 and the last one).
+  void Add(Poly p, Eigen::Vector3d n, const Eigen::Vector3d& outward, float shade) {
     if (n.dot(outward) < 0) {
-      std::swap(p.p[1], p.p[3]);
-      std::swap(p.u[1], p.u[3]);
-      std::swap(p.v[1], p.v[3]);
+      const int last = p.n - 1;
+      std::swap(p.p[1], p.p[last]);
+      std::swap(p.u[1], p.u[last]);
+      std::swap(p.v[1], p.v[last]);
       n = -n;
     }
     p.shade = shade * Light(n);

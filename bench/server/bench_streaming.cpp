@@ -41,20 +41,22 @@ using namespace locaid::server;
 
 namespace {
 
-class ConstantEstimator : public FrameEstimator {
+class ConstantEstimator : public locaid::pipeline::Estimator {
  public:
-  Estimate Process(const locaid::vo::StereoFrame& frame, std::span<const locaid::kitti::OxtsSample>) override {
-    Estimate e;
+  locaid::pipeline::FrameResult Process(const locaid::vo::StereoFrame& frame,
+                                        std::span<const locaid::kitti::OxtsSample>) override {
+    locaid::pipeline::FrameResult e;
     e.pose.t_ns = frame.t_ns;
     e.pose.T_enu_body.translation() = Eigen::Vector3d(static_cast<double>(n_++), 0, 0);
     e.pose.mode = locaid::fusion::Mode::kGpsFused;
-    e.vo_status = locaid::vo::Status::kOk;
+    e.vo.status = locaid::vo::Status::kOk;
     return e;
   }
+  locaid::pipeline::FrameResult FuseSensors(const locaid::pipeline::SensorBatch&) override { return {}; }
   void ScheduleOutage(int64_t, int64_t) override {}
   void StartOutageNow() override {}
   void StopOutageNow() override {}
-  void SetScenario(const locaid::fusion::Scenario&) override {}
+  void SetScenario(locaid::fusion::Scenario) override {}
   bool origin(double*, double*, double*) const override { return false; }
 
  private:

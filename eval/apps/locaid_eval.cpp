@@ -37,6 +37,15 @@ std::optional<double> Scaled(const std::optional<double>& v, double factor) {
   return *v * factor;
 }
 
+// PREFIX_rmse_UNIT, PREFIX_mean_UNIT, PREFIX_median_UNIT, PREFIX_max_UNIT.
+void PutStats(nlohmann::ordered_json& j, const std::string& prefix, const ErrorStats& s,
+              const std::string& unit) {
+  j[prefix + "_rmse_" + unit] = s.rmse;
+  j[prefix + "_mean_" + unit] = s.mean;
+  j[prefix + "_median_" + unit] = s.median;
+  j[prefix + "_max_" + unit] = s.max;
+}
+
 nlohmann::ordered_json OrNull(const std::optional<double>& v) {
   return v ? nlohmann::ordered_json(*v) : nlohmann::ordered_json(nullptr);
 }
@@ -80,19 +89,10 @@ nlohmann::ordered_json ToJson(const EvalReport& r, const std::string& gt, const 
   }
   j["per_length"] = per_length;
   j["align"] = align;
-  j["ate_rmse_m"] = r.ate.trans_m.rmse;
-  j["ate_mean_m"] = r.ate.trans_m.mean;
-  j["ate_median_m"] = r.ate.trans_m.median;
-  j["ate_max_m"] = r.ate.trans_m.max;
+  PutStats(j, "ate", r.ate.trans_m, "m");
   j["rpe_pairs"] = r.rpe.trans_m.count;
-  j["rpe_trans_rmse_m"] = r.rpe.trans_m.rmse;
-  j["rpe_trans_mean_m"] = r.rpe.trans_m.mean;
-  j["rpe_trans_median_m"] = r.rpe.trans_m.median;
-  j["rpe_trans_max_m"] = r.rpe.trans_m.max;
-  j["rpe_rot_rmse_deg"] = r.rpe.rot_deg.rmse;
-  j["rpe_rot_mean_deg"] = r.rpe.rot_deg.mean;
-  j["rpe_rot_median_deg"] = r.rpe.rot_deg.median;
-  j["rpe_rot_max_deg"] = r.rpe.rot_deg.max;
+  PutStats(j, "rpe_trans", r.rpe.trans_m, "m");
+  PutStats(j, "rpe_rot", r.rpe.rot_deg, "deg");
   return j;
 }
 

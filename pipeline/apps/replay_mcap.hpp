@@ -4,22 +4,17 @@
 #pragma once
 
 #include "foxglove/mcap_recording.hpp"
-#include "pipeline/localizer.hpp"
-
-#include <Eigen/Geometry>
+#include "pipeline/frame_loop.hpp"
 
 #include <filesystem>
-#include <optional>
 
 namespace locaid::pipeline {
 
 class ReplayMcap {
  public:
   explicit ReplayMcap(const std::filesystem::path& path) : recording_(path) {}
-  // One replayed frame; truth_enu: the ground-truth pose in the filter's ENU
-  // frame (when known) and its WGS84 position.
-  void Add(int64_t frame_index, const FrameResult& r, const std::optional<Eigen::Isometry3d>& truth_enu,
-           double truth_lat, double truth_lon, double truth_alt);
+  // One pose of the frame loop (kind kPose), ground truth included.
+  void Add(const StepResult& step);
   void Close() { recording_.Close(); }
   uint64_t poses() const { return recording_.poses(); }
 

@@ -6,7 +6,7 @@
 #include "test_support.hpp"
 
 #include "kitti/raw_drive.hpp"
-#include "server/frame_source.hpp"
+#include "pipeline/frame_loop.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -277,11 +277,12 @@ TEST(FaultTest, DatasetSourceCountsTheOxtsFilesTheReaderSkipped) {
     expected_oxts += o.t_ns >= reference->time_ns(0) && o.t_ns <= reference->time_ns(11) ? 1 : 0;
   }
   ASSERT_EQ(reference->oxts().size(), 10u);  // 12 records, 2 unreadable
-  DatasetFrameSource source(kitti::OpenDataset(drive, options), 0, -1);
+  pipeline::DatasetFrameSource source(kitti::OpenDataset(drive, options), 0, -1);
   int bad = 0, frames = 0;
   size_t oxts = 0;
   std::string first_error;
-  for (SourceItem item = source.Next(); item.kind != SourceItem::Kind::kEnd; item = source.Next()) {
+  using Item = pipeline::SourceItem;
+  for (Item item = source.Next(); item.kind != Item::Kind::kEnd; item = source.Next()) {
     if (frames++ == 0) first_error = item.error;
     bad += item.oxts_bad_lines;
     oxts += item.oxts.size();
@@ -310,13 +311,14 @@ TEST(FaultTest, OxtsOfSkippedFramesReachTheEstimatorWithTheNextFrame) {
     expected += o.t_ns >= reference->time_ns(0) && o.t_ns <= reference->time_ns(kFrames - 1) ? 1 : 0;
   }
   ASSERT_GE(expected, kFrames - 1);
-  SourcePipeline pipeline(std::make_unique<DatasetFrameSource>(kitti::OpenDataset(drive), 0, -1),
-                          std::make_unique<FakeEstimator>());  // gps_used = OXTS samples given so far
+  pipeline::FrameLoop loop(std::make_unique<pipeline::DatasetFrameSource>(kitti::OpenDataset(drive), 0, -1),
+                           std::make_unique<FakeEstimator>());  // gps_used = OXTS samples given so far
   int poses = 0, skipped = 0, gps_used = 0;
-  for (StepResult r = pipeline.Step(); r.kind != StepResult::Kind::kEnd; r = pipeline.Step()) {
-    if (r.kind == StepResult::Kind::kPose) {
+  using Step = pipeline::StepResult;
+  for (Step r = loop.Step(); r.kind != Step::Kind::kEnd; r = loop.Step()) {
+    if (r.kind == Step::Kind::kPose) {
       ++poses;
-      gps_used = r.pose.gps_used;
+      gps_used = r.frame.pose.gps_used;
     } else {
       ++skipped;
     }

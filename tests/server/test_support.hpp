@@ -43,13 +43,13 @@ namespace v1 = locaid::v1;
 // Moves 1 m east per frame. Mode: VO_ONLY inside an outage (forced or a
 // scheduled window on the frame clock), else GPS_FUSED. Counts OXTS samples
 // it was given as "GPS used", so tests can see that OXTS reached it.
-class FakeEstimator : public FrameEstimator {
+class FakeEstimator : public pipeline::Estimator {
  public:
   // fail_at >= 0: Process() throws on that frame (0-based), so the session fails.
   explicit FakeEstimator(int fail_at = -1) : fail_at_(fail_at) {}
-  Estimate Process(const vo::StereoFrame& frame, std::span<const kitti::OxtsSample> oxts) override {
+  pipeline::FrameResult Process(const vo::StereoFrame& frame, std::span<const kitti::OxtsSample> oxts) override {
     if (frames_ == fail_at_) throw std::runtime_error("fake estimator failed at frame " + std::to_string(frames_));
-    Estimate e;
+    pipeline::FrameResult e;
     e.pose.t_ns = frame.t_ns;
     e.pose.T_enu_body.translation() = Eigen::Vector3d(static_cast<double>(frames_++), 0, 0);
     e.pose.lat_deg = 49.0;
@@ -60,18 +60,25 @@ class FakeEstimator : public FrameEstimator {
     for (const auto& [a, b] : windows_) e.in_outage = e.in_outage || (frame.t_ns >= a && frame.t_ns < b);
     e.pose.mode = e.in_outage ? fusion::Mode::kVoOnly : fusion::Mode::kGpsFused;
     e.pose.seconds_since_gps = e.in_outage ? 1.0 : 0.0;
-    e.vo_inliers = 100;
-    e.vo_status = vo::Status::kOk;
+    e.vo.inliers = 100;
+    e.vo.status = vo::Status::kOk;
     return e;
   }
   // Typed fixes count as used GPS too; a no-fix report is an outage until
   // the next fix.
-  std::vector<FixSeen> FuseSensors(const pipeline::SensorBatch& batch) override {
+  pipeline::FrameResult FuseSensors(const pipeline::SensorBatch& batch) override {
     gps_used_ += static_cast<int>(batch.gps.size());
     if (batch.receiver_has_fix) receiver_has_fix_ = *batch.receiver_has_fix;
-    std::vector<FixSeen> seen;
-    for (const auto& f : batch.gps) seen.push_back({f, true, false, 1.0, 9.21});
-    return seen;
+    pipeline::FrameResult r;
+    for (const auto& f : batch.gps) {
+      pipeline::GpsFeed feed;
+      feed.fix = f;
+      feed.accepted = true;
+      feed.nis = 1.0;
+      feed.gate = 9.21;
+      r.gps_feeds.push_back(feed);
+    }
+    return r;
   }
   void ScheduleOutage(int64_t start_ns, int64_t end_ns) override { windows_.emplace_back(start_ns, end_ns); }
   void StartOutageNow() override { forced_ = true; }
@@ -79,7 +86,7 @@ class FakeEstimator : public FrameEstimator {
     forced_ = false;
     windows_.clear();
   }
-  void SetScenario(const fusion::Scenario&) override {}
+  void SetScenario(fusion::Scenario) override {}
   bool origin(double*, double*, double*) const override { return false; }
 
  private:
@@ -92,7 +99,7 @@ class FakeEstimator : public FrameEstimator {
 
 // VO method "fake-fail-at-3" gives an estimator that throws on frame 3.
 inline EstimatorFactory FakeFactory() {
-  return [](const EstimatorSetup& setup) -> std::unique_ptr<FrameEstimator> {
+  return [](const EstimatorSetup& setup) -> std::unique_ptr<pipeline::Estimator> {
     if (setup.vo_method == "fake-fail-at-3") return std::make_unique<FakeEstimator>(3);
     if (setup.vo_method != "default" && setup.vo_method != "thesis") {
       throw std::invalid_argument("unknown VO method '" + setup.vo_method + "'");

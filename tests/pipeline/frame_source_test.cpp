@@ -1,7 +1,7 @@
 // Pushed-image decoding: the PNG size is read from the IHDR header and
 // checked before any pixel is decoded.
 #include "core/stereo_camera.hpp"
-#include "server/frame_source.hpp"
+#include "pipeline/live_frame_source.hpp"
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
@@ -9,7 +9,7 @@
 #include <stdexcept>
 #include <vector>
 
-namespace locaid::server {
+namespace locaid::pipeline {
 namespace {
 
 StereoCamera Camera(int w, int h) { return StereoCamera{30, 30, w / 2.0, h / 2.0, 0.5, w, h}; }
@@ -76,4 +76,4 @@ TEST(LiveImage, MatchingPngDecodesAndOtherSizesAreRejectedNamingBoth) {
 }
 
 }  // namespace
-}  // namespace locaid::server
+}  // namespace locaid::pipeline

@@ -1,13 +1,15 @@
-#include "server/source_pipeline.hpp"
+#include "pipeline/frame_loop.hpp"
 
 #include "kitti/oxts_pose.hpp"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <iterator>
 
-namespace locaid::server {
-StepResult SourcePipeline::Step() {
+namespace locaid::pipeline {
+
+StepResult FrameLoop::Step() {
   SourceItem item = source_->Next();
   StepResult r;
   r.frame_index = item.index;
@@ -39,27 +41,23 @@ StepResult SourcePipeline::Step() {
   }
   last_t_ns_ = item.t_ns;
   vo::StereoFrame frame{item.t_ns, std::move(item.left), std::move(item.right)};
-  const Estimate e = estimator_->Process(frame, item.oxts);
   r.kind = StepResult::Kind::kPose;
-  r.gps_fixes = std::move(fixes_seen_);
-  fixes_seen_.clear();
-  r.gps_fixes.insert(r.gps_fixes.end(), e.gps_fixes.begin(), e.gps_fixes.end());
+  r.frame = estimator_->Process(frame, item.oxts);
+  r.frame.gps_feeds.insert(r.frame.gps_feeds.begin(), std::make_move_iterator(typed_feeds_.begin()),
+                           std::make_move_iterator(typed_feeds_.end()));
+  typed_feeds_.clear();
   if (item.truth) r.truth = Truth(*item.truth);
-  r.pose = e.pose;
-  r.vo_inliers = e.vo_inliers;
-  r.vo_status = e.vo_status;
-  r.gps_outage_active = e.in_outage;
   r.processing_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   return r;
 }
 
-void SourcePipeline::FuseTyped(const SourceItem& item) {
+void FrameLoop::FuseTyped(const SourceItem& item) {
   pipeline::SensorBatch batch;
   batch.imu = item.imu;
   batch.gps.reserve(item.gps.size());
   for (const ArrivedFix& f : item.gps) batch.gps.push_back(f.fix);
   batch.receiver_has_fix = item.receiver_has_fix;
-  for (FixSeen& f : estimator_->FuseSensors(batch)) fixes_seen_.push_back(std::move(f));
+  for (GpsFeed& f : estimator_->FuseSensors(batch).gps_feeds) typed_feeds_.push_back(std::move(f));
   const auto now = std::chrono::steady_clock::now().time_since_epoch();
   const auto now_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(now).count();
   std::lock_guard lock(latency_mu_);
@@ -70,7 +68,7 @@ void SourcePipeline::FuseTyped(const SourceItem& item) {
   }
 }
 
-std::optional<TruthPose> SourcePipeline::Truth(const kitti::OxtsRecord& oxts) const {
+TruthPose FrameLoop::Truth(const kitti::OxtsRecord& oxts) const {
   TruthPose t{oxts.lat_deg, oxts.lon_deg, oxts.alt_m, std::nullopt};
   double lat0 = 0, lon0 = 0, alt0 = 0;
   if (estimator_->origin(&lat0, &lon0, &alt0)) {
@@ -86,9 +84,8 @@ std::optional<TruthPose> SourcePipeline::Truth(const kitti::OxtsRecord& oxts) co
   return t;
 }
 
-LiveInputStats SourcePipeline::input_stats() const {
+LiveInputStats FrameLoop::input_stats() const {
   LiveInputStats stats = source_->input_stats();
-  if (receiver_) receiver_->AddStats(stats);
   std::vector<double> ms;
   {
     std::lock_guard lock(latency_mu_);
@@ -102,7 +99,7 @@ LiveInputStats SourcePipeline::input_stats() const {
   return stats;
 }
 
-void SourcePipeline::StartOutageNow(double duration_s) {
+void FrameLoop::StartOutageNow(double duration_s) {
   if (duration_s > 0 && !first_t_ns_) {
     AddOutageWindow(0, duration_s);  // no frame yet: from the first frame on
   } else if (duration_s > 0) {
@@ -113,7 +110,7 @@ void SourcePipeline::StartOutageNow(double duration_s) {
   }
 }
 
-void SourcePipeline::AddOutageWindow(double start_s, double duration_s) {
+void FrameLoop::AddOutageWindow(double start_s, double duration_s) {
   if (!first_t_ns_) {
     early_windows_.emplace_back(start_s, duration_s);
     return;
@@ -122,4 +119,4 @@ void SourcePipeline::AddOutageWindow(double start_s, double duration_s) {
   estimator_->ScheduleOutage(start_ns, start_ns + static_cast<int64_t>(std::llround(duration_s * 1e9)));
 }
 
-}  // namespace locaid::server
+}  // namespace locaid::pipeline

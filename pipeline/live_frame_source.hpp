@@ -1,14 +1,11 @@
-// Inputs of a session: stereo frames with the OXTS samples that arrived since
-// the previous frame. DatasetFrameSource plays a KITTI dataset (real or
-// synthetic) from disk; LiveFrameSource is fed by a PushSensorData stream.
-// Both turn bad input into counted, skipped items instead of errors.
+// A live session's input: frames, OXTS records, IMU samples and GPS fixes
+// pushed by a client (values already validated by the caller; ordering is
+// checked here), and fixes from a GPS receiver read on its own thread.
 #pragma once
 
 #include "core/stereo_camera.hpp"
 #include "fusion/types.hpp"
-#include "kitti/dataset.hpp"
-#include "server/session_pipeline.hpp"
-#include "kitti/types.hpp"
+#include "pipeline/frame_source.hpp"
 
 #include <opencv2/core.hpp>
 
@@ -21,72 +18,11 @@
 #include <optional>
 #include <string>
 #include <vector>
-#include <Eigen/Geometry>
 
-namespace locaid::server {
+namespace locaid::pipeline {
 
-// A GPS fix of a live session, with the steady-clock time it reached the
-// server (for the latency from arrival to use).
-struct ArrivedFix {
-  fusion::GpsFix fix;
-  int64_t arrival_steady_ns = 0;  // 0: pushed (no arrival-to-use latency recorded)
-};
-
-struct SourceItem {
-  // kSensors: typed IMU / GPS data between frames, to fuse now (live input).
-  enum class Kind { kFrame, kSkipped, kCorrupt, kIdle, kEnd, kSensors };
-  Kind kind = Kind::kIdle;
-  int64_t index = -1;
-  int64_t t_ns = 0;
-  cv::Mat left, right;                         // kFrame: CV_8UC1, camera size
-  std::vector<kitti::OxtsSample> oxts;         // t_prev_frame < t <= t_ns
-  std::vector<fusion::ImuSample> imu;          // typed IMU, time order, t <= t_ns for frames
-  std::vector<ArrivedFix> gps;                 // typed / gpsd fixes, time order, t <= sensor time
-  std::optional<bool> receiver_has_fix;        // the receiver's newest no-fix / fix state
-  std::optional<kitti::OxtsRecord> truth;      // dataset sources: OXTS at the frame time (interpolated)
-  int oxts_bad_lines = 0;
-  std::string error;                           // why skipped/corrupt, last bad OXTS line
-};
-
-class FrameSource {
- public:
-  virtual ~FrameSource() = default;
-  virtual SourceItem Next() = 0;
-  virtual void Cancel() {}
-  virtual void Wake() {}
-  virtual int64_t total_frames() const { return 0; }
-  virtual double duration_s() const { return 0; }  // sensor time span, 0 = unknown
-  virtual const StereoCamera& camera() const = 0;
-  virtual Eigen::Isometry3d T_cam0_imu() const = 0;
-  // Counters of typed live input (any thread).
-  virtual LiveInputStats input_stats() const { return {}; }
-};
-
-// Frames [first, last] of a dataset (last < 0: to the end). A frame whose
-// time is not after the previous delivered frame's is kCorrupt (as for
-// pushed frames).
-class DatasetFrameSource : public FrameSource {
- public:
-  DatasetFrameSource(std::unique_ptr<kitti::StereoDataset> dataset, int64_t first, int64_t last);
-  SourceItem Next() override;
-  int64_t total_frames() const override { return end_ - first_; }
-  double duration_s() const override;
-  const StereoCamera& camera() const override { return dataset_->camera(); }
-  Eigen::Isometry3d T_cam0_imu() const override { return dataset_->T_cam0_imu(); }
-
- private:
-  std::unique_ptr<kitti::StereoDataset> dataset_;
-  int64_t first_, end_, next_;
-  size_t next_oxts_ = 0;
-  // OXTS records the reader skipped as unreadable (report() notes, when the
-  // dataset was opened with skip_bad_oxts); reported with the first item.
-  int skipped_oxts_ = 0;
-  std::string skipped_oxts_error_;
-  int64_t last_frame_ns_ = INT64_MIN;  // time of the last frame delivered
-};
-
-// One item pushed by a client (values already validated, see
-// session_requests.cpp; ordering is checked here).
+// One item pushed by a client (values already validated, see the server's
+// sensor_requests.cpp; ordering is checked here).
 struct LiveItem {
   enum class Kind { kFrame, kOxts, kImu, kGps };
   Kind kind = Kind::kFrame;
@@ -107,6 +43,16 @@ struct LiveCameraSetup {
   double max_gps_delay_s = 0.5;
 };
 
+// Something that feeds a live source from a thread of its own (the server's
+// gpsd receiver). Owned by the source it feeds, so it stops before the
+// source's state goes.
+class InputFeeder {
+ public:
+  virtual ~InputFeeder() = default;  // stops feeding (joins its thread)
+  // Its own figures (connection state), merged into input_stats(). Any thread.
+  virtual void AddStats(LiveInputStats& stats) const = 0;
+};
+
 // Bounded queue between a PushSensorData stream and the session thread, with
 // back-pressure: Push() returns false when full and calls `resume` once there
 // is room again (the stream then reads its next message).
@@ -122,6 +68,8 @@ class LiveFrameSource : public FrameSource {
   static constexpr size_t kMaxAsyncFixes = 64;
   void PushAsyncFix(LiveItem fix);
   void CloseInput();  // half-close: Next() returns kEnd once drained
+  // Takes ownership of a feeder that calls PushAsyncFix (one at most).
+  void AttachFeeder(std::unique_ptr<InputFeeder> feeder) { feeder_ = std::move(feeder); }
 
   // Consumer side (session thread). Waits up to ~50 ms for input.
   SourceItem Next() override;
@@ -164,6 +112,7 @@ class LiveFrameSource : public FrameSource {
   int64_t sensor_time_ns_ = INT64_MIN;  // newest frame or IMU time seen
   mutable std::mutex stats_mu_;
   LiveInputStats stats_;
+  std::unique_ptr<InputFeeder> feeder_;  // last member: destroyed (stopped) first
 };
 
 // Width and height a PNG declares in its IHDR chunk (bytes 16..23, big
@@ -185,4 +134,4 @@ std::string PngSizeMismatch(const std::string& bytes, const StereoCamera& camera
 cv::Mat DecodeLiveImage(const std::string& bytes, bool png, const StereoCamera& camera,
                         const char* which);
 
-}  // namespace locaid::server
+}  // namespace locaid::pipeline

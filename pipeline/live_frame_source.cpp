@@ -1,10 +1,8 @@
-#include "server/frame_source.hpp"
-#include "core/stereo_camera.hpp"
+#include "pipeline/live_frame_source.hpp"
 
 #include "kitti/oxts.hpp"
 
 #include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -12,86 +10,7 @@
 #include <stdexcept>
 #include <utility>
 
-namespace locaid::server {
-
-DatasetFrameSource::DatasetFrameSource(std::unique_ptr<kitti::StereoDataset> dataset, int64_t first,
-                                       int64_t last)
-    : dataset_(std::move(dataset)) {
-  const auto n = static_cast<int64_t>(dataset_->size());
-  first_ = std::clamp<int64_t>(first, 0, n);
-  end_ = last < 0 ? n : std::clamp<int64_t>(last + 1, first_, n);
-  next_ = first_;
-  // OXTS samples before the first frame are not fed.
-  if (first_ < n) {
-    const int64_t t0 = dataset_->time_ns(static_cast<size_t>(first_));
-    const auto& oxts = dataset_->oxts();
-    while (next_oxts_ < oxts.size() && oxts[next_oxts_].t_ns < t0) ++next_oxts_;
-  }
-  // Unreadable OXTS files (NaN, wrong field count, ...) that a reader opened
-  // with skip_bad_oxts left out: counted as bad OXTS lines of the session.
-  const auto& skipped = dataset_->report().oxts_skipped;
-  skipped_oxts_ = static_cast<int>(skipped.size());
-  if (!skipped.empty()) skipped_oxts_error_ = skipped.back();
-}
-
-double DatasetFrameSource::duration_s() const {
-  if (end_ - first_ < 2) return 0;
-  return static_cast<double>(dataset_->time_ns(static_cast<size_t>(end_ - 1)) -
-                             dataset_->time_ns(static_cast<size_t>(first_))) * 1e-9;
-}
-
-SourceItem DatasetFrameSource::Next() {
-  SourceItem item;
-  if (next_ >= end_) {
-    item.kind = SourceItem::Kind::kEnd;
-    return item;
-  }
-  const auto i = static_cast<size_t>(next_++);
-  item.index = static_cast<int64_t>(i);
-  if (skipped_oxts_ > 0) {  // once, with the first item
-    item.oxts_bad_lines = std::exchange(skipped_oxts_, 0);
-    item.error = std::move(skipped_oxts_error_);
-  }
-  item.t_ns = dataset_->time_ns(i);
-  const auto& oxts = dataset_->oxts();
-  while (next_oxts_ < oxts.size() && oxts[next_oxts_].t_ns <= item.t_ns) {
-    item.oxts.push_back(oxts[next_oxts_++]);
-  }
-  // Ground truth at the frame time: OXTS is the reference (design.md).
-  if (next_oxts_ > 0) {
-    const auto& a = oxts[next_oxts_ - 1];
-    const auto& b = oxts[std::min(next_oxts_, oxts.size() - 1)];
-    const double w =
-        b.t_ns > a.t_ns ? static_cast<double>(item.t_ns - a.t_ns) / static_cast<double>(b.t_ns - a.t_ns) : 0.0;
-    kitti::OxtsRecord truth = w < 0.5 ? a.record : b.record;  // attitude of the nearer record
-    truth.lat_deg = a.record.lat_deg + w * (b.record.lat_deg - a.record.lat_deg);
-    truth.lon_deg = a.record.lon_deg + w * (b.record.lon_deg - a.record.lon_deg);
-    truth.alt_m = a.record.alt_m + w * (b.record.alt_m - a.record.alt_m);
-    item.truth = truth;
-  }
-  if (!dataset_->has_stereo(i)) {
-    item.kind = SourceItem::Kind::kSkipped;
-    item.error = "frame " + std::to_string(i) + ": left or right image missing";
-    return item;
-  }
-  if (item.t_ns <= last_frame_ns_) {
-    item.kind = SourceItem::Kind::kCorrupt;
-    item.error = "frame " + std::to_string(i) + ": time " + std::to_string(item.t_ns) +
-                 " ns not after the previous frame (" + std::to_string(last_frame_ns_) + " ns)";
-    return item;
-  }
-  try {
-    kitti::StereoImages images = dataset_->Load(i);
-    item.left = std::move(images.left);
-    item.right = std::move(images.right);
-    item.kind = SourceItem::Kind::kFrame;
-    last_frame_ns_ = item.t_ns;
-  } catch (const std::exception& e) {
-    item.kind = SourceItem::Kind::kCorrupt;
-    item.error = e.what();
-  }
-  return item;
-}
+namespace locaid::pipeline {
 
 std::optional<PngSize> ReadPngSize(const std::string& bytes) {
   static constexpr unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
@@ -177,8 +96,13 @@ void LiveFrameSource::PushAsyncFix(LiveItem fix) {
 }
 
 LiveInputStats LiveFrameSource::input_stats() const {
-  std::lock_guard lock(stats_mu_);
-  return stats_;
+  LiveInputStats stats;
+  {
+    std::lock_guard lock(stats_mu_);
+    stats = stats_;
+  }
+  if (feeder_) feeder_->AddStats(stats);
+  return stats;
 }
 
 void LiveFrameSource::TakeImu(const LiveItem& item) {
@@ -371,4 +295,4 @@ SourceItem LiveFrameSource::Next() {
   }
 }
 
-}  // namespace locaid::server
+}  // namespace locaid::pipeline

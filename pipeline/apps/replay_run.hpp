@@ -1,0 +1,63 @@
+// What locaid-replay keeps of each pose the frame loop gives, and the
+// outputs it writes at the end: metrics (JSON or text), the per-frame CSV of
+// clients/plot_outage.py, and the fused poses as TUM.
+#pragma once
+
+#include "core/timed_pose.hpp"
+#include "fusion/scenario.hpp"
+#include "kitti/dataset.hpp"
+#include "pipeline/frame_loop.hpp"
+#include "pipeline/localizer.hpp"
+#include "pipeline/replay_metrics.hpp"
+
+#include <GeographicLib/LocalCartesian.hpp>
+#include <nlohmann/json.hpp>
+
+#include <Eigen/Geometry>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace locaid::pipeline {
+
+class ReplayRun {
+ public:
+  // `dataset` and `localizer` must outlive the run.
+  ReplayRun(const kitti::StereoDataset& dataset, const Localizer& localizer, const fusion::Scenario& scenario)
+      : dataset_(dataset), localizer_(localizer), scenario_(scenario) {}
+
+  // One pose of the frame loop (kind kPose).
+  void Add(const StepResult& step);
+
+  size_t poses() const { return samples_.size(); }
+  ReplayMetrics Metrics() const { return ComputeReplayMetrics(samples_, scenario_.gps_sigma_h_m); }
+  // The metrics and filter figures locaid-replay --json prints.
+  nlohmann::json Summary(const ReplayMetrics& metrics, double wall_s) const;
+  void WriteCsv(const std::string& path) const;
+  // Initialised poses only; time = the frame's TUM time.
+  void WriteTum(const std::string& path) const;
+
+ private:
+  std::optional<Eigen::Isometry3d> TruthAt(int64_t t_ns) const;
+
+  const kitti::StereoDataset& dataset_;
+  const Localizer& localizer_;
+  const fusion::Scenario scenario_;
+  // Ground truth: every OXTS record in the filter's ENU frame, once it has one.
+  std::optional<GeographicLib::LocalCartesian> gt_enu_;
+  std::vector<TimedPose> gt_poses_;
+
+  std::vector<ReplaySample> samples_;
+  std::vector<int64_t> frame_index_;
+  std::vector<Eigen::Isometry3d> T_enu_body_;
+  std::vector<Eigen::Isometry3d> vo_motion_;  // raw VO (body axes) per pose, identity when lost
+  std::vector<PlotExtras> extras_;            // p_enu_vo_m filled at the end
+  std::vector<VoErrorPair> vo_pairs_;         // VO vs ground truth (noise calibration)
+  int lost_frames_ = 0;
+  int rejection_run_ = 0, rejection_run_v_ = 0, max_rejection_run_ = 0, max_rejection_run_v_ = 0;
+  double vo_ms_total_ = 0;
+  FrameResult last_;
+};
+
+}  // namespace locaid::pipeline

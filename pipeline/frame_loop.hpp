@@ -1,0 +1,139 @@
+// The one frame loop: a FrameSource (KITTI drive, synthetic drive, frames a
+// client pushes) feeding an Estimator (the Localizer: VO -> scenario -> EKF),
+// one StepResult per Step(). Every session of the gRPC server runs one, and so
+// does locaid-replay.
+//
+// Threading: Step() and Release() are called from one thread (the session's
+// or the replay's); Cancel() and Wake() from any thread; the GPS controls
+// from the stepping thread (a session posts them there).
+#pragma once
+
+#include "fusion/geodesy.hpp"
+#include "fusion/scenario.hpp"
+#include "fusion/types.hpp"
+#include "pipeline/frame_source.hpp"
+#include "pipeline/localizer.hpp"
+
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace locaid::pipeline {
+
+// Ground truth at a pose's time (dataset sources).
+struct TruthPose {
+  double lat_deg = 0, lon_deg = 0, alt_m = 0;
+  std::optional<Eigen::Isometry3d> T_enu_body;  // once the filter's ENU origin is known
+};
+
+struct StepResult {
+  enum class Kind {
+    kPose,     // `frame` holds the fused pose
+    kSkipped,  // frame without both images: skipped (error says which)
+    kCorrupt,  // frame could not be decoded / wrong size: skipped
+    kIdle,     // nothing available yet (live input): call again
+    kEnd,      // input exhausted
+    kFused,    // sensor data between frames fused (live input): no pose
+  };
+  Kind kind = Kind::kIdle;
+  int64_t frame_index = -1;
+  int64_t t_ns = 0;  // sensor time of the frame (also for skipped frames)
+  // kPose: the estimator's result. frame.gps_feeds lists every fix fed since
+  // the previous pose (typed fixes fused between frames first).
+  FrameResult frame;
+  std::optional<TruthPose> truth;
+  int oxts_bad_lines = 0;  // bad OXTS records met while producing this result
+  std::string error;       // kSkipped / kCorrupt / bad OXTS: file and reason
+  // Wall time spent on this frame (decode, VO, EKF), ms. < 0: the caller
+  // measures the duration of Step() instead (right for file sources).
+  double processing_ms = -1;
+};
+
+// What a session (or a replay) steps through. FrameLoop is the real one; the
+// server wraps it to build it on the session thread, tests plug in fakes.
+class Pipeline {
+ public:
+  virtual ~Pipeline() = default;
+  virtual StepResult Step() = 0;
+  // Unblocks a Step() waiting for input (live sources); Step then returns
+  // kEnd. Thread-safe.
+  virtual void Cancel() {}
+  // Makes a Step() that waits for input return kIdle soon, so commands
+  // posted to the session apply before the next frame. Thread-safe.
+  virtual void Wake() {}
+  // Frames in the input, 0 when unknown (live).
+  virtual int64_t total_frames() const { return 0; }
+  // False while the input is still being prepared (a synthetic drive
+  // rendering). Any thread.
+  virtual bool ready() const { return true; }
+  // The stepping thread is done: free what the pipeline holds (files,
+  // images). Called once, from the stepping thread, as it ends.
+  virtual void Release() {}
+  // GPS control, applied from the next frame on. Times are relative to the
+  // first frame.
+  virtual void StartOutageNow(double duration_s) = 0;  // 0 = until StopOutage
+  virtual void StopOutage() = 0;
+  virtual void AddOutageWindow(double start_s, double duration_s) = 0;
+  // Throws std::invalid_argument when the scenario is invalid.
+  virtual void SetScenario(const fusion::Scenario& scenario) = 0;
+  // ENU origin once known.
+  virtual bool origin(double* lat_deg, double* lon_deg, double* alt_m) const = 0;
+  // Typed live input and GPS receiver counters. Any thread.
+  virtual LiveInputStats input_stats() const { return {}; }
+};
+
+class FrameLoop final : public Pipeline {
+ public:
+  FrameLoop(std::unique_ptr<FrameSource> source, std::unique_ptr<Estimator> estimator)
+      : source_(std::move(source)), estimator_(std::move(estimator)) {}
+
+  // Reads the next item and runs it through the estimator: typed sensor data
+  // first (a fix reaches the filter before VO runs on the frame), then the
+  // frame. OXTS samples of skipped frames go with the next good frame.
+  StepResult Step() override;
+  void Cancel() override { source_->Cancel(); }
+  void Wake() override { source_->Wake(); }
+  int64_t total_frames() const override { return source_->total_frames(); }
+  void StartOutageNow(double duration_s) override;
+  void StopOutage() override { estimator_->StopOutageNow(); }
+  void AddOutageWindow(double start_s, double duration_s) override;
+  void SetScenario(const fusion::Scenario& scenario) override { estimator_->SetScenario(scenario); }
+  bool origin(double* lat_deg, double* lon_deg, double* alt_m) const override {
+    return estimator_->origin(lat_deg, lon_deg, alt_m);
+  }
+  // The source's counters plus the arrival-to-use latency of received fixes.
+  LiveInputStats input_stats() const override;
+
+  const FrameSource& source() const { return *source_; }
+  const Estimator& estimator() const { return *estimator_; }
+
+ private:
+  // Fuses typed data, then records each fix's time from arrival to use.
+  void FuseTyped(const SourceItem& item);
+  // The truth pose in the filter's ENU frame (no T_enu_body before it has an origin).
+  TruthPose Truth(const kitti::OxtsRecord& oxts) const;
+
+  std::unique_ptr<FrameSource> source_;
+  std::unique_ptr<Estimator> estimator_;
+  // Arrival-to-use times of the last kLatencyWindow received fixes, ms.
+  static constexpr size_t kLatencyWindow = 256;
+  mutable std::mutex latency_mu_;
+  std::deque<double> fix_latency_ms_;
+  std::optional<int64_t> first_t_ns_;
+  int64_t last_t_ns_ = 0;
+  std::vector<std::pair<double, double>> early_windows_;  // before the first frame
+  // OXTS samples that came with skipped / corrupt items: given to the
+  // estimator with the next good frame instead of being lost.
+  std::vector<kitti::OxtsSample> carried_oxts_;
+  std::vector<GpsFeed> typed_feeds_;  // typed fixes fused since the last pose
+  mutable std::optional<fusion::EnuFrame> enu_;  // the filter's ENU frame, for the truth
+};
+
+}  // namespace locaid::pipeline
