@@ -9,6 +9,7 @@
 #include <condition_variable>
 #include <cstddef>
 #include <deque>
+#include <exception>
 #include <memory>
 #include <mutex>
 #include <thread>
@@ -31,9 +32,11 @@ class PrefetchSource final : public FrameSource {
   PrefetchSource(const PrefetchSource&) = delete;
   PrefetchSource& operator=(const PrefetchSource&) = delete;
 
+  // Rethrows what the inner source threw, once the items before it are taken.
   SourceItem Next() override {
     std::unique_lock lock(mu_);
-    not_empty_.wait(lock, [&] { return !queue_.empty(); });
+    not_empty_.wait(lock, [&] { return !queue_.empty() || failure_; });
+    if (queue_.empty()) std::rethrow_exception(failure_);
     SourceItem item = std::move(queue_.front());
     // kEnd stays queued: every later Next() returns it too.
     if (item.kind == SourceItem::Kind::kEnd) return item;
@@ -49,7 +52,15 @@ class PrefetchSource final : public FrameSource {
  private:
   void Read() {
     for (;;) {
-      SourceItem item = inner_->Next();
+      SourceItem item;
+      try {
+        item = inner_->Next();
+      } catch (...) {
+        std::lock_guard lock(mu_);
+        failure_ = std::current_exception();
+        not_empty_.notify_one();
+        return;
+      }
       const bool end = item.kind == SourceItem::Kind::kEnd;
       std::unique_lock lock(mu_);
       not_full_.wait(lock, [&] { return queue_.size() < depth_ || stop_; });
@@ -66,6 +77,7 @@ class PrefetchSource final : public FrameSource {
   std::condition_variable not_full_, not_empty_;
   std::deque<SourceItem> queue_;
   bool stop_ = false;
+  std::exception_ptr failure_;
   std::thread reader_;  // last: starts once the rest is built
 };
 

@@ -12,6 +12,7 @@
 #include <sstream>
 #include <string>
 #include <unistd.h>
+#include <vector>
 
 namespace {
 
@@ -80,6 +81,33 @@ TEST_F(ReplayCli, CacheOfAnotherRunIsRefusedByName) {
   const auto g = RunCommand(Replay("--vo-cache " + (root_ / "garbage.cache").string()));
   EXPECT_NE(g.exit_code, 0);
   EXPECT_NE(g.out.find("garbage.cache"), std::string::npos) << g.out;
+}
+
+// A cache whose header matches but that lacks a frame's line (edited, or
+// cut short) ends the replay with the frame's time, not with wrong figures.
+TEST_F(ReplayCli, ACacheMissingAFrameNamesIt) {
+  ASSERT_FALSE(drive_.empty());
+  const fs::path cache = root_ / "cut.cache";
+  fs::remove(cache);
+  ASSERT_EQ(RunCommand(Replay("--max-frames 30 --vo-cache " + cache.string())).exit_code, 0);
+  std::vector<std::string> lines;
+  {
+    std::ifstream in(cache);
+    for (std::string line; std::getline(in, line);) lines.push_back(line);
+  }
+  ASSERT_EQ(lines.size(), 31u);  // header + 30 frames
+  std::istringstream line_20(lines[21]);
+  std::string index, t_ns;
+  line_20 >> index >> t_ns;
+  ASSERT_EQ(index, "20");
+  {
+    std::ofstream out(cache, std::ios::trunc);
+    for (size_t i = 0; i < lines.size(); ++i)
+      if (i != 21) out << lines[i] << '\n';
+  }
+  const auto r = RunCommand(Replay("--max-frames 30 --vo-cache " + cache.string()));
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.out.find("VO cache: no result for the frame at t_ns " + t_ns), std::string::npos) << r.out;
 }
 
 TEST_F(ReplayCli, BadEkfSettingsNameTheProblem) {
