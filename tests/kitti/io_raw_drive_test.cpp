@@ -1,5 +1,6 @@
 // Tiny raw drives written into a temp dir with the kitti writers, read back
 // through OpenDataset.
+#include "error_of.hpp"
 #include "kitti/calib.hpp"
 #include "kitti/dataset.hpp"
 #include "kitti/oxts.hpp"
@@ -106,13 +107,9 @@ fs::path WriteDrive(const std::string& test, const DriveSpec& spec) {
   return drive;
 }
 
+// The kitti::Error of loading frame i, or "(no error)".
 std::string LoadError(const StereoDataset& ds, size_t i) {
-  try {
-    ds.Load(i);
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "(no error)";
+  return test_support::ErrorOf<Error>([&] { ds.Load(i); });
 }
 
 bool HasNote(const StereoDataset& ds, const std::string& text) {

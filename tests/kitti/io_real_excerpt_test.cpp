@@ -1,6 +1,7 @@
 // Reads the real KITTI excerpts in LOCAID_SHARED_DATA (KITTI, CC BY-NC-SA 3.0;
 // see data/kitti/README.md). Skipped when the data is absent.
 #include "core/stereo_camera.hpp"
+#include "error_of.hpp"
 #include "kitti/dataset.hpp"
 #include "kitti/odometry_sequence.hpp"
 #include "kitti/raw_drive.hpp"
@@ -24,13 +25,9 @@ const fs::path kShared = LOCAID_SHARED_DATA;
 const fs::path kDrive = kShared / "raw/2011_09_26/2011_09_26_drive_unknown_extract";
 const fs::path kSeq00 = kShared / "odometry/sequences/00";
 
+// The kitti::Error of loading frame i, or "(no error)".
 std::string LoadError(const StereoDataset& ds, size_t i) {
-  try {
-    ds.Load(i);
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "(no error)";
+  return test_support::ErrorOf<Error>([&] { ds.Load(i); });
 }
 
 class RealExtractDrive : public ::testing::Test {

@@ -5,8 +5,6 @@
 // are the real `locaid` CLI as subprocesses plus in-test stream readers.
 #include "test_support.hpp"
 
-#include "kitti/raw_drive.hpp"
-#include "pipeline/frame_loop.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -252,80 +250,6 @@ TEST(FaultTest, DamagedDriveMidSessionIsSkippedCountedAndTheServerKeepsServing) 
   EXPECT_EQ(second.count(), static_cast<size_t>(kFrames));
   EXPECT_EQ(WaitSessionEnd(stub.get(), id2, 30).state(), v1::SESSION_STATE_FINISHED);
   ExpectStillRunningThenCleanExit(server);
-  fs::remove_all(dir);
-}
-
-// The server opens KITTI drives with skip_bad_oxts: the OXTS files the reader
-// left out are reported by the frame source, once, as bad OXTS lines.
-TEST(FaultTest, DatasetSourceCountsTheOxtsFilesTheReaderSkipped) {
-  const fs::path dir = FreshTestDir("fault_source");
-  std::string error;
-  const fs::path drive = RenderSynthDrive(dir / "drive", 12, kSynthSeed, kSynthWidth, kSynthHeight, &error);
-  ASSERT_FALSE(drive.empty()) << error;
-  WriteLines(drive / "oxts" / "data" / FrameFile(4, "txt"), {"1 2 3"});  // 3 fields
-  auto fields = Split(ReadLines(drive / "oxts" / "data" / FrameFile(7, "txt")).at(0), ' ');
-  fields[0] = "nan";
-  std::string line;
-  for (const auto& f : fields) line += (line.empty() ? "" : " ") + f;
-  WriteLines(drive / "oxts" / "data" / FrameFile(7, "txt"), {line});
-  kitti::RawDriveOptions options;
-  options.skip_bad_oxts = true;
-  // The samples the source must feed: the good ones within the frames' times.
-  const auto reference = kitti::OpenDataset(drive, options);
-  size_t expected_oxts = 0;
-  for (const auto& o : reference->oxts()) {
-    expected_oxts += o.t_ns >= reference->time_ns(0) && o.t_ns <= reference->time_ns(11) ? 1 : 0;
-  }
-  ASSERT_EQ(reference->oxts().size(), 10u);  // 12 records, 2 unreadable
-  pipeline::DatasetFrameSource source(kitti::OpenDataset(drive, options), 0, -1);
-  int bad = 0, frames = 0;
-  size_t oxts = 0;
-  std::string first_error;
-  using Item = pipeline::SourceItem;
-  for (Item item = source.Next(); item.kind != Item::Kind::kEnd; item = source.Next()) {
-    if (frames++ == 0) first_error = item.error;
-    bad += item.oxts_bad_lines;
-    oxts += item.oxts.size();
-  }
-  EXPECT_EQ(frames, 12);
-  EXPECT_EQ(bad, 2);
-  EXPECT_EQ(oxts, expected_oxts);
-  EXPECT_NE(first_error.find("OXTS"), std::string::npos) << first_error;
-  fs::remove_all(dir);
-}
-
-// GPS/IMU samples that arrive with a frame that is then skipped (missing or
-// corrupt image) are not lost: they reach the estimator with the next frame.
-TEST(FaultTest, OxtsOfSkippedFramesReachTheEstimatorWithTheNextFrame) {
-  const fs::path dir = FreshTestDir("fault_carry");
-  constexpr int kFrames = 12;
-  std::string error;
-  const fs::path drive = RenderSynthDrive(dir / "drive", kFrames, kSynthSeed, kSynthWidth, kSynthHeight, &error);
-  ASSERT_FALSE(drive.empty()) << error;
-  ASSERT_TRUE(fs::remove(drive / "image_00" / "data" / FrameFile(3, "png")));
-  ASSERT_TRUE(fs::remove(drive / "image_01" / "data" / FrameFile(4, "png")));
-  fs::resize_file(drive / "image_00" / "data" / FrameFile(7, "png"), 100);
-  const auto reference = kitti::OpenDataset(drive);
-  int expected = 0;
-  for (const auto& o : reference->oxts()) {
-    expected += o.t_ns >= reference->time_ns(0) && o.t_ns <= reference->time_ns(kFrames - 1) ? 1 : 0;
-  }
-  ASSERT_GE(expected, kFrames - 1);
-  pipeline::FrameLoop loop(std::make_unique<pipeline::DatasetFrameSource>(kitti::OpenDataset(drive), 0, -1),
-                           std::make_unique<FakeEstimator>());  // gps_used = OXTS samples given so far
-  int poses = 0, skipped = 0, gps_used = 0;
-  using Step = pipeline::StepResult;
-  for (Step r = loop.Step(); r.kind != Step::Kind::kEnd; r = loop.Step()) {
-    if (r.kind == Step::Kind::kPose) {
-      ++poses;
-      gps_used = r.frame.pose.gps_used;
-    } else {
-      ++skipped;
-    }
-  }
-  EXPECT_EQ(poses, kFrames - 3);
-  EXPECT_EQ(skipped, 3);
-  EXPECT_EQ(gps_used, expected);
   fs::remove_all(dir);
 }
 

@@ -1,0 +1,322 @@
+// The frame loop without a network: what reaches the estimator and when
+// (skipped frames, typed data between frames, outage controls on the drive
+// clock, ground truth), over scripted items, a rendered drive and a live
+// source.
+#include "cli_support.hpp"
+
+#include "kitti/dataset.hpp"
+#include "kitti/raw_drive.hpp"
+#include "pipeline/frame_loop.hpp"
+#include "pipeline/live_frame_source.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <deque>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <string>
+#include <unistd.h>
+#include <utility>
+#include <vector>
+
+namespace locaid::pipeline {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Records what the loop asks of it. Process reports every OXTS sample it was
+// given as a fed (used) fix, so tests see which samples reached it.
+class RecordingEstimator : public Estimator {
+ public:
+  struct Log {
+    std::vector<std::string> calls;  // "process T", "sensors N", "schedule A B", "start", "stop", "scenario"
+    std::vector<int64_t> frame_t_ns;
+    size_t oxts_samples = 0;
+    bool has_origin = false;
+  };
+  explicit RecordingEstimator(std::shared_ptr<Log> log) : log_(std::move(log)) {}
+
+  FrameResult Process(const vo::StereoFrame& frame, std::span<const kitti::OxtsSample> oxts) override {
+    log_->calls.push_back("process " + std::to_string(frame.t_ns));
+    log_->frame_t_ns.push_back(frame.t_ns);
+    log_->oxts_samples += oxts.size();
+    FrameResult r;
+    r.pose.t_ns = frame.t_ns;
+    r.vo.status = vo::Status::kOk;
+    for (const auto& s : oxts) r.gps_feeds.push_back(Feed(s.t_ns));
+    return r;
+  }
+  FrameResult FuseSensors(const SensorBatch& batch) override {
+    log_->calls.push_back("sensors " + std::to_string(batch.gps.size()));
+    FrameResult r;
+    for (const auto& f : batch.gps) r.gps_feeds.push_back(Feed(f.t_ns));
+    return r;
+  }
+  void ScheduleOutage(int64_t start_ns, int64_t end_ns) override {
+    log_->calls.push_back("schedule " + std::to_string(start_ns) + " " + std::to_string(end_ns));
+  }
+  void StartOutageNow() override { log_->calls.push_back("start"); }
+  void StopOutageNow() override { log_->calls.push_back("stop"); }
+  void SetScenario(fusion::Scenario) override { log_->calls.push_back("scenario"); }
+  bool origin(double* lat_deg, double* lon_deg, double* alt_m) const override {
+    if (!log_->has_origin) return false;
+    *lat_deg = 49.0;
+    *lon_deg = 8.4;
+    *alt_m = 100.0;
+    return true;
+  }
+
+ private:
+  static GpsFeed Feed(int64_t t_ns) {
+    GpsFeed f;
+    f.fix.t_ns = t_ns;
+    f.accepted = true;
+    return f;
+  }
+  std::shared_ptr<Log> log_;
+};
+
+// Hands out the items it was given, then kEnd.
+class ScriptedSource : public FrameSource {
+ public:
+  explicit ScriptedSource(std::deque<SourceItem> items) : items_(std::move(items)) {}
+  SourceItem Next() override {
+    if (items_.empty()) {
+      SourceItem end;
+      end.kind = SourceItem::Kind::kEnd;
+      return end;
+    }
+    SourceItem item = std::move(items_.front());
+    items_.pop_front();
+    return item;
+  }
+  const StereoCamera& camera() const override { return camera_; }
+  Eigen::Isometry3d T_cam0_imu() const override { return Eigen::Isometry3d::Identity(); }
+
+ private:
+  std::deque<SourceItem> items_;
+  StereoCamera camera_{400, 400, 160, 48, 0.5, 320, 96};
+};
+
+SourceItem Frame(int64_t index, int64_t t_ns) {
+  SourceItem item;
+  item.kind = SourceItem::Kind::kFrame;
+  item.index = index;
+  item.t_ns = t_ns;
+  return item;
+}
+
+ArrivedFix Fix(int64_t t_ns) {
+  ArrivedFix f;
+  f.fix.t_ns = t_ns;
+  return f;
+}
+
+// A 12-frame drive rendered by locaid-synth into TempDir()/NAME_PID; the
+// drive folder, or empty (the failure recorded) when rendering failed.
+fs::path RenderDrive(const std::string& name) {
+  const fs::path dir = fs::path(::testing::TempDir()) / (name + "_" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  const auto rendered = test::RunCommand(std::string(LOCAID_BIN_DIR) + "/locaid-synth -q --out " + dir.string() +
+                                         " --frames 12 --width 320 --height 96 --seed 3");
+  EXPECT_EQ(rendered.exit_code, 0) << rendered.out;
+  if (rendered.exit_code == 0) {
+    for (const auto& e : fs::directory_iterator(dir))
+      if (e.is_directory()) return e.path();
+  }
+  return {};
+}
+
+constexpr int64_t kT0 = 1'000'000'000'000;  // first frame, ns
+constexpr int64_t kPeriod = 100'000'000;    // 10 Hz
+
+TEST(FrameLoop, OutageWindowsGivenBeforeTheFirstFrameCountFromIt) {
+  auto log = std::make_shared<RecordingEstimator::Log>();
+  FrameLoop loop(std::make_unique<ScriptedSource>(std::deque<SourceItem>{Frame(0, kT0), Frame(1, kT0 + kPeriod)}),
+                 std::make_unique<RecordingEstimator>(log));
+  loop.AddOutageWindow(0.5, 0.25);  // before any frame: relative to the first one
+  loop.StartOutageNow(2.0);         // likewise, from the first frame on
+  ASSERT_EQ(loop.Step().kind, StepResult::Kind::kPose);
+  ASSERT_EQ(loop.Step().kind, StepResult::Kind::kPose);
+  loop.StartOutageNow(1.5);  // from the newest frame
+  loop.AddOutageWindow(10, 1);
+  loop.StartOutageNow(0);  // until stopped
+  loop.StopOutage();
+  EXPECT_EQ(loop.Step().kind, StepResult::Kind::kEnd);
+  const std::vector<std::string> expected = {
+      "schedule " + std::to_string(kT0 + 500'000'000) + " " + std::to_string(kT0 + 750'000'000),
+      "schedule " + std::to_string(kT0) + " " + std::to_string(kT0 + 2'000'000'000),
+      "process " + std::to_string(kT0),
+      "process " + std::to_string(kT0 + kPeriod),
+      "schedule " + std::to_string(kT0 + kPeriod) + " " + std::to_string(kT0 + kPeriod + 1'500'000'000),
+      "schedule " + std::to_string(kT0 + 10'000'000'000) + " " + std::to_string(kT0 + 11'000'000'000),
+      "start",
+      "stop"};
+  EXPECT_EQ(log->calls, expected);
+}
+
+TEST(FrameLoop, TypedFixesReachTheFilterBeforeTheFrameAndComeFirstWithItsPose) {
+  auto log = std::make_shared<RecordingEstimator::Log>();
+  SourceItem between;  // sensor data between frames: fused, no pose
+  between.kind = SourceItem::Kind::kSensors;
+  between.t_ns = kT0 + 50'000'000;
+  between.gps = {Fix(kT0 + 40'000'000)};
+  SourceItem frame = Frame(1, kT0 + kPeriod);
+  frame.gps = {Fix(kT0 + 90'000'000), Fix(kT0 + 95'000'000)};
+  kitti::OxtsSample oxts;
+  oxts.t_ns = kT0 + kPeriod;
+  frame.oxts = {oxts};
+  FrameLoop loop(std::make_unique<ScriptedSource>(std::deque<SourceItem>{Frame(0, kT0), between, frame}),
+                 std::make_unique<RecordingEstimator>(log));
+  EXPECT_EQ(loop.Step().kind, StepResult::Kind::kPose);
+  const StepResult fused = loop.Step();
+  EXPECT_EQ(fused.kind, StepResult::Kind::kFused);
+  EXPECT_TRUE(fused.frame.gps_feeds.empty());  // reported with the next pose
+  const StepResult pose = loop.Step();
+  ASSERT_EQ(pose.kind, StepResult::Kind::kPose);
+  ASSERT_EQ(pose.frame.gps_feeds.size(), 4u);
+  const std::vector<int64_t> order = {kT0 + 40'000'000, kT0 + 90'000'000, kT0 + 95'000'000, kT0 + kPeriod};
+  for (size_t i = 0; i < order.size(); ++i) EXPECT_EQ(pose.frame.gps_feeds[i].fix.t_ns, order[i]) << i;
+  const std::vector<std::string> calls = {"process " + std::to_string(kT0), "sensors 1", "sensors 2",
+                                          "process " + std::to_string(kT0 + kPeriod)};
+  EXPECT_EQ(log->calls, calls);
+}
+
+TEST(FrameLoop, TruthIsInTheFiltersEnuFrameOnceItHasOne) {
+  auto log = std::make_shared<RecordingEstimator::Log>();
+  SourceItem a = Frame(0, kT0), b = Frame(1, kT0 + kPeriod);
+  kitti::OxtsRecord truth;
+  truth.lat_deg = 49.0;
+  truth.lon_deg = 8.4;
+  truth.alt_m = 100.0;
+  a.truth = truth;
+  truth.lat_deg = 49.0 + 10.0 / 111'200.0;  // ~10 m north
+  b.truth = truth;
+  FrameLoop loop(std::make_unique<ScriptedSource>(std::deque<SourceItem>{a, b}),
+                 std::make_unique<RecordingEstimator>(log));
+  const StepResult first = loop.Step();
+  ASSERT_TRUE(first.truth.has_value());
+  EXPECT_FALSE(first.truth->T_enu_body.has_value());  // no origin yet
+  EXPECT_DOUBLE_EQ(first.truth->lat_deg, 49.0);
+  log->has_origin = true;
+  const StepResult second = loop.Step();
+  ASSERT_TRUE(second.truth && second.truth->T_enu_body);
+  EXPECT_NEAR(second.truth->T_enu_body->translation().y(), 10.0, 0.05);
+  EXPECT_NEAR(second.truth->T_enu_body->translation().x(), 0.0, 1e-6);
+}
+
+// A rendered drive with two frames missing an image and one corrupt image:
+// the loop skips the three, and the OXTS samples that came with them reach
+// the estimator with the next good frame; none is lost.
+TEST(FrameLoop, OxtsOfSkippedFramesReachTheEstimatorWithTheNextFrame) {
+  const fs::path drive = RenderDrive("frame_loop");
+  ASSERT_FALSE(drive.empty());
+  auto png = [&](const char* camera, int i) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "%010d.png", i);
+    return drive / camera / "data" / name;
+  };
+  ASSERT_TRUE(fs::remove(png("image_00", 3)));
+  ASSERT_TRUE(fs::remove(png("image_01", 4)));
+  fs::resize_file(png("image_00", 7), 100);
+  const auto reference = kitti::OpenDataset(drive);
+  size_t expected = 0;
+  for (const auto& o : reference->oxts())
+    expected += o.t_ns >= reference->time_ns(0) && o.t_ns <= reference->time_ns(11) ? 1 : 0;
+  ASSERT_GE(expected, 11u);
+
+  auto log = std::make_shared<RecordingEstimator::Log>();
+  FrameLoop loop(std::make_unique<DatasetFrameSource>(kitti::OpenDataset(drive), 0, -1),
+                 std::make_unique<RecordingEstimator>(log));
+  std::vector<int64_t> skipped;
+  for (StepResult r = loop.Step(); r.kind != StepResult::Kind::kEnd; r = loop.Step()) {
+    if (r.kind == StepResult::Kind::kPose) continue;
+    skipped.push_back(r.frame_index);
+    EXPECT_FALSE(r.error.empty());
+  }
+  EXPECT_EQ(skipped, (std::vector<int64_t>{3, 4, 7}));
+  EXPECT_EQ(log->frame_t_ns.size(), 9u);
+  EXPECT_EQ(log->oxts_samples, expected);
+  fs::remove_all(drive.parent_path());
+}
+
+// The server opens KITTI drives with skip_bad_oxts: the OXTS files the reader
+// left out are reported by the frame source, once, as bad OXTS lines.
+TEST(DatasetFrameSource, CountsTheOxtsFilesTheReaderSkipped) {
+  const fs::path drive = RenderDrive("dataset_source");
+  ASSERT_FALSE(drive.empty());
+  std::ofstream(drive / "oxts" / "data" / "0000000004.txt", std::ios::trunc) << "1 2 3\n";  // 3 fields
+  {
+    const fs::path seven = drive / "oxts" / "data" / "0000000007.txt";
+    std::string line;
+    std::getline(std::ifstream(seven) >> std::ws, line);
+    line = "nan" + line.substr(line.find(' '));  // latitude NaN
+    std::ofstream(seven, std::ios::trunc) << line << "\n";
+  }
+  kitti::RawDriveOptions options;
+  options.skip_bad_oxts = true;
+  const auto reference = kitti::OpenDataset(drive, options);
+  ASSERT_EQ(reference->oxts().size(), 10u);  // 12 records, 2 unreadable
+  size_t expected_oxts = 0;
+  for (const auto& o : reference->oxts())
+    expected_oxts += o.t_ns >= reference->time_ns(0) && o.t_ns <= reference->time_ns(11) ? 1 : 0;
+  DatasetFrameSource source(kitti::OpenDataset(drive, options), 0, -1);
+  int bad = 0, frames = 0;
+  size_t oxts = 0;
+  std::string first_error;
+  for (SourceItem item = source.Next(); item.kind != SourceItem::Kind::kEnd; item = source.Next()) {
+    if (frames++ == 0) first_error = item.error;
+    bad += item.oxts_bad_lines;
+    oxts += item.oxts.size();
+  }
+  EXPECT_EQ(frames, 12);
+  EXPECT_EQ(bad, 2);
+  EXPECT_EQ(oxts, expected_oxts);
+  EXPECT_NE(first_error.find("OXTS"), std::string::npos) << first_error;
+  fs::remove_all(drive.parent_path());
+}
+
+TEST(LiveFrameSource, OrderingAndBadRecordsAreCountedNotFatal) {
+  LiveCameraSetup setup;
+  setup.camera = StereoCamera{30, 30, 4, 3, 0.5, 8, 6};
+  LiveFrameSource source(setup);
+  auto frame = [](int64_t t_ns) {
+    LiveItem item;
+    item.kind = LiveItem::Kind::kFrame;
+    item.t_ns = t_ns;
+    item.png = false;
+    item.left = item.right = std::string(8 * 6, '\x80');
+    return item;
+  };
+  LiveItem bad_oxts;
+  bad_oxts.kind = LiveItem::Kind::kOxts;
+  bad_oxts.t_ns = kT0;
+  bad_oxts.oxts_line = "1 2 3";
+  ASSERT_TRUE(source.Push(bad_oxts, {}));
+  ASSERT_TRUE(source.Push(frame(kT0 + kPeriod), {}));
+  ASSERT_TRUE(source.Push(frame(kT0), {}));  // older than the previous frame
+  LiveItem late_fix;
+  late_fix.kind = LiveItem::Kind::kGps;
+  late_fix.t_ns = kT0 - 10 * kPeriod;  // 1.1 s older than the newest frame (limit 0.5 s)
+  late_fix.gps.t_ns = late_fix.t_ns;
+  ASSERT_TRUE(source.Push(late_fix, {}));
+  source.CloseInput();
+
+  const SourceItem first = source.Next();
+  EXPECT_EQ(first.kind, SourceItem::Kind::kFrame);
+  EXPECT_EQ(first.oxts_bad_lines, 1);
+  EXPECT_NE(first.error.find("pushed oxts record 0"), std::string::npos) << first.error;
+  const SourceItem second = source.Next();
+  EXPECT_EQ(second.kind, SourceItem::Kind::kCorrupt);
+  EXPECT_NE(second.error.find("not after the previous frame"), std::string::npos) << second.error;
+  EXPECT_EQ(source.Next().kind, SourceItem::Kind::kEnd);
+  const LiveInputStats stats = source.input_stats();
+  EXPECT_EQ(stats.gps_fixes_in, 1u);
+  EXPECT_EQ(stats.gps_fixes_late, 1u);
+  EXPECT_NE(stats.last_error.find("older than the newest frame"), std::string::npos) << stats.last_error;
+}
+
+}  // namespace
+}  // namespace locaid::pipeline
