@@ -61,6 +61,23 @@ struct Waker {
   }
 };
 
+// What the stream reactors (stream_reactors.cpp) need of the service: stream
+// registration (so shutdown can end every stream), live sessions for a push
+// stream, and the subscriber queue size. LocalizationService implements it
+// privately: none of it is public API.
+class ReactorHost {
+ public:
+  virtual void Register(const std::shared_ptr<Waker>& waker) = 0;
+  virtual void Unregister(const std::shared_ptr<Waker>& waker) = 0;
+  // The live session a PushSensorData stream attaches to (or starts).
+  virtual grpc::Status StartLive(const locaid::v1::PushStart& start, std::shared_ptr<Session>* session,
+                                 pipeline::LiveFrameSource** live) = 0;
+  virtual size_t subscriber_queue_size() const = 0;
+
+ protected:
+  ~ReactorHost() = default;
+};
+
 // The poses of one session serialized once and shared by all its pose
 // streams (a grpc::Slice is reference counted, so N subscribers cost one
 // serialization and N reference increments instead of N proto copies and N
@@ -90,7 +107,8 @@ grpc::ByteBuffer EncodePoseForSubscriber(const grpc::Slice& encoded, uint64_t dr
 // serialization per pose serves every subscriber; its request and response
 // bytes are the proto messages of localization.proto (the API is unchanged).
 class LocalizationService final
-    : public locaid::v1::Localization::WithRawCallbackMethod_StreamPoses<locaid::v1::Localization::CallbackService> {
+    : public locaid::v1::Localization::WithRawCallbackMethod_StreamPoses<locaid::v1::Localization::CallbackService>,
+      private ReactorHost {
  public:
   LocalizationService(ServerConfig config, EstimatorFactory estimator_factory);
   ~LocalizationService() override;
@@ -131,18 +149,20 @@ class LocalizationService final
   // deadline passes; true when none is left.
   bool WaitForStreams(std::chrono::steady_clock::time_point deadline);
 
-  // Internal, used by the reactors.
+  // Everything /metrics serves, read now (server/metrics.hpp).
+  std::vector<prometheus::MetricFamily> CollectMetrics() const;
+
+ private:
+  // ReactorHost.
+  void Register(const std::shared_ptr<Waker>& waker) override;
+  void Unregister(const std::shared_ptr<Waker>& waker) override;
+  grpc::Status StartLive(const locaid::v1::PushStart& start, std::shared_ptr<Session>* session,
+                         pipeline::LiveFrameSource** live) override;
+  size_t subscriber_queue_size() const override { return config_.queue_size; }
+
   grpc::Status Authorize(const grpc::CallbackServerContext* ctx) const;
   grpc::Status FindSession(const std::string& id, std::shared_ptr<Session>* out,
                            std::shared_ptr<PoseEncodings>* encodings = nullptr) const;
-  grpc::Status StartLive(const locaid::v1::PushStart& start, std::shared_ptr<Session>* session,
-                         pipeline::LiveFrameSource** live);
-  void Register(const std::shared_ptr<Waker>& waker);
-  void Unregister(const std::shared_ptr<Waker>& waker);
-  const ServerConfig& config() const { return config_; }
-  bool shutting_down() const { return shutting_down_; }
-
- private:
   struct Entry {
     std::shared_ptr<Session> session;
     pipeline::LiveFrameSource* live = nullptr;  // owned by the session's pipeline
@@ -154,11 +174,6 @@ class LocalizationService final
   grpc::Status AddSession(SessionOptions options, std::unique_ptr<pipeline::Pipeline> pipeline,
                           pipeline::LiveFrameSource* live, std::string* id);
 
- public:
-  // Everything /metrics serves, read now (server/metrics.hpp).
-  std::vector<prometheus::MetricFamily> CollectMetrics() const;
-
- private:
   // Takes ended sessions beyond max_ended_sessions or older than
   // ended_session_ttl_s out of the registry (mu_ held); the caller destroys
   // them after unlocking.

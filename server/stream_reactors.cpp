@@ -79,7 +79,7 @@ class HubStream : public Reactor, public StreamTarget {
  protected:
   enum class Next { kWrite, kIdle, kEnd };
 
-  explicit HubStream(LocalizationService* service) : service_(service), waker_(std::make_shared<Waker>()) {
+  explicit HubStream(ReactorHost* service) : service_(service), waker_(std::make_shared<Waker>()) {
     waker_->target = this;
     service_->Register(waker_);
   }
@@ -149,7 +149,7 @@ class HubStream : public Reactor, public StreamTarget {
   }
   bool open_locked() const { return !finished_ && !finish_; }
 
-  LocalizationService* const service_;
+  ReactorHost* const service_;
   const std::shared_ptr<Waker> waker_;
   std::shared_ptr<Session> session_;  // set by Subscribe()
   Hub::SubscriberPtr sub_;
@@ -169,7 +169,7 @@ class HubStream : public Reactor, public StreamTarget {
 // on the wire are an ordinary PoseUpdate.
 class PoseWriter final : public HubStream<grpc::ServerWriteReactor<grpc::ByteBuffer>, grpc::ByteBuffer> {
  public:
-  PoseWriter(LocalizationService* service, std::shared_ptr<Session> session,
+  PoseWriter(ReactorHost* service, std::shared_ptr<Session> session,
              std::shared_ptr<PoseEncodings> encodings, bool from_start, std::string peer, size_t queue_size)
       : HubStream(service), encodings_(std::move(encodings)) {
     Subscribe(std::move(session), queue_size, from_start, std::move(peer));
@@ -193,7 +193,7 @@ class PoseWriter final : public HubStream<grpc::ServerWriteReactor<grpc::ByteBuf
 class PushReactor final : public HubStream<grpc::ServerBidiReactor<v1::PushRequest, v1::PushResponse>,
                                            v1::PushResponse> {
  public:
-  PushReactor(LocalizationService* service, std::string peer) : HubStream(service), peer_(std::move(peer)) {
+  PushReactor(ReactorHost* service, std::string peer) : HubStream(service), peer_(std::move(peer)) {
     StartRead(&req_);
   }
 
@@ -300,7 +300,7 @@ class PushReactor final : public HubStream<grpc::ServerBidiReactor<v1::PushReque
       return;
     }
     live_ = live;
-    Subscribe(std::move(session), service_->config().queue_size, false, peer_);
+    Subscribe(std::move(session), service_->subscriber_queue_size(), false, peer_);
     v1::PushResponse first;
     *first.mutable_session() = session_->ToProto();
     control_.push_back(std::move(first));
@@ -362,14 +362,14 @@ class PushReactor final : public HubStream<grpc::ServerBidiReactor<v1::PushReque
 
 }  // namespace
 
-grpc::ServerWriteReactor<grpc::ByteBuffer>* NewPoseWriter(LocalizationService* service,
+grpc::ServerWriteReactor<grpc::ByteBuffer>* NewPoseWriter(ReactorHost* service,
                                                           std::shared_ptr<Session> session,
                                                           std::shared_ptr<PoseEncodings> encodings, bool from_start,
                                                           std::string peer, size_t queue_size) {
   return new PoseWriter(service, std::move(session), std::move(encodings), from_start, std::move(peer), queue_size);
 }
 
-grpc::ServerBidiReactor<v1::PushRequest, v1::PushResponse>* NewPushReactor(LocalizationService* service,
+grpc::ServerBidiReactor<v1::PushRequest, v1::PushResponse>* NewPushReactor(ReactorHost* service,
                                                                             std::string peer) {
   return new PushReactor(service, std::move(peer));
 }

@@ -15,11 +15,11 @@
 
 namespace locaid::server {
 
-grpc::ServerWriteReactor<grpc::ByteBuffer>* NewPoseWriter(LocalizationService* service,
+grpc::ServerWriteReactor<grpc::ByteBuffer>* NewPoseWriter(ReactorHost* service,
                                                           std::shared_ptr<Session> session,
                                                           std::shared_ptr<PoseEncodings> encodings, bool from_start,
                                                           std::string peer, size_t queue_size);
 grpc::ServerBidiReactor<locaid::v1::PushRequest, locaid::v1::PushResponse>* NewPushReactor(
-    LocalizationService* service, std::string peer);
+    ReactorHost* service, std::string peer);
 
 }  // namespace locaid::server
