@@ -102,7 +102,7 @@ class FrameLoop final : public Pipeline {
   void Wake() override { source_->Wake(); }
   int64_t total_frames() const override { return source_->total_frames(); }
   void StartOutageNow(double duration_s) override;
-  void StopOutage() override { estimator_->StopOutageNow(); }
+  void StopOutage() override { estimator_->StopOutage(); }
   void AddOutageWindow(double start_s, double duration_s) override;
   void SetScenario(const fusion::Scenario& scenario) override { estimator_->SetScenario(scenario); }
   bool origin(double* lat_deg, double* lon_deg, double* alt_m) const override {

@@ -65,7 +65,7 @@ void Localizer::ScheduleOutage(int64_t start_ns, int64_t end_ns) {
   pending_outages_.emplace_back(start_ns, end_ns);
 }
 void Localizer::StartOutageNow() { std::lock_guard lock(control_mutex_); pending_forced_ = true; }
-void Localizer::StopOutageNow() { std::lock_guard lock(control_mutex_); pending_forced_ = false; }
+void Localizer::StopOutage() { std::lock_guard lock(control_mutex_); pending_forced_ = false; }
 
 void Localizer::SetScenario(fusion::Scenario scenario) {
   fusion::ValidateScenario(scenario);

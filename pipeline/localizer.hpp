@@ -85,7 +85,7 @@ class Estimator {
   // Run-time outages, absolute times on the frame clock.
   virtual void ScheduleOutage(int64_t start_ns, int64_t end_ns) = 0;
   virtual void StartOutageNow() = 0;
-  virtual void StopOutageNow() = 0;
+  virtual void StopOutage() = 0;
   // Replaces the degradation scenario (new seed/noise; keeps the filter state
   // and the run-time outages). Throws std::invalid_argument if invalid.
   virtual void SetScenario(fusion::Scenario scenario) = 0;
@@ -110,7 +110,7 @@ class Localizer final : public Estimator {
   FrameResult FuseSensors(const SensorBatch& batch) override;
   void ScheduleOutage(int64_t start_ns, int64_t end_ns) override;
   void StartOutageNow() override;
-  void StopOutageNow() override;
+  void StopOutage() override;
   void SetScenario(fusion::Scenario scenario) override;
   bool origin(double* lat_deg, double* lon_deg, double* alt_m) const override;
   fusion::Scenario scenario() const;

@@ -55,7 +55,7 @@ class ConstantEstimator : public locaid::pipeline::Estimator {
   locaid::pipeline::FrameResult FuseSensors(const locaid::pipeline::SensorBatch&) override { return {}; }
   void ScheduleOutage(int64_t, int64_t) override {}
   void StartOutageNow() override {}
-  void StopOutageNow() override {}
+  void StopOutage() override {}
   void SetScenario(locaid::fusion::Scenario) override {}
   bool origin(double*, double*, double*) const override { return false; }
 

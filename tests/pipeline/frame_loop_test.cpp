@@ -58,7 +58,7 @@ class RecordingEstimator : public Estimator {
     log_->calls.push_back("schedule " + std::to_string(start_ns) + " " + std::to_string(end_ns));
   }
   void StartOutageNow() override { log_->calls.push_back("start"); }
-  void StopOutageNow() override { log_->calls.push_back("stop"); }
+  void StopOutage() override { log_->calls.push_back("stop"); }
   void SetScenario(fusion::Scenario) override { log_->calls.push_back("scenario"); }
   bool origin(double* lat_deg, double* lon_deg, double* alt_m) const override {
     if (!log_->has_origin) return false;

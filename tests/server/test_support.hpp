@@ -82,7 +82,7 @@ class FakeEstimator : public pipeline::Estimator {
   }
   void ScheduleOutage(int64_t start_ns, int64_t end_ns) override { windows_.emplace_back(start_ns, end_ns); }
   void StartOutageNow() override { forced_ = true; }
-  void StopOutageNow() override {
+  void StopOutage() override {
     forced_ = false;
     windows_.clear();
   }
