@@ -1,7 +1,8 @@
 // The Localization service's handlers (one per RPC, reading like a table of
-// contents) and the session registry. Request translation is in
-// session_requests.cpp, the streaming reactors in stream_reactors.cpp, the
-// server building in server.cpp, the shared statuses in status.cpp.
+// contents), authorization and stream bookkeeping for shutdown. Sessions are
+// kept by session_registry.cpp, requests translated in session_requests.cpp,
+// streams served by stream_reactors.cpp, the server built in server.cpp, the
+// shared statuses in status.cpp.
 #include "server/service.hpp"
 
 #include "server/metrics.hpp"
@@ -9,7 +10,6 @@
 #include "server/stream_reactors.hpp"
 #include "server/synthetic_drive.hpp"
 
-#include <google/protobuf/io/coded_stream.h>
 #include <grpcpp/support/proto_buffer_reader.h>
 
 #include <algorithm>
@@ -25,39 +25,6 @@ namespace locaid::server {
 namespace v1 = locaid::v1;
 using grpc::Status;
 using grpc::StatusCode;
-
-// ------------------------------------------------------- pose encodings --
-
-grpc::Slice PoseEncodings::Get(const Hub::Item& item) {
-  const uint64_t seq = item->sequence();
-  const size_t slot = static_cast<size_t>(seq % kSlots);
-  {
-    std::lock_guard lock(mu_);
-    if (items_[slot] == item) return slices_[slot];
-  }
-  const std::string bytes = item->SerializeAsString();
-  grpc::Slice slice(bytes);
-  std::lock_guard lock(mu_);
-  if (seq + kSlots > newest_) {  // recent: cache it (a replay of old history does not evict live items)
-    newest_ = std::max(newest_, seq);
-    items_[slot] = item;
-    slices_[slot] = slice;
-  }
-  return slice;
-}
-
-grpc::ByteBuffer EncodePoseForSubscriber(const grpc::Slice& encoded, uint64_t dropped) {
-  if (dropped == 0) return grpc::ByteBuffer(&encoded, 1);
-  using google::protobuf::io::CodedOutputStream;
-  uint8_t tail[16];
-  uint8_t* end = CodedOutputStream::WriteTagToArray(
-      static_cast<uint32_t>(v1::PoseUpdate::kDroppedForSubscriberFieldNumber) << 3, tail);  // varint wire type
-  end = CodedOutputStream::WriteVarint64ToArray(dropped, end);
-  const grpc::Slice slices[2] = {encoded, grpc::Slice(tail, static_cast<size_t>(end - tail))};
-  return grpc::ByteBuffer(slices, 2);
-}
-
-// -------------------------------------------------------------- service --
 
 LocalizationService::LocalizationService(ServerConfig config, EstimatorFactory estimator_factory)
     : config_(std::move(config)), estimator_factory_(std::move(estimator_factory)) {
@@ -82,17 +49,6 @@ Status LocalizationService::Authorize(const grpc::CallbackServerContext* ctx) co
   return Status::OK;
 }
 
-Status LocalizationService::FindSession(const std::string& id, std::shared_ptr<Session>* out,
-                                        std::shared_ptr<PoseEncodings>* encodings) const {
-  if (id.empty()) return Invalid("session_id: required");
-  std::lock_guard lock(mu_);
-  auto it = sessions_.find(id);
-  if (it == sessions_.end()) return {StatusCode::NOT_FOUND, "session " + Quoted(id) + " not found"};
-  *out = it->second.session;
-  if (encodings) *encodings = it->second.encodings;
-  return Status::OK;
-}
-
 void LocalizationService::Register(const std::shared_ptr<Waker>& waker) {
   std::lock_guard lock(mu_);
   streams_.insert(waker);
@@ -110,11 +66,7 @@ bool LocalizationService::WaitForStreams(std::chrono::steady_clock::time_point d
 }
 
 std::vector<prometheus::MetricFamily> LocalizationService::CollectMetrics() const {
-  std::vector<std::shared_ptr<Session>> sessions;
-  {
-    std::lock_guard lock(mu_);
-    for (const auto& [id, e] : sessions_) sessions.push_back(e.session);
-  }
+  const std::vector<std::shared_ptr<Session>> sessions = sessions_.Snapshot();
   std::vector<SessionMetrics> snapshots;
   ServerFigures figures;
   for (const auto& s : sessions) {
@@ -127,59 +79,6 @@ std::vector<prometheus::MetricFamily> LocalizationService::CollectMetrics() cons
   return BuildMetricFamilies(snapshots, figures);
 }
 
-std::vector<std::shared_ptr<Session>> LocalizationService::PruneEndedLocked() {
-  const int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                          std::chrono::system_clock::now().time_since_epoch()).count();
-  const auto ttl_ns = static_cast<int64_t>(config_.ended_session_ttl_s * 1e9);
-  std::vector<std::pair<int64_t, std::string>> ended;  // (ended at, id)
-  std::vector<std::shared_ptr<Session>> pruned;
-  for (const auto& [id, e] : sessions_) {
-    const int64_t at = e.session->ended_unix_ns();
-    if (at > 0) ended.emplace_back(at, id);
-  }
-  std::sort(ended.begin(), ended.end());
-  for (size_t i = 0; i < ended.size(); ++i) {
-    const bool too_many = ended.size() - i > config_.max_ended_sessions;
-    if (!too_many && now - ended[i].first <= ttl_ns) continue;
-    pruned.push_back(sessions_.at(ended[i].second).session);
-    sessions_.erase(ended[i].second);
-  }
-  return pruned;
-}
-
-Status LocalizationService::AddSession(SessionOptions options, std::unique_ptr<pipeline::Pipeline> pipeline,
-                                       pipeline::LiveFrameSource* live, std::string* id) {
-  std::vector<std::shared_ptr<Session>> pruned;  // destroyed after the lock
-  std::lock_guard lock(mu_);
-  pruned = PruneEndedLocked();
-  if (shutting_down_) return {StatusCode::UNAVAILABLE, "server is shutting down"};
-  size_t active = 0;
-  for (const auto& [k, e] : sessions_) {
-    const auto st = e.session->state();
-    active += (st == v1::SESSION_STATE_RUNNING || st == v1::SESSION_STATE_STARTING) ? 1 : 0;
-  }
-  if (active >= config_.max_sessions) {
-    return {StatusCode::RESOURCE_EXHAUSTED,
-            "max_sessions (" + std::to_string(config_.max_sessions) + ") sessions are running; stop one first"};
-  }
-  if (!pipeline->ready()) {  // it prepares its input (renders) first
-    size_t preparing = 0;
-    for (const auto& [k, e] : sessions_) preparing += e.session->state() == v1::SESSION_STATE_STARTING ? 1 : 0;
-    if (preparing >= config_.max_concurrent_renders) {
-      return {StatusCode::RESOURCE_EXHAUSTED, std::to_string(preparing) +
-                                                  " sessions are preparing their input (max_concurrent_renders); "
-                                                  "retry when one is RUNNING"};
-    }
-  }
-  do options.id = RandomSessionId();
-  while (sessions_.count(options.id) > 0);
-  *id = options.id;
-  auto session = std::make_shared<Session>(std::move(options), std::move(pipeline));
-  sessions_[*id] = Entry{session, live, false};  // encodings: its default (a fresh cache)
-  session->Start();
-  return Status::OK;
-}
-
 grpc::ServerUnaryReactor* LocalizationService::StartSession(grpc::CallbackServerContext* ctx,
                                                             const v1::StartSessionRequest* req, v1::Session* resp) {
   if (Status s = Authorize(ctx); !s.ok()) return Reply(ctx, s);
@@ -187,7 +86,7 @@ grpc::ServerUnaryReactor* LocalizationService::StartSession(grpc::CallbackServer
   Status s = DoStart(*req, &id);
   if (s.ok()) {
     std::shared_ptr<Session> session;
-    s = FindSession(id, &session);
+    s = sessions_.Find(id, &session);
     if (s.ok()) *resp = session->ToProto();
   }
   return Reply(ctx, s);
@@ -197,7 +96,7 @@ grpc::ServerUnaryReactor* LocalizationService::GetSession(grpc::CallbackServerCo
                                                           const v1::GetSessionRequest* req, v1::Session* resp) {
   if (Status s = Authorize(ctx); !s.ok()) return Reply(ctx, s);
   std::shared_ptr<Session> session;
-  Status s = FindSession(req->session_id(), &session);
+  Status s = sessions_.Find(req->session_id(), &session);
   if (s.ok()) *resp = session->ToProto();
   return Reply(ctx, s);
 }
@@ -206,13 +105,7 @@ grpc::ServerUnaryReactor* LocalizationService::ListSessions(grpc::CallbackServer
                                                             const v1::ListSessionsRequest*,
                                                             v1::ListSessionsResponse* resp) {
   if (Status s = Authorize(ctx); !s.ok()) return Reply(ctx, s);
-  std::vector<std::shared_ptr<Session>> all, pruned;
-  {
-    std::lock_guard lock(mu_);
-    pruned = PruneEndedLocked();
-    for (const auto& [id, e] : sessions_) all.push_back(e.session);
-  }
-  for (const auto& s : all) *resp->add_sessions() = s->ToProto();
+  for (const auto& s : sessions_.List()) *resp->add_sessions() = s->ToProto();
   return Reply(ctx, Status::OK);
 }
 
@@ -220,15 +113,12 @@ grpc::ServerUnaryReactor* LocalizationService::StopSession(grpc::CallbackServerC
                                                            const v1::StopSessionRequest* req, v1::Session* resp) {
   if (Status s = Authorize(ctx); !s.ok()) return Reply(ctx, s);
   std::shared_ptr<Session> session;
-  Status s = FindSession(req->session_id(), &session);
+  Status s = sessions_.Find(req->session_id(), &session);
   if (!s.ok()) return Reply(ctx, s);
   session->Stop();
   session->Join();
   *resp = session->ToProto();
-  if (req->remove()) {
-    std::lock_guard lock(mu_);
-    sessions_.erase(req->session_id());
-  }
+  if (req->remove()) sessions_.Remove(req->session_id());
   return Reply(ctx, Status::OK);
 }
 
@@ -236,7 +126,7 @@ grpc::ServerUnaryReactor* LocalizationService::GetStats(grpc::CallbackServerCont
                                                         const v1::GetStatsRequest* req, v1::SessionStats* resp) {
   if (Status s = Authorize(ctx); !s.ok()) return Reply(ctx, s);
   std::shared_ptr<Session> session;
-  Status s = FindSession(req->session_id(), &session);
+  Status s = sessions_.Find(req->session_id(), &session);
   if (s.ok()) *resp = session->Stats();
   return Reply(ctx, s);
 }
@@ -263,7 +153,7 @@ grpc::ServerWriteReactor<grpc::ByteBuffer>* LocalizationService::StreamPoses(grp
   }
   std::shared_ptr<Session> session;
   std::shared_ptr<PoseEncodings> encodings;
-  if (Status s = FindSession(req.session_id(), &session, &encodings); !s.ok()) return fail(s);
+  if (Status s = sessions_.Find(req.session_id(), &session, &encodings); !s.ok()) return fail(s);
   if (req.queue_size() > config_.max_queue_size) {
     return fail(Invalid("queue_size: " + std::to_string(req.queue_size()) + " exceeds the server's max_queue_size " +
                         std::to_string(config_.max_queue_size)));
@@ -281,7 +171,7 @@ grpc::ServerUnaryReactor* LocalizationService::InjectOutage(grpc::CallbackServer
                                                             const v1::InjectOutageRequest* req, v1::Session* resp) {
   if (Status s = Authorize(ctx); !s.ok()) return Reply(ctx, s);
   std::shared_ptr<Session> session;
-  if (Status s = FindSession(req->session_id(), &session); !s.ok()) return Reply(ctx, s);
+  if (Status s = sessions_.Find(req->session_id(), &session); !s.ok()) return Reply(ctx, s);
   if (Status s = RequireActive(*session, "InjectOutage"); !s.ok()) return Reply(ctx, s);
   const double start_s = req->start_s(), duration_s = req->duration_s();
   // Seconds become int64 nanoseconds on the sensor clock: bounded so they
@@ -315,7 +205,7 @@ grpc::ServerUnaryReactor* LocalizationService::SetScenario(grpc::CallbackServerC
                                                            const v1::SetScenarioRequest* req, v1::Session* resp) {
   if (Status s = Authorize(ctx); !s.ok()) return Reply(ctx, s);
   std::shared_ptr<Session> session;
-  if (Status s = FindSession(req->session_id(), &session); !s.ok()) return Reply(ctx, s);
+  if (Status s = sessions_.Find(req->session_id(), &session); !s.ok()) return Reply(ctx, s);
   if (Status s = RequireActive(*session, "SetScenario"); !s.ok()) return Reply(ctx, s);
   if (req->scenario().kind_case() == v1::Scenario::KIND_NOT_SET) return Reply(ctx, Invalid("scenario: required"));
   fusion::Scenario scenario;
@@ -342,11 +232,10 @@ grpc::ServerBidiReactor<v1::PushRequest, v1::PushResponse>* LocalizationService:
 
 void LocalizationService::BeginShutdown() {
   shutting_down_ = true;
-  std::vector<std::shared_ptr<Session>> sessions;
+  const std::vector<std::shared_ptr<Session>> sessions = sessions_.Close();
   std::vector<std::shared_ptr<Waker>> streams;
   {
     std::lock_guard lock(mu_);
-    for (const auto& [id, e] : sessions_) sessions.push_back(e.session);
     streams.assign(streams_.begin(), streams_.end());
   }
   // Streams first: a stopped session closes its hub, and a stream that saw
@@ -359,14 +248,7 @@ void LocalizationService::BeginShutdown() {
 }
 
 void LocalizationService::JoinSessions() {
-  std::vector<std::shared_ptr<Session>> sessions;
-  {
-    std::lock_guard lock(mu_);
-    for (const auto& [id, e] : sessions_) sessions.push_back(e.session);
-  }
-  for (const auto& s : sessions) s->Join();
+  for (const auto& s : sessions_.Snapshot()) s->Join();
 }
-
-// --------------------------------------------------------------- server --
 
 }  // namespace locaid::server

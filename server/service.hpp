@@ -4,7 +4,9 @@
 #include "locaid/v1/localization.grpc.pb.h"
 #include "server/config.hpp"
 #include "server/metrics.hpp"
+#include "server/pose_encodings.hpp"
 #include "server/session.hpp"
+#include "server/session_registry.hpp"
 #include "pipeline/live_frame_source.hpp"
 #include "pipeline/localizer.hpp"
 
@@ -78,31 +80,6 @@ class ReactorHost {
   ~ReactorHost() = default;
 };
 
-// The poses of one session serialized once and shared by all its pose
-// streams (a grpc::Slice is reference counted, so N subscribers cost one
-// serialization and N reference increments instead of N proto copies and N
-// serializations). Thread-safe.
-class PoseEncodings {
- public:
-  // The serialized bytes of `item` (dropped_for_subscriber unset). The last
-  // kSlots sequence numbers are cached; older items (a from-start replay)
-  // are serialized on each call and not cached.
-  grpc::Slice Get(const Hub::Item& item);
-
-  static constexpr size_t kSlots = 64;
-
- private:
-  std::mutex mu_;
-  uint64_t newest_ = 0;
-  std::array<Hub::Item, kSlots> items_;
-  std::array<grpc::Slice, kSlots> slices_;
-};
-
-// The wire bytes of one subscriber's PoseUpdate: `encoded` (a serialized
-// PoseUpdate without dropped_for_subscriber) shared as is, followed, when
-// `dropped` > 0, by the few bytes of field dropped_for_subscriber.
-grpc::ByteBuffer EncodePoseForSubscriber(const grpc::Slice& encoded, uint64_t dropped);
-
 // StreamPoses is served through the raw (ByteBuffer) callback method so one
 // serialization per pose serves every subscriber; its request and response
 // bytes are the proto messages of localization.proto (the API is unchanged).
@@ -161,28 +138,13 @@ class LocalizationService final
   size_t subscriber_queue_size() const override { return config_.queue_size; }
 
   grpc::Status Authorize(const grpc::CallbackServerContext* ctx) const;
-  grpc::Status FindSession(const std::string& id, std::shared_ptr<Session>* out,
-                           std::shared_ptr<PoseEncodings>* encodings = nullptr) const;
-  struct Entry {
-    std::shared_ptr<Session> session;
-    pipeline::LiveFrameSource* live = nullptr;  // owned by the session's pipeline
-    bool live_attached = false;
-    std::shared_ptr<PoseEncodings> encodings = std::make_shared<PoseEncodings>();
-  };
   grpc::Status DoStart(const locaid::v1::StartSessionRequest& req, std::string* id);
   grpc::Status ResolveScenario(const locaid::v1::Scenario& s, fusion::Scenario* out, std::string* name) const;
-  grpc::Status AddSession(SessionOptions options, std::unique_ptr<pipeline::Pipeline> pipeline,
-                          pipeline::LiveFrameSource* live, std::string* id);
-
-  // Takes ended sessions beyond max_ended_sessions or older than
-  // ended_session_ttl_s out of the registry (mu_ held); the caller destroys
-  // them after unlocking.
-  std::vector<std::shared_ptr<Session>> PruneEndedLocked();
 
   const ServerConfig config_;
   const EstimatorFactory estimator_factory_;
-  mutable std::mutex mu_;
-  std::map<std::string, Entry> sessions_;
+  SessionRegistry sessions_{config_};
+  std::mutex mu_;  // streams_
   std::set<std::shared_ptr<Waker>> streams_;
   std::condition_variable streams_cv_;  // streams_ became empty
   std::atomic<bool> shutting_down_{false};

@@ -235,7 +235,7 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
           std::error_code ec;
           std::filesystem::remove_all(drive_dir, ec);
         };
-        return AddSession(std::move(options),
+        return sessions_.Add(std::move(options),
                           std::make_unique<DeferredPipeline>(std::move(factory), static_cast<int64_t>(frames),
                                                              std::move(remove_drive)),
                           nullptr, id);
@@ -272,31 +272,13 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
     return Invalid(std::string("vo_method/scenario: ") + e.what());
   }
   if (gpsd) live->AttachFeeder(std::make_unique<GpsdReceiver>(*gpsd, live));
-  return AddSession(std::move(options), std::make_unique<pipeline::FrameLoop>(std::move(source), std::move(estimator)),
+  return sessions_.Add(std::move(options), std::make_unique<pipeline::FrameLoop>(std::move(source), std::move(estimator)),
                     live, id);
 }
 
 Status LocalizationService::StartLive(const v1::PushStart& start, std::shared_ptr<Session>* session,
                                       pipeline::LiveFrameSource** live) {
-  if (!start.session_id().empty()) {
-    std::lock_guard lock(mu_);
-    auto it = sessions_.find(start.session_id());
-    if (it == sessions_.end()) return {StatusCode::NOT_FOUND, "session " + Quoted(start.session_id()) + " not found"};
-    if (!it->second.live) {
-      return {StatusCode::FAILED_PRECONDITION, "session " + Quoted(start.session_id()) + " is not a live session"};
-    }
-    if (it->second.live_attached) {
-      return {StatusCode::FAILED_PRECONDITION,
-              "session " + Quoted(start.session_id()) + " already has a PushSensorData stream"};
-    }
-    if (it->second.session->state() != v1::SESSION_STATE_RUNNING) {
-      return {StatusCode::FAILED_PRECONDITION, "session " + Quoted(start.session_id()) + " is not running"};
-    }
-    it->second.live_attached = true;
-    *session = it->second.session;
-    *live = it->second.live;
-    return Status::OK;
-  }
+  if (!start.session_id().empty()) return sessions_.AttachPush(start.session_id(), true, session, live);
   v1::StartSessionRequest req;
   *req.mutable_live() = start.live();
   *req.mutable_scenario() = start.scenario();
@@ -304,12 +286,7 @@ Status LocalizationService::StartLive(const v1::PushStart& start, std::shared_pt
   req.set_history_size(start.history_size());
   std::string id;
   if (Status s = DoStart(req, &id); !s.ok()) return s;
-  std::lock_guard lock(mu_);
-  auto& e = sessions_.at(id);
-  e.live_attached = true;
-  *session = e.session;
-  *live = e.live;
-  return Status::OK;
+  return sessions_.AttachPush(id, false, session, live);
 }
 
 }  // namespace locaid::server

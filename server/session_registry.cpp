@@ -1,0 +1,133 @@
+#include "server/session_registry.hpp"
+
+#include "server/status.hpp"
+#include "server/synthetic_drive.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <utility>
+
+namespace locaid::server {
+
+namespace v1 = locaid::v1;
+using grpc::Status;
+using grpc::StatusCode;
+
+Status SessionRegistry::Add(SessionOptions options, std::unique_ptr<pipeline::Pipeline> pipeline,
+                            pipeline::LiveFrameSource* live, std::string* id) {
+  std::vector<std::shared_ptr<Session>> pruned;  // destroyed after the lock
+  std::lock_guard lock(mu_);
+  pruned = PruneEndedLocked();
+  if (closed_) return {StatusCode::UNAVAILABLE, "server is shutting down"};
+  size_t active = 0;
+  for (const auto& [k, e] : sessions_) {
+    const auto st = e.session->state();
+    active += (st == v1::SESSION_STATE_RUNNING || st == v1::SESSION_STATE_STARTING) ? 1 : 0;
+  }
+  if (active >= config_.max_sessions) {
+    return {StatusCode::RESOURCE_EXHAUSTED,
+            "max_sessions (" + std::to_string(config_.max_sessions) + ") sessions are running; stop one first"};
+  }
+  if (!pipeline->ready()) {  // it prepares its input (renders) first
+    size_t preparing = 0;
+    for (const auto& [k, e] : sessions_) preparing += e.session->state() == v1::SESSION_STATE_STARTING ? 1 : 0;
+    if (preparing >= config_.max_concurrent_renders) {
+      return {StatusCode::RESOURCE_EXHAUSTED, std::to_string(preparing) +
+                                                  " sessions are preparing their input (max_concurrent_renders); "
+                                                  "retry when one is RUNNING"};
+    }
+  }
+  do options.id = RandomSessionId();
+  while (sessions_.count(options.id) > 0);
+  *id = options.id;
+  auto session = std::make_shared<Session>(std::move(options), std::move(pipeline));
+  sessions_[*id] = Entry{session, live, false};  // encodings: its default (a fresh cache)
+  session->Start();
+  return Status::OK;
+}
+
+std::vector<std::shared_ptr<Session>> SessionRegistry::PruneEndedLocked() {
+  const int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                          std::chrono::system_clock::now().time_since_epoch()).count();
+  const auto ttl_ns = static_cast<int64_t>(config_.ended_session_ttl_s * 1e9);
+  std::vector<std::pair<int64_t, std::string>> ended;  // (ended at, id)
+  std::vector<std::shared_ptr<Session>> pruned;
+  for (const auto& [id, e] : sessions_) {
+    const int64_t at = e.session->ended_unix_ns();
+    if (at > 0) ended.emplace_back(at, id);
+  }
+  std::sort(ended.begin(), ended.end());
+  for (size_t i = 0; i < ended.size(); ++i) {
+    const bool too_many = ended.size() - i > config_.max_ended_sessions;
+    if (!too_many && now - ended[i].first <= ttl_ns) continue;
+    pruned.push_back(sessions_.at(ended[i].second).session);
+    sessions_.erase(ended[i].second);
+  }
+  return pruned;
+}
+
+Status SessionRegistry::Find(const std::string& id, std::shared_ptr<Session>* out,
+                             std::shared_ptr<PoseEncodings>* encodings) const {
+  if (id.empty()) return Invalid("session_id: required");
+  std::lock_guard lock(mu_);
+  auto it = sessions_.find(id);
+  if (it == sessions_.end()) return {StatusCode::NOT_FOUND, "session " + Quoted(id) + " not found"};
+  *out = it->second.session;
+  if (encodings) *encodings = it->second.encodings;
+  return Status::OK;
+}
+
+Status SessionRegistry::AttachPush(const std::string& id, bool require_running, std::shared_ptr<Session>* session,
+                                   pipeline::LiveFrameSource** live) {
+  std::lock_guard lock(mu_);
+  auto it = sessions_.find(id);
+  if (it == sessions_.end()) return {StatusCode::NOT_FOUND, "session " + Quoted(id) + " not found"};
+  Entry& e = it->second;
+  if (!e.live) return {StatusCode::FAILED_PRECONDITION, "session " + Quoted(id) + " is not a live session"};
+  if (e.push_attached) {
+    return {StatusCode::FAILED_PRECONDITION, "session " + Quoted(id) + " already has a PushSensorData stream"};
+  }
+  if (require_running && e.session->state() != v1::SESSION_STATE_RUNNING) {
+    return {StatusCode::FAILED_PRECONDITION, "session " + Quoted(id) + " is not running"};
+  }
+  e.push_attached = true;
+  *session = e.session;
+  *live = e.live;
+  return Status::OK;
+}
+
+void SessionRegistry::Remove(const std::string& id) {
+  std::shared_ptr<Session> removed;  // destroyed after the lock
+  std::lock_guard lock(mu_);
+  auto it = sessions_.find(id);
+  if (it == sessions_.end()) return;
+  removed = std::move(it->second.session);
+  sessions_.erase(it);
+}
+
+std::vector<std::shared_ptr<Session>> SessionRegistry::List() {
+  std::vector<std::shared_ptr<Session>> pruned;  // destroyed after the lock
+  std::lock_guard lock(mu_);
+  pruned = PruneEndedLocked();
+  return AllLocked();
+}
+
+std::vector<std::shared_ptr<Session>> SessionRegistry::Snapshot() const {
+  std::lock_guard lock(mu_);
+  return AllLocked();
+}
+
+std::vector<std::shared_ptr<Session>> SessionRegistry::Close() {
+  std::lock_guard lock(mu_);
+  closed_ = true;
+  return AllLocked();
+}
+
+std::vector<std::shared_ptr<Session>> SessionRegistry::AllLocked() const {
+  std::vector<std::shared_ptr<Session>> all;
+  all.reserve(sessions_.size());
+  for (const auto& [id, e] : sessions_) all.push_back(e.session);
+  return all;
+}
+
+}  // namespace locaid::server

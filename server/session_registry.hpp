@@ -1,0 +1,67 @@
+// The server's sessions by id: admission (max_sessions,
+// max_concurrent_renders), lookup, the PushSensorData attachment of live
+// sessions, pruning of ended sessions (max_ended_sessions,
+// ended_session_ttl_s) and closing for shutdown. Thread-safe; sessions taken
+// out are destroyed (joined) after its lock is released.
+#pragma once
+
+#include "pipeline/frame_loop.hpp"
+#include "pipeline/live_frame_source.hpp"
+#include "server/config.hpp"
+#include "server/pose_encodings.hpp"
+#include "server/session.hpp"
+
+#include <grpcpp/grpcpp.h>
+
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+namespace locaid::server {
+
+class SessionRegistry {
+ public:
+  explicit SessionRegistry(const ServerConfig& config) : config_(config) {}
+
+  // Admits and starts a session with a fresh random id; prunes ended ones
+  // first. RESOURCE_EXHAUSTED beyond max_sessions running (or
+  // max_concurrent_renders preparing), UNAVAILABLE once closed.
+  grpc::Status Add(SessionOptions options, std::unique_ptr<pipeline::Pipeline> pipeline,
+                   pipeline::LiveFrameSource* live, std::string* id);
+  // INVALID_ARGUMENT for an empty id, NOT_FOUND for an unknown one.
+  grpc::Status Find(const std::string& id, std::shared_ptr<Session>* out,
+                    std::shared_ptr<PoseEncodings>* encodings = nullptr) const;
+  // Attaches a PushSensorData stream to live session `id`: NOT_FOUND, or
+  // FAILED_PRECONDITION when it is not live, already has a stream, or (with
+  // require_running) is not running.
+  grpc::Status AttachPush(const std::string& id, bool require_running, std::shared_ptr<Session>* session,
+                          pipeline::LiveFrameSource** live);
+  void Remove(const std::string& id);
+  // Every session, ended ones beyond the limits pruned first.
+  std::vector<std::shared_ptr<Session>> List();
+  // Every session as it is (metrics).
+  std::vector<std::shared_ptr<Session>> Snapshot() const;
+  // Refuses new sessions from now on and returns every session.
+  std::vector<std::shared_ptr<Session>> Close();
+
+ private:
+  struct Entry {
+    std::shared_ptr<Session> session;
+    pipeline::LiveFrameSource* live = nullptr;  // owned by the session's pipeline
+    bool push_attached = false;
+    std::shared_ptr<PoseEncodings> encodings = std::make_shared<PoseEncodings>();
+  };
+  // Takes the ended sessions beyond the limits out (mu_ held); the caller
+  // destroys them after unlocking.
+  std::vector<std::shared_ptr<Session>> PruneEndedLocked();
+  std::vector<std::shared_ptr<Session>> AllLocked() const;
+
+  const ServerConfig& config_;
+  mutable std::mutex mu_;
+  std::map<std::string, Entry> sessions_;
+  bool closed_ = false;
+};
+
+}  // namespace locaid::server
