@@ -52,7 +52,7 @@ StepResult FrameLoop::Step() {
 }
 
 void FrameLoop::FuseTyped(const SourceItem& item) {
-  pipeline::SensorBatch batch;
+  SensorBatch batch;
   batch.imu = item.imu;
   batch.gps.reserve(item.gps.size());
   for (const ArrivedFix& f : item.gps) batch.gps.push_back(f.fix);
@@ -70,18 +70,23 @@ void FrameLoop::FuseTyped(const SourceItem& item) {
 
 TruthPose FrameLoop::Truth(const kitti::OxtsRecord& oxts) const {
   TruthPose t{oxts.lat_deg, oxts.lon_deg, oxts.alt_m, std::nullopt};
-  double lat0 = 0, lon0 = 0, alt0 = 0;
-  if (estimator_->origin(&lat0, &lon0, &alt0)) {
-    if (!enu_ || enu_->origin_lat_deg() != lat0 || enu_->origin_lon_deg() != lon0 || enu_->origin_alt_m() != alt0) {
-      enu_.emplace();
-      enu_->SetOrigin(lat0, lon0, alt0);
-    }
+  const fusion::EnuFrame& enu = estimator_->enu();
+  if (enu.has_origin()) {
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
     T.linear() = kitti::OxtsAttitude(oxts.roll_rad, oxts.pitch_rad, oxts.yaw_rad);
-    T.translation() = enu_->ToEnu(oxts.lat_deg, oxts.lon_deg, oxts.alt_m);
+    T.translation() = enu.ToEnu(oxts.lat_deg, oxts.lon_deg, oxts.alt_m);
     t.T_enu_body = T;
   }
   return t;
+}
+
+bool FrameLoop::origin(double* lat_deg, double* lon_deg, double* alt_m) const {
+  const fusion::EnuFrame& enu = estimator_->enu();
+  if (!enu.has_origin()) return false;
+  *lat_deg = enu.origin_lat_deg();
+  *lon_deg = enu.origin_lon_deg();
+  *alt_m = enu.origin_alt_m();
+  return true;
 }
 
 LiveInputStats FrameLoop::input_stats() const {

@@ -8,7 +8,6 @@
 // from the stepping thread (a session posts them there).
 #pragma once
 
-#include "fusion/geodesy.hpp"
 #include "fusion/scenario.hpp"
 #include "fusion/types.hpp"
 #include "pipeline/frame_source.hpp"
@@ -105,14 +104,9 @@ class FrameLoop final : public Pipeline {
   void StopOutage() override { estimator_->StopOutage(); }
   void AddOutageWindow(double start_s, double duration_s) override;
   void SetScenario(const fusion::Scenario& scenario) override { estimator_->SetScenario(scenario); }
-  bool origin(double* lat_deg, double* lon_deg, double* alt_m) const override {
-    return estimator_->origin(lat_deg, lon_deg, alt_m);
-  }
+  bool origin(double* lat_deg, double* lon_deg, double* alt_m) const override;
   // The source's counters plus the arrival-to-use latency of received fixes.
   LiveInputStats input_stats() const override;
-
-  const FrameSource& source() const { return *source_; }
-  const Estimator& estimator() const { return *estimator_; }
 
  private:
   // Fuses typed data, then records each fix's time from arrival to use.
@@ -133,7 +127,6 @@ class FrameLoop final : public Pipeline {
   // estimator with the next good frame instead of being lost.
   std::vector<kitti::OxtsSample> carried_oxts_;
   std::vector<GpsFeed> typed_feeds_;  // typed fixes fused since the last pose
-  mutable std::optional<fusion::EnuFrame> enu_;  // the filter's ENU frame, for the truth
 };
 
 }  // namespace locaid::pipeline

@@ -31,14 +31,14 @@ fusion::EkfConfig EffectiveEkfConfig(const LocalizerOptions& options, const fusi
 
 Localizer::Localizer(const StereoCamera& camera, const Eigen::Isometry3d& T_cam0_imu,
                      fusion::Scenario scenario, LocalizerOptions options)
-    : Localizer(camera, T_cam0_imu, std::move(scenario), options,
+    : Localizer(T_cam0_imu, std::move(scenario), options,
                 options.vo_method.empty() || options.vo_method == "none"
                     ? nullptr
                     : vo::MakeStereoOdometry(options.vo_method, camera)) {}
 
-Localizer::Localizer(const StereoCamera& camera, const Eigen::Isometry3d& T_cam0_imu, fusion::Scenario scenario,
-                     LocalizerOptions options, std::unique_ptr<vo::StereoOdometry> odometry)
-    : camera_(camera), T_cam0_imu_(T_cam0_imu), options_(std::move(options)), vo_(std::move(odometry)),
+Localizer::Localizer(const Eigen::Isometry3d& T_cam0_imu, fusion::Scenario scenario, LocalizerOptions options,
+                     std::unique_ptr<vo::StereoOdometry> odometry)
+    : T_cam0_imu_(T_cam0_imu), options_(std::move(options)), vo_(std::move(odometry)),
       scenario_(std::move(scenario)) {
   fusion::ValidateScenario(scenario_);
   Reset();
@@ -73,11 +73,6 @@ void Localizer::SetScenario(fusion::Scenario scenario) {
   pending_scenario_ = std::move(scenario);
 }
 
-fusion::Scenario Localizer::scenario() const {
-  std::lock_guard lock(control_mutex_);
-  return pending_scenario_ ? *pending_scenario_ : scenario_;
-}
-
 void Localizer::ApplyPendingControls() {
   std::lock_guard lock(control_mutex_);
   if (pending_scenario_) {
@@ -103,17 +98,6 @@ void Localizer::ApplyPendingControls() {
   }
 }
 
-bool Localizer::has_enu_origin() const { return ekf_->enu().has_origin(); }
-bool Localizer::origin(double* lat_deg, double* lon_deg, double* alt_m) const {
-  if (!has_enu_origin()) return false;
-  *lat_deg = ekf_->enu().origin_lat_deg();
-  *lon_deg = ekf_->enu().origin_lon_deg();
-  *alt_m = ekf_->enu().origin_alt_m();
-  return true;
-}
-Eigen::Vector3d Localizer::ToEnu(double lat, double lon, double alt) const {
-  return ekf_->enu().ToEnu(lat, lon, alt);
-}
 
 vo::RelativeMotion Localizer::TrackVo(const vo::StereoFrame& frame) {
   if (!vo_) {
@@ -147,29 +131,19 @@ FrameResult Localizer::FuseSensors(const SensorBatch& batch) {
   return r;
 }
 
-void Localizer::FeedImu(const fusion::ImuSample& imu, FrameResult& r) {
-  if (!options_.ekf.use_imu) return;
-  ekf_->PropagateImu(imu);
-  ++r.imu_samples;
-}
-
 void Localizer::FeedGps(const fusion::GpsFix& fix, FrameResult& r) {
   GpsFeed feed;
   feed.fix = fix;
   const int rejected_before = ekf_->gps_rejected();
   const int rejected_v_before = ekf_->gps_rejected_vertical();
-  const int resets_before = ekf_->gps_resets();
   feed.accepted = ekf_->UpdateGps(fix);
   feed.rejected = ekf_->gps_rejected() > rejected_before;
   feed.rejected_vertical = ekf_->gps_rejected_vertical() > rejected_v_before;
-  r.gps_reset = r.gps_reset || ekf_->gps_resets() > resets_before;
   if (ekf_->initialized()) {
     feed.nis = ekf_->last_gps_nis();
     feed.gate = ekf_->gps_gate();
   }
   if (ekf_->enu().has_origin()) feed.p_enu_m = ekf_->enu().ToEnu(fix.lat_deg, fix.lon_deg, fix.alt_m);
-  r.gps_rejected = r.gps_rejected || feed.rejected;
-  r.gps_fix_fed = fix;
   r.gps_feeds.push_back(feed);
 }
 
@@ -191,14 +165,14 @@ void Localizer::FeedSensors(const SensorBatch& batch, FrameResult& r) {
       imu.t_ns = s.t_ns;
       imu.accel_mps2 = {s.record.ax_mps2, s.record.ay_mps2, s.record.az_mps2};
       imu.gyro_radps = {s.record.wx_radps, s.record.wy_radps, s.record.wz_radps};
-      if (options_.ekf.use_imu) FeedImu(imu_->Apply(imu), r);
+      ekf_->PropagateImu(imu_->Apply(imu));  // the filter's process model decides whether IMU is used
       // The true attitude places a simulated antenna (Scenario::gps_antenna_body_m).
       const Eigen::Matrix3d R_enu_imu =
           kitti::OxtsAttitude(s.record.roll_rad, s.record.pitch_rad, s.record.yaw_rad);
       if (auto fix = gps_->Apply(s.t_ns, s.record.lat_deg, s.record.lon_deg, s.record.alt_m, &R_enu_imu))
         FeedGps(*fix, r);
     } else if (kind == kImu) {
-      FeedImu(batch.imu[i], r);
+      ekf_->PropagateImu(batch.imu[i]);
     } else if (!gps_->InOutage(t_ns)) {
       FeedGps(batch.gps[i], r);
     }

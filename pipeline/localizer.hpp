@@ -32,7 +32,7 @@ namespace locaid::pipeline {
 
 struct LocalizerOptions {
   std::string vo_method = "default";  // vo::MakeStereoOdometry method
-  fusion::EkfConfig ekf;               // ekf.use_imu false: VO + GPS only (no IMU fed)
+  fusion::EkfConfig ekf;               // ekf.use_imu false: VO + GPS only (the filter ignores IMU)
 };
 
 // One degraded fix produced during a frame, and what the gate did with it.
@@ -60,12 +60,8 @@ struct FrameResult {
   fusion::FusedPose pose;             // fused pose at the frame time
   vo::RelativeMotion vo;              // raw VO output (cam0 axes)
   fusion::VoMeasurement vo_body;      // VO converted to body (imu) axes
-  std::optional<fusion::GpsFix> gps_fix_fed;  // last fix fed to the filter this frame
   std::vector<GpsFeed> gps_feeds;     // every fix fed this frame
-  bool gps_rejected = false;          // some fix of this frame was rejected by the gate
-  bool gps_reset = false;             // the filter reset its position to GPS this frame
   bool in_outage = false;             // GPS outage (scheduled or run-time) at the frame time
-  int imu_samples = 0;                // IMU samples fed this frame
   double vo_ms = 0, fusion_ms = 0;    // wall time of the two stages
 };
 
@@ -89,8 +85,8 @@ class Estimator {
   // Replaces the degradation scenario (new seed/noise; keeps the filter state
   // and the run-time outages). Throws std::invalid_argument if invalid.
   virtual void SetScenario(fusion::Scenario scenario) = 0;
-  // The filter's ENU origin (the first degraded fix) once it has one.
-  virtual bool origin(double* lat_deg, double* lon_deg, double* alt_m) const = 0;
+  // The filter's ENU frame: origin at the first degraded fix once it has one.
+  virtual const fusion::EnuFrame& enu() const = 0;
 };
 
 class Localizer final : public Estimator {
@@ -101,8 +97,8 @@ class Localizer final : public Estimator {
             fusion::Scenario scenario, LocalizerOptions options = {});
   // With the given odometry instead of options.vo_method's (e.g. recorded
   // VO results replayed).
-  Localizer(const StereoCamera& camera, const Eigen::Isometry3d& T_cam0_imu, fusion::Scenario scenario,
-            LocalizerOptions options, std::unique_ptr<vo::StereoOdometry> odometry);
+  Localizer(const Eigen::Isometry3d& T_cam0_imu, fusion::Scenario scenario, LocalizerOptions options,
+            std::unique_ptr<vo::StereoOdometry> odometry);
   ~Localizer() override;
 
   FrameResult Process(const vo::StereoFrame& frame,
@@ -112,28 +108,19 @@ class Localizer final : public Estimator {
   void StartOutageNow() override;
   void StopOutage() override;
   void SetScenario(fusion::Scenario scenario) override;
-  bool origin(double* lat_deg, double* lon_deg, double* alt_m) const override;
-  fusion::Scenario scenario() const;
-
-  // Drops the filter and VO state (new drive).
-  void Reset();
-
-  // The filter's ENU frame (origin at the first degraded fix), for evaluation.
-  bool has_enu_origin() const;
-  Eigen::Vector3d ToEnu(double lat_deg, double lon_deg, double alt_m) const;
+  const fusion::EnuFrame& enu() const override { return ekf_->enu(); }
   const fusion::Ekf& ekf() const { return *ekf_; }
-  const Eigen::Isometry3d& T_cam0_imu() const { return T_cam0_imu_; }
 
  private:
+  // Starts the filter, VO and degradation afresh (run-time outages kept).
+  void Reset();
   vo::RelativeMotion TrackVo(const vo::StereoFrame& frame);
   FrameResult Fuse(const vo::RelativeMotion& vo_cam, const SensorBatch& since_last_frame);
   void ApplyPendingControls();
   void FeedSensors(const SensorBatch& batch, FrameResult& r);
-  void FeedImu(const fusion::ImuSample& imu, FrameResult& r);
   void FeedGps(const fusion::GpsFix& fix, FrameResult& r);
   bool receiver_has_fix_ = true;
 
-  StereoCamera camera_;
   Eigen::Isometry3d T_cam0_imu_;
   LocalizerOptions options_;
   std::unique_ptr<vo::StereoOdometry> vo_;

@@ -57,10 +57,11 @@ class ConstantEstimator : public locaid::pipeline::Estimator {
   void StartOutageNow() override {}
   void StopOutage() override {}
   void SetScenario(locaid::fusion::Scenario) override {}
-  bool origin(double*, double*, double*) const override { return false; }
+  const locaid::fusion::EnuFrame& enu() const override { return enu_; }
 
  private:
   int n_ = 0;
+  locaid::fusion::EnuFrame enu_;  // never has an origin
 };
 
 long RssKb() {

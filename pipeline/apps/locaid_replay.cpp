@@ -131,7 +131,7 @@ int main(int argc, char** argv) {
     std::optional<pipeline::VoResults> vo_cache;
     if (!vo_cache_path.empty()) vo_cache = pipeline::ReadVoCache(vo_cache_path, cache_header);
     auto localizer = vo_cache ? std::make_unique<pipeline::Localizer>(
-                                    dataset.camera(), dataset.T_cam0_imu(), scenario, options,
+                                    dataset.T_cam0_imu(), scenario, options,
                                     std::make_unique<pipeline::RecordedOdometry>(*vo_cache))
                               : std::make_unique<pipeline::Localizer>(dataset.camera(), dataset.T_cam0_imu(),
                                                                       scenario, options);

@@ -20,8 +20,8 @@ void ReplayRun::Add(const StepResult& step) {
   vo_ms_total_ += r.vo_ms;
   const bool vo_lost = r.vo.status == vo::Status::kLost;
   if (vo_lost) ++lost_frames_;
-  if (!gt_enu_ && localizer_.has_enu_origin()) {
-    const auto& e = ekf.enu();
+  if (!gt_enu_ && localizer_.enu().has_origin()) {
+    const auto& e = localizer_.enu();
     gt_enu_.emplace(e.origin_lat_deg(), e.origin_lon_deg(), e.origin_alt_m());
     for (const auto& s : dataset_.oxts()) gt_poses_.push_back({s.t_ns, kitti::OxtsToEnuPose(s.record, *gt_enu_)});
   }

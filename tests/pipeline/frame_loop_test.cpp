@@ -34,7 +34,7 @@ class RecordingEstimator : public Estimator {
     std::vector<std::string> calls;  // "process T", "sensors N", "schedule A B", "start", "stop", "scenario"
     std::vector<int64_t> frame_t_ns;
     size_t oxts_samples = 0;
-    bool has_origin = false;
+    fusion::EnuFrame enu;  // the test sets its origin
   };
   explicit RecordingEstimator(std::shared_ptr<Log> log) : log_(std::move(log)) {}
 
@@ -60,13 +60,7 @@ class RecordingEstimator : public Estimator {
   void StartOutageNow() override { log_->calls.push_back("start"); }
   void StopOutage() override { log_->calls.push_back("stop"); }
   void SetScenario(fusion::Scenario) override { log_->calls.push_back("scenario"); }
-  bool origin(double* lat_deg, double* lon_deg, double* alt_m) const override {
-    if (!log_->has_origin) return false;
-    *lat_deg = 49.0;
-    *lon_deg = 8.4;
-    *alt_m = 100.0;
-    return true;
-  }
+  const fusion::EnuFrame& enu() const override { return log_->enu; }
 
  private:
   static GpsFeed Feed(int64_t t_ns) {
@@ -200,7 +194,7 @@ TEST(FrameLoop, TruthIsInTheFiltersEnuFrameOnceItHasOne) {
   ASSERT_TRUE(first.truth.has_value());
   EXPECT_FALSE(first.truth->T_enu_body.has_value());  // no origin yet
   EXPECT_DOUBLE_EQ(first.truth->lat_deg, 49.0);
-  log->has_origin = true;
+  log->enu.SetOrigin(49.0, 8.4, 100.0);
   const StepResult second = loop.Step();
   ASSERT_TRUE(second.truth && second.truth->T_enu_body);
   EXPECT_NEAR(second.truth->T_enu_body->translation().y(), 10.0, 0.05);

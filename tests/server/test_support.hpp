@@ -87,13 +87,14 @@ class FakeEstimator : public pipeline::Estimator {
     windows_.clear();
   }
   void SetScenario(fusion::Scenario) override {}
-  bool origin(double*, double*, double*) const override { return false; }
+  const fusion::EnuFrame& enu() const override { return enu_; }  // never has an origin
 
  private:
   int fail_at_ = -1;
   int frames_ = 0;
   int gps_used_ = 0;
   bool forced_ = false, receiver_has_fix_ = true;
+  fusion::EnuFrame enu_;
   std::vector<std::pair<int64_t, int64_t>> windows_;
 };
 
