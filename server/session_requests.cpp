@@ -104,6 +104,17 @@ Status ParseGpsdSource(const v1::LiveSource& l, std::optional<GpsdEndpoint>* out
   return Status::OK;
 }
 
+// The estimator of a session reading `source`: its camera and extrinsic, and
+// the scenario's outages placed on the drive ("tunnel-30s" is relative to
+// it). Throws what the factory throws.
+std::unique_ptr<pipeline::Estimator> MakeEstimator(const EstimatorFactory& make, EstimatorSetup setup,
+                                                   const pipeline::FrameSource& source) {
+  setup.camera = source.camera();
+  setup.T_cam0_imu = source.T_cam0_imu();
+  if (source.duration_s() > 0) setup.scenario = fusion::PlaceOutagesForDrive(setup.scenario, source.duration_s());
+  return make(setup);
+}
+
 }  // namespace
 
 std::unique_ptr<pipeline::Estimator> MakeLocalizer(const EstimatorSetup& setup) {
@@ -211,10 +222,20 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
           return Invalid("synthetic.frames: must be in [2, max_synthetic_frames=" +
                          std::to_string(config_.max_synthetic_frames) + "], got " + std::to_string(frames));
         }
+        SyntheticRig rig;
         try {
-          ValidateSyntheticRequest(s.seed(), frames, s.options_yaml(), config_.max_synthetic_frames);
+          rig = ValidateSyntheticRequest(s.seed(), frames, s.options_yaml(), config_.max_synthetic_frames);
         } catch (const SyntheticError& e) {
           return Invalid(e.what());
+        }
+        // The estimator is built after the render; building one now with the
+        // drive's rig checks vo_method and the scenario before the RPC answers.
+        setup.camera = rig.camera;
+        setup.T_cam0_imu = rig.T_cam0_imu;
+        try {
+          estimator_factory_(setup);
+        } catch (const std::exception& e) {
+          return Invalid(std::string("vo_method/scenario: ") + e.what());
         }
         options.source = "synthetic:seed=" + std::to_string(s.seed()) + ",frames=" + std::to_string(frames);
         // Rendered on the session thread (can take seconds); failures fail the session.
@@ -226,19 +247,17 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
             -> std::unique_ptr<pipeline::Pipeline> {
           auto src = std::make_unique<pipeline::DatasetFrameSource>(
               MakeSyntheticDrive(drive_dir, seed, frames, yaml, &cancel), 0, -1);
-          setup.camera = src->camera();
-          setup.T_cam0_imu = src->T_cam0_imu();
-          if (src->duration_s() > 0) setup.scenario = fusion::PlaceOutagesForDrive(setup.scenario, src->duration_s());
-          return std::make_unique<pipeline::FrameLoop>(std::move(src), make(setup));
+          auto estimator = MakeEstimator(make, setup, *src);
+          return std::make_unique<pipeline::FrameLoop>(std::move(src), std::move(estimator));
         };
         auto remove_drive = [drive_dir] {
           std::error_code ec;
           std::filesystem::remove_all(drive_dir, ec);
         };
         return sessions_.Add(std::move(options),
-                          std::make_unique<DeferredPipeline>(std::move(factory), static_cast<int64_t>(frames),
-                                                             std::move(remove_drive)),
-                          nullptr, id);
+                             std::make_unique<DeferredPipeline>(std::move(factory), static_cast<int64_t>(frames),
+                                                                std::move(remove_drive)),
+                             nullptr, id);
       }
       case v1::StartSessionRequest::kLive: {
         pipeline::LiveCameraSetup cam;
@@ -261,19 +280,15 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
   } catch (const std::invalid_argument& e) {
     return Invalid(e.what());
   }
-  setup.camera = source->camera();
-  setup.T_cam0_imu = source->T_cam0_imu();
-  // Scenarios like "tunnel-30s" place their outage relative to the drive.
-  if (source->duration_s() > 0) setup.scenario = fusion::PlaceOutagesForDrive(setup.scenario, source->duration_s());
   std::unique_ptr<pipeline::Estimator> estimator;
   try {
-    estimator = estimator_factory_(setup);
+    estimator = MakeEstimator(estimator_factory_, setup, *source);
   } catch (const std::exception& e) {
     return Invalid(std::string("vo_method/scenario: ") + e.what());
   }
   if (gpsd) live->AttachFeeder(std::make_unique<GpsdReceiver>(*gpsd, live));
-  return sessions_.Add(std::move(options), std::make_unique<pipeline::FrameLoop>(std::move(source), std::move(estimator)),
-                    live, id);
+  return sessions_.Add(std::move(options),
+                       std::make_unique<pipeline::FrameLoop>(std::move(source), std::move(estimator)), live, id);
 }
 
 Status LocalizationService::StartLive(const v1::PushStart& start, std::shared_ptr<Session>* session,

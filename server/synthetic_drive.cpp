@@ -70,7 +70,8 @@ std::mutex& FolderLock(const std::string& key) {
 
 }  // namespace
 
-void ValidateSyntheticRequest(uint64_t seed, size_t frames, const std::string& options_yaml, size_t max_frames) {
+SyntheticRig ValidateSyntheticRequest(uint64_t seed, size_t frames, const std::string& options_yaml,
+                                      size_t max_frames) {
   const synth::SynthConfig config = ParseOptions(options_yaml, seed, frames);
   try {
     synth::ValidateSynthConfig(config);
@@ -85,6 +86,8 @@ void ValidateSyntheticRequest(uint64_t seed, size_t frames, const std::string& o
     throw SyntheticError("synthetic: the drive needs up to " + std::to_string(static_cast<long long>(frames_needed)) +
                          " frames, more than the server's max_synthetic_frames (" + std::to_string(max_frames) + ")");
   }
+  const synth::SynthCalib calib = synth::MakeSynthCalib(config.width, config.height);
+  return {calib.stereo, calib.T_cam0_imu};
 }
 
 std::filesystem::path SyntheticRoot(const std::string& work_dir) {

@@ -2,6 +2,7 @@
 // server's work directory, then opened like any KITTI raw drive.
 #pragma once
 
+#include "core/stereo_camera.hpp"
 #include "kitti/dataset.hpp"
 
 #include <Eigen/Geometry>
@@ -21,11 +22,18 @@ class SyntheticError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// The camera and IMU extrinsic a synthetic drive will have.
+struct SyntheticRig {
+  StereoCamera camera;
+  Eigen::Isometry3d T_cam0_imu = Eigen::Isometry3d::Identity();
+};
+
 // Checks a session's synthetic request before it is accepted: options_yaml
 // (keys, types, ranges, NaN) and the number of frames the drive will have
 // (frames, or what length_m needs at the slowest speed) against max_frames.
-// Throws SyntheticError naming the field.
-void ValidateSyntheticRequest(uint64_t seed, size_t frames, const std::string& options_yaml, size_t max_frames);
+// Throws SyntheticError naming the field. Returns the drive's rig.
+SyntheticRig ValidateSyntheticRequest(uint64_t seed, size_t frames, const std::string& options_yaml,
+                                      size_t max_frames);
 
 // Renders a drive into `dir` (or reuses a complete one there) and opens it.
 // Throws SyntheticError when the generator fails, and SyntheticCancelled

@@ -281,6 +281,17 @@ TEST_F(ContractRequests, SyntheticOptionsAreValidatedBeforeOk) {
   const grpc::Status s = Start(too_many);
   EXPECT_EQ(s.error_code(), grpc::INVALID_ARGUMENT);
   EXPECT_NE(s.error_message().find("max_synthetic_frames=3000"), std::string::npos) << s.error_message();
+
+  // The estimator is built once the drive is rendered; its VO method and
+  // scenario are still checked before the answer.
+  v1::StartSessionRequest bad_method;
+  bad_method.mutable_synthetic()->set_frames(20);
+  bad_method.set_vo_method("no-such-method");
+  const grpc::Status m = Start(bad_method);
+  EXPECT_EQ(m.error_code(), grpc::INVALID_ARGUMENT) << m.error_message();
+  EXPECT_NE(m.error_message().find("unknown VO method 'no-such-method'"), std::string::npos) << m.error_message();
+  bad_method.set_vo_method("thesis");
+  EXPECT_TRUE(Start(bad_method).ok());
 }
 
 // Defect 11: a KITTI drive without right images is refused at StartSession.
