@@ -21,6 +21,7 @@
 
 #include <Eigen/Core>
 
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -194,7 +195,7 @@ class Ekf {
   void ApplyGpsUpdate(const Vec3& y, const Mat3& R, const Eigen::MatrixXd& H, bool horizontal, bool vertical);
 
   EkfConfig config_;
-  ProcessModelHolder model_;  // chosen once from config_.use_imu
+  std::unique_ptr<ProcessModel> model_;  // chosen once from config_.use_imu
   EnuFrame enu_;
   FilterState s_;
   Vec3 last_vo_velocity_body_mps_ = Vec3::Zero();

@@ -4,7 +4,8 @@
 //                  gyro bias (rad/s)
 //   error state    dp, dv, dtheta (global: R = Exp(dtheta) * R_hat, ENU axes),
 //                  dba, dbg   -> 15 states, plus a clone [dp_c, dtheta_c] of
-//                  the pose at the previous VO frame (21 states with IMU).
+//                  the pose at the previous VO frame, and 4 VO calibration
+//                  states (boresight, scale): 25 states with IMU.
 //   without IMU    [dp, dtheta] (6 states), propagated by the VO motion.
 #pragma once
 

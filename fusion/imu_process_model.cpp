@@ -23,7 +23,6 @@ class ImuProcessModel final : public ProcessModel {
         vo_gate_(ChiSquareQuantile(config.vo_gate_probability, 6)),
         gate_vel_(ChiSquareQuantile(config.gps_gate_probability, 3)) {}
 
-  std::unique_ptr<ProcessModel> Copy() const override { return std::make_unique<ImuProcessModel>(*this); }
   int StateSize() const override { return kImuStates + kCloneStates + kVoCalibStates; }
   int AttitudeIndex() const override { return kTh; }
 

@@ -15,7 +15,6 @@ class OdometryProcessModel final : public ProcessModel {
  public:
   explicit OdometryProcessModel(const EkfConfig& config) : config_(config) {}
 
-  std::unique_ptr<ProcessModel> Copy() const override { return std::make_unique<OdometryProcessModel>(*this); }
   int StateSize() const override { return kPoseStates; }
   int AttitudeIndex() const override { return 3; }
 
@@ -67,9 +66,15 @@ class OdometryProcessModel final : public ProcessModel {
   std::optional<bool> FuseGpsVelocity(FilterState&, const GpsFix&, double) override { return std::nullopt; }
   void ResetPosition(FilterState&, const Vec3&, const Vec3&, const Mat3&, double) override {}
 
-  const Mat3& vo_boresight() const override { return identity_; }
+  const Mat3& vo_boresight() const override {
+    static const Mat3 kIdentity = Mat3::Identity();
+    return kIdentity;
+  }
   double vo_scale_error() const override { return 0.0; }
-  const Vec3& vo_rotation_noise_scale() const override { return ones_; }
+  const Vec3& vo_rotation_noise_scale() const override {
+    static const Vec3 kOnes = Vec3::Ones();
+    return kOnes;
+  }
 
  private:
   void BoxPlus(FilterState& s, const Eigen::VectorXd& dx) override {
@@ -78,8 +83,6 @@ class OdometryProcessModel final : public ProcessModel {
   }
 
   EkfConfig config_;
-  Mat3 identity_ = Mat3::Identity();
-  Vec3 ones_ = Vec3::Ones();
 };
 
 }  // namespace

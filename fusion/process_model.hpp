@@ -56,7 +56,6 @@ struct VoGate {
 class ProcessModel {
  public:
   virtual ~ProcessModel() = default;
-  virtual std::unique_ptr<ProcessModel> Copy() const = 0;
 
   // Error-state size and where the attitude error sits (position is at 0).
   virtual int StateSize() const = 0;
@@ -105,23 +104,6 @@ class ProcessModel {
 
  private:
   virtual void BoxPlus(FilterState& s, const Eigen::VectorXd& dx) = 0;
-};
-
-// A ProcessModel held by value: a copy copies the model (so the filter copies as a value).
-class ProcessModelHolder {
- public:
-  explicit ProcessModelHolder(std::unique_ptr<ProcessModel> model) : model_(std::move(model)) {}
-  ProcessModelHolder(const ProcessModelHolder& other) : model_(other.model_->Copy()) {}
-  ProcessModelHolder& operator=(const ProcessModelHolder& other) {
-    if (this != &other) model_ = other.model_->Copy();
-    return *this;
-  }
-  ProcessModelHolder(ProcessModelHolder&&) noexcept = default;
-  ProcessModelHolder& operator=(ProcessModelHolder&&) noexcept = default;
-  ProcessModel* operator->() const { return model_.get(); }
-
- private:
-  std::unique_ptr<ProcessModel> model_;
 };
 
 // ImuProcessModel when config.use_imu, else OdometryProcessModel.
