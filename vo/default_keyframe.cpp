@@ -98,7 +98,7 @@ std::vector<float> DefaultOdometry::StereoDisparities(const Images& im,
   const cv::Size win(cfg_.klt_window_px, cfg_.klt_window_px);
   cv::calcOpticalFlowPyrLK(im.left_pyr, im.right_pyr, uv, right, status, err, win,
                            predicted ? cfg_.stereo_klt_levels_tracked : 1,
-                           cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.01),
+                           kKltCriteria,
                            cv::OPTFLOW_USE_INITIAL_FLOW);
   for (size_t i = 0; i < uv.size(); ++i) {
     if (!status[i]) continue;

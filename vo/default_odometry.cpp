@@ -30,7 +30,6 @@ void CheckCamera(const StereoCamera& cam) {
         std::to_string(cam.width) + "x" + std::to_string(cam.height) + ")");
 }
 
-const cv::TermCriteria kKltCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.01);
 
 }  // namespace
 

@@ -47,6 +47,9 @@ struct Landmark {
   std::vector<Observation> observations;
 };
 
+// Stop rule of every KLT call (temporal, forward-backward and stereo).
+inline const cv::TermCriteria kKltCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.01);
+
 inline bool Inside(const cv::Point2f& p, const cv::Size& size, float margin) {
   return p.x >= margin && p.y >= margin && p.x < size.width - 1 - margin &&
          p.y < size.height - 1 - margin;

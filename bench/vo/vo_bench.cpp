@@ -221,9 +221,9 @@ int main(int argc, char** argv) {
   vo::VoFlags flags;
   flags.method = "all";
   app.add_option("--drive", drive, "drive folder with ground truth")->required();
-  std::vector<std::string> methods = vo::StereoOdometryMethods();
-  methods.push_back("all");
-  vo::AddVoFlags(app, flags, methods);
+  std::vector<std::string> choices = vo::StereoOdometryMethods();
+  choices.push_back("all");
+  vo::AddVoFlags(app, flags, choices);
   app.add_option("--lengths", lengths, "devkit segment lengths in metres");
   std::string reference = "oxts";
   app.add_option("--reference", reference,
@@ -244,7 +244,9 @@ int main(int argc, char** argv) {
                "per method: the constant camera-frame rotation (yaw, pitch within +-1 deg) that minimises "
                "t_rel, fitted on the evaluated frames (a calibration diagnostic, not a result)");
   CLI11_PARSE(app, argc, argv);
-  if (const std::string problem = vo::VoFlagsProblem(flags); !problem.empty()) {
+  std::vector<std::string> run_methods = vo::StereoOdometryMethods();
+  if (flags.method != "all") run_methods = {flags.method};
+  if (const std::string problem = vo::VoFlagsProblem(flags, run_methods); !problem.empty()) {
     std::cerr << "vo_bench: " << problem << "\n";
     return 2;
   }
@@ -255,8 +257,6 @@ int main(int argc, char** argv) {
       throw std::runtime_error("--reference-floor needs a raw drive with OXTS records");
     const std::vector<std::optional<Eigen::Isometry3d>> reference_poses = ReferencePoses(*dataset, reference);
     const std::optional<double> oxts_pos_accuracy_m = MedianOxtsPositionAccuracy(*dataset);
-    std::vector<std::string> run_methods = vo::StereoOdometryMethods();
-    if (flags.method != "all") run_methods = {flags.method};
     nlohmann::json out = nlohmann::json::array();
     for (const std::string& m : run_methods) {
       const vo::DriveRun run = vo::RunOnDataset(*dataset, vo::MakeDriveRunConfig(flags, m));

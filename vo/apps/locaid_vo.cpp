@@ -39,7 +39,7 @@ int main(int argc, char** argv) {
   vo::AddVoFlags(app, flags, vo::StereoOdometryMethods());
   app.add_flag("--json", json, "print a JSON summary on stdout");
   CLI11_PARSE(app, argc, argv);
-  if (const std::string problem = vo::VoFlagsProblem(flags); !problem.empty()) {
+  if (const std::string problem = vo::VoFlagsProblem(flags, {flags.method}); !problem.empty()) {
     std::cerr << "locaid-vo: " << problem << "\n";
     return 2;
   }

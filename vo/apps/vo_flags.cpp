@@ -1,5 +1,7 @@
 #include "vo/apps/vo_flags.hpp"
 
+#include <algorithm>
+
 namespace locaid::vo {
 
 void AddVoFlags(CLI::App& app, VoFlags& flags, const std::vector<std::string>& methods) {
@@ -21,8 +23,8 @@ void AddVoFlags(CLI::App& app, VoFlags& flags, const std::vector<std::string>& m
       ->check(CLI::Range(size_t{1}, size_t{100}));
 }
 
-std::string VoFlagsProblem(const VoFlags& flags) {
-  if (flags.method == "default" || flags.method == "all") return {};
+std::string VoFlagsProblem(const VoFlags& flags, const std::vector<std::string>& runs) {
+  if (std::find(runs.begin(), runs.end(), "default") != runs.end()) return {};
   const std::string got = " (got --method " + flags.method + ")";
   if (flags.window_keyframes >= 0) return "--window-keyframes applies to --method default only" + got;
   if (!flags.klt_guess.empty()) return "--klt-guess applies to --method default only" + got;

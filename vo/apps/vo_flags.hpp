@@ -26,10 +26,10 @@ struct VoFlags {
 // --window-keyframes, --klt-guess and --frame-step, bound to `flags`.
 void AddVoFlags(CLI::App& app, VoFlags& flags, const std::vector<std::string>& methods);
 
-// After parsing: a flag of the default method given with another method, as
-// a message for the user; empty when the flags fit together. A method of
-// "all" runs the default method too.
-std::string VoFlagsProblem(const VoFlags& flags);
+// After parsing: a flag of the default method given while `runs` (the
+// methods that will run) lacks it, as a message for the user; empty when the
+// flags fit together.
+std::string VoFlagsProblem(const VoFlags& flags, const std::vector<std::string>& runs);
 
 // The run of one method with these flags.
 DriveRunConfig MakeDriveRunConfig(const VoFlags& flags, const std::string& method);
