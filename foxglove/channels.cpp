@@ -47,10 +47,14 @@ void PutFiniteOrNull(json& object, std::string_view key, double value) {
     m = nullptr;
   }
 }
-// Strings are compared first: most (frame ids, enum names) repeat.
+// A string member is reassigned in place (its buffer reused).
 void PutString(json& object, std::string_view key, std::string_view value) {
   json& m = Member(object, key);
-  if (!m.is_string() || m.get_ref<const std::string&>() != value) m = std::string(value);
+  if (m.is_string()) {
+    m.get_ref<std::string&>().assign(value);
+  } else {
+    m = std::string(value);
+  }
 }
 // Element k of an array member, growing it on the first fill.
 json& Element(json& array, size_t k) {
@@ -255,6 +259,7 @@ void PoseConverter::Reset() {
 
 std::vector<OutMessage> PoseConverter::Convert(const v1::PoseUpdate& p) {
   std::vector<OutMessage> out;
+  out.reserve(static_cast<size_t>(Topic::kCount) + static_cast<size_t>(p.gps_fixes_size()));
   const int64_t t = p.t_ns();
   auto body = [this](Topic topic) -> json& { return bodies_[static_cast<size_t>(topic)]; };
   // LOST: the filter has no position yet (or only a prediction), so the map

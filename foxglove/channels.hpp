@@ -67,8 +67,9 @@ struct OutMessage {
 
 // Message bodies, one per schema (exposed for the tests). Each fills `body`
 // in place: on an empty body it builds the message; on a body it filled
-// before it overwrites the values and allocates nothing new, which is how
-// PoseConverter keeps the per-pose cost low (docs/benchmarks.md).
+// before it overwrites the values in place (numbers and strings reuse their
+// members), which is how PoseConverter keeps the per-pose cost low
+// (docs/benchmarks.md); the text serialized from it is a new string.
 //
 // {sec, nsec} of a nanosecond time (clamped to >= 0).
 void TimeJson(int64_t t_ns, nlohmann::json& body);

@@ -72,19 +72,28 @@ class DelayHistogram {
                                          static_cast<int64_t>(kBins) - 1);
     bins_[static_cast<size_t>(bin)].fetch_add(1, std::memory_order_relaxed);
   }
-  // Upper edge, in ms, of the bin holding quantile q (0 when empty).
-  double QuantileMs(double q) const {
+  // Upper edges, in ms, of the bins holding each quantile of `qs` (0 when
+  // empty), from one read of the bins.
+  template <size_t N>
+  std::array<double, N> QuantilesMs(const std::array<double, N>& qs) const {
     std::array<uint64_t, kBins> counts;
     uint64_t total = 0;
     for (size_t i = 0; i < kBins; ++i) total += counts[i] = bins_[i].load(std::memory_order_relaxed);
-    if (total == 0) return 0;
-    const auto rank = static_cast<uint64_t>(std::ceil(q * static_cast<double>(total)));
-    uint64_t seen = 0;
-    for (size_t i = 0; i < kBins; ++i) {
-      seen += counts[i];
-      if (seen >= std::max<uint64_t>(rank, 1)) return static_cast<double>(i + 1) * 0.01;
+    std::array<double, N> out{};
+    if (total == 0) return out;
+    for (size_t k = 0; k < N; ++k) {
+      const uint64_t rank = std::max<uint64_t>(static_cast<uint64_t>(std::ceil(qs[k] * static_cast<double>(total))), 1);
+      uint64_t seen = 0;
+      out[k] = static_cast<double>(kBins) * 0.01;
+      for (size_t i = 0; i < kBins; ++i) {
+        seen += counts[i];
+        if (seen >= rank) {
+          out[k] = static_cast<double>(i + 1) * 0.01;
+          break;
+        }
+      }
     }
-    return static_cast<double>(kBins) * 0.01;
+    return out;
   }
 
  private:
@@ -446,8 +455,8 @@ void WsServer::Publish(size_t channel, uint64_t timestamp_ns, std::string data,
 }
 
 WsServerStats WsServer::stats() const {
-  return {impl_->clients_connected.load(), impl_->sent.load(),           impl_->dropped.load(),
-          impl_->delays.QuantileMs(0.5),   impl_->delays.QuantileMs(0.99), impl_->delays.QuantileMs(1.0)};
+  const auto q = impl_->delays.QuantilesMs(std::array<double, 3>{0.5, 0.99, 1.0});
+  return {impl_->clients_connected.load(), impl_->sent.load(), impl_->dropped.load(), q[0], q[1], q[2]};
 }
 
 std::string Base64(std::string_view bytes) {

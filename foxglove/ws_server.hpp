@@ -12,10 +12,13 @@
 //
 // Threads: Run() runs the network on the calling thread until Stop(); every
 // other method may be called from any thread (they post to the server's
-// strand, where all its work runs one job at a time). RunReady() lets the
-// publishing thread do the ready work itself, so a message need not wait
-// for the network thread to wake up (on a busy or virtual machine that
-// wake-up alone takes 0.2 ms on average and several ms at worst).
+// strand, where all its work runs one job at a time). RunReady() runs the
+// ready handlers (the posted publish and the writes it starts, but also any
+// accept or read that is ready) on the calling thread at once. The network
+// thread is still woken by the post and may take some of that work; the
+// strand keeps it one job at a time. A message so need not wait for that
+// wake-up (on a busy or virtual machine 0.2 ms on average, several ms at
+// worst).
 // Each client has a bounded queue of outgoing messages: when a message
 // arrives and the queue is full, the oldest queued messageData is dropped
 // and counted, so a slow client never stalls the producer or other clients.

@@ -2,7 +2,6 @@
 
 #include <zlib.h>
 
-#include <algorithm>
 #include <limits>
 #include <stdexcept>
 
@@ -44,16 +43,8 @@ void PutMap(std::string& out, const Map& map, PutEntry put_entry) {
 }  // namespace
 
 void Crc32::Update(std::string_view bytes) {
-  // zlib's crc32 (the same CRC, a table-sliced implementation) takes uInt
-  // lengths, so very large views go in pieces.
-  const auto* data = reinterpret_cast<const Bytef*>(bytes.data());
-  size_t left = bytes.size();
-  while (left > 0) {
-    const auto n = static_cast<uInt>(std::min<size_t>(left, std::numeric_limits<uInt>::max()));
-    value_ = static_cast<uint32_t>(crc32(value_, data, n));
-    data += n;
-    left -= n;
-  }
+  // zlib's CRC-32 (the same CRC, table-sliced), with a size_t length.
+  value_ = static_cast<uint32_t>(crc32_z(value_, reinterpret_cast<const Bytef*>(bytes.data()), bytes.size()));
 }
 
 uint32_t ComputeCrc32(std::string_view bytes) {
@@ -79,7 +70,7 @@ void PutStringMap(std::string& out, const std::map<std::string, std::string>& ma
   });
 }
 
-void PutU16U64Map(std::string& out, const std::map<uint16_t, uint64_t>& map) {
+void PutU16U64Map(std::string& out, const std::vector<std::pair<uint16_t, uint64_t>>& map) {
   PutMap(out, map, [&out](uint16_t key, uint64_t value) {
     PutU16(out, key);
     PutU64(out, value);

@@ -7,6 +7,8 @@
 #include <cstdint>
 #include <map>
 #include <string>
+#include <vector>
+#include <utility>
 #include <string_view>
 
 namespace locaid::record::mcap {
@@ -52,7 +54,8 @@ void PutU32(std::string& out, uint32_t value);
 void PutU64(std::string& out, uint64_t value);
 void PutString(std::string& out, std::string_view value);
 void PutStringMap(std::string& out, const std::map<std::string, std::string>& map);
-void PutU16U64Map(std::string& out, const std::map<uint16_t, uint64_t>& map);
+// Entries in key order.
+void PutU16U64Map(std::string& out, const std::vector<std::pair<uint16_t, uint64_t>>& map);
 
 // Appends the opcode and a length placeholder; EndRecord fills the length in
 // once the content is appended. BeginRecord returns what EndRecord needs.

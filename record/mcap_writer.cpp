@@ -185,7 +185,7 @@ void McapWriter::WriteChunk() {
     // (messages may have been written out of it, e.g. late GPS fixes).
     std::stable_sort(entries.begin(), entries.end(),
                      [](const auto& a, const auto& b) { return a.first < b.first; });
-    entry.message_index_offsets[channel_id] = entry.chunk_offset + entry.chunk_length + indexes.size();
+    entry.message_index_offsets.emplace_back(channel_id, entry.chunk_offset + entry.chunk_length + indexes.size());
     const size_t index_start = mcap::BeginRecord(indexes, Op::kMessageIndex);
     mcap::PutU16(indexes, channel_id);
     mcap::PutU32(indexes, static_cast<uint32_t>(entries.size() * 16));  // Array byte length: 8 + 8 per entry

@@ -56,9 +56,9 @@ void McapWriter::WriteSummaryAndFooter() {
     }
   });
   group(Op::kStatistics, [&] {
-    std::map<uint16_t, uint64_t> channel_counts;
+    std::vector<std::pair<uint16_t, uint64_t>> channel_counts;  // channel ids ascend with i
     for (size_t i = 0; i < channels_.size(); ++i) {
-      if (channels_[i].message_count > 0) channel_counts[static_cast<uint16_t>(i + 1)] = channels_[i].message_count;
+      if (channels_[i].message_count > 0) channel_counts.emplace_back(static_cast<uint16_t>(i + 1), channels_[i].message_count);
     }
     const size_t start = mcap::BeginRecord(summary, Op::kStatistics);
     mcap::PutU64(summary, message_count_);

@@ -149,7 +149,7 @@ int main(int argc, char** argv) {
       [&](const locaid::v1::PoseUpdate& pose) {
         const auto received = std::chrono::steady_clock::now();  // the bridge's delay starts here
         ws->Publish(converter.Convert(pose), received);
-        ws->RunReady();  // write them from this thread rather than wake the network thread
+        ws->RunReady();  // start the writes from this thread (the network thread may be slower to wake)
       });
 
   std::thread ws_thread([&] { ws->Run(); });
