@@ -168,6 +168,18 @@ SynthCalib MakeSynthCalib(int width, int height) {
   return c;
 }
 
+namespace {
+// Midnight (UTC, ns) of a YYYY_MM_DD date; throws kitti::Error for anything
+// that is not a calendar date.
+int64_t MidnightNs(const std::string& date) {
+  if (!std::regex_match(date, std::regex("[0-9]{4}_[0-9]{2}_[0-9]{2}")))
+    throw kitti::Error("synth: date '" + date + "' is not YYYY_MM_DD");
+  std::string dashes = date;
+  std::replace(dashes.begin(), dashes.end(), '_', '-');
+  return kitti::ParseTimestamp(dashes + " 00:00:00.0", "synth: date");
+}
+}  // namespace
+
 void ValidateSynthConfig(const SynthConfig& cfg) {
   if (!std::isfinite(cfg.length_m)) throw kitti::Error("synth: length_m must be finite");
   if (!(cfg.noise_sigma_dn >= 0 && cfg.noise_sigma_dn <= 50))
@@ -178,8 +190,7 @@ void ValidateSynthConfig(const SynthConfig& cfg) {
     throw kitti::Error("synth: image size " + std::to_string(cfg.width) + "x" + std::to_string(cfg.height) +
                 " out of range (64..4096 x 48..4096)");
   if (!(cfg.frame_rate_hz > 0.5 && cfg.frame_rate_hz <= 100)) throw kitti::Error("synth: frame_rate_hz must be in (0.5, 100]");
-  if (!std::regex_match(cfg.date, std::regex("[0-9]{4}_[0-9]{2}_[0-9]{2}")))
-    throw kitti::Error("synth: date '" + cfg.date + "' is not YYYY_MM_DD");
+  MidnightNs(cfg.date);  // a real date, checked before anything is written
   if (cfg.png_compression < -1 || cfg.png_compression > 9) throw kitti::Error("synth: png_compression must be -1..9");
   if (!(cfg.speed_min_mps >= 1 && cfg.speed_min_mps <= cfg.speed_max_mps && cfg.speed_max_mps <= 60))
     throw kitti::Error("synth: speed range " + Range(cfg.speed_min_mps, cfg.speed_max_mps) +
@@ -235,20 +246,17 @@ SynthSummary GenerateDrive(const SynthConfig& cfg, const std::filesystem::path& 
   sum.frames = frames;
   sum.camera = calib.stereo;
   sum.T_cam0_imu = calib.T_cam0_imu;
-  sum.first_image_t_ns = t0_ns;
 
   const auto& D = sum.drive_dir;
   for (const char* sub : {"image_00/data", "image_01/data", "oxts/data"}) MakeDirs(D / sub);
-  // Every KITTI file through kitti/'s writers.
+  // The KITTI files through kitti/'s writers (dataformat.txt is fixed text).
   kitti::WriteCamToCam(out_dir / "calib_cam_to_cam.txt", calib.cam_to_cam);
   kitti::WriteVeloToCam(out_dir / "calib_velo_to_cam.txt", calib.velo_to_cam);
   kitti::WriteImuToVelo(out_dir / "calib_imu_to_velo.txt", calib.imu_to_velo);
   WriteFile(D / "oxts/dataformat.txt", kDataFormat);
   {
     // Time stamps on the drive's date (the times above are since its midnight).
-    std::string date_dashes = cfg.date;
-    std::replace(date_dashes.begin(), date_dashes.end(), '_', '-');
-    const int64_t midnight_ns = kitti::ParseTimestamp(date_dashes + " 00:00:00.0", "synth: date");
+    const int64_t midnight_ns = MidnightNs(cfg.date);
     std::vector<int64_t> image_stamps(frames), oxts_stamps(frames);
     for (int k = 0; k < frames; ++k) {
       image_stamps[k] = midnight_ns + img_ns[k];

@@ -12,8 +12,9 @@
 // exactly as KITTI defines the odometry ground truth. OXTS records follow the
 // RT3003 conventions (see oxts/dataformat.txt; accelerations are specific
 // force, +g on z at rest). Same config (incl. seed) -> byte-identical files.
-// Every KITTI file goes through kitti/'s writers (calib, timestamps, OXTS
-// lines, KITTI / TUM poses): one formatter per file type in the code base.
+// Calib files, timestamps, OXTS records and KITTI / TUM poses are formatted
+// by kitti/'s writers (one formatter per file type in the code base); only
+// oxts/dataformat.txt, a fixed text, is synth's own.
 #pragma once
 
 #include "core/stereo_camera.hpp"
@@ -50,7 +51,7 @@ struct SynthConfig {
   double speed_min_mps = RouteConfig{}.v_min_mps, speed_max_mps = RouteConfig{}.v_max_mps;
   double curve_radius_min_m = RouteConfig{}.min_radius_m, curve_radius_max_m = RouteConfig{}.max_radius_m;
   // Anisotropic texture filtering (Renderer::anisotropic): the road stays
-  // sharp sideways into the distance. Off by default, so drives rendered by
+  // sharp sideways into the distance. Off by default, so images rendered by
   // earlier versions keep their bytes.
   bool anisotropic_filtering = false;
   int png_compression = -1;          // -1: fast (SUB filter, zlib level 1, RLE); 0..9: zlib level, adaptive filters
@@ -63,12 +64,12 @@ struct SynthSummary {
   double min_speed_mps = 0, max_speed_mps = 0;
   StereoCamera camera;
   Eigen::Isometry3d T_cam0_imu = Eigen::Isometry3d::Identity();  // rectified cam0 <- imu
-  int64_t first_image_t_ns = 0;  // since the date's midnight
   size_t static_polygons = 0;
 };
 
-// Throws kitti::Error for bad configs ("synth: --frames must be >= 2") and
-// unwritable folders ("synth: cannot create folder '/x': Permission denied").
+// Throws kitti::Error for bad configs ("synth: frames must be >= 2 (got 1)",
+// checked before anything is written) and unwritable folders ("synth:
+// cannot create folder '/x': Permission denied").
 // Throws kitti::Error naming the field and its range when `config` cannot be
 // rendered (GenerateDrive checks it first; callers can check before).
 void ValidateSynthConfig(const SynthConfig& config);

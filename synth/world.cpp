@@ -346,10 +346,8 @@ void World::Collect(double s_cam, double t, const Eigen::Vector3d& cam_pos_enu,
   // Fallback ground far below the route: fills holes to the horizon.
   const double R = 2000, z = ground_floor_z_ - 0.6;
   const Eigen::Vector3d o(cam_pos_enu.x() - R, cam_pos_enu.y() - R, z);
-  const double m = tex_[kTexGrass].m_per_texel;
   b.Rect(o, Eigen::Vector3d(2 * R, 0, 0), Eigen::Vector3d(0, 2 * R, 0), std::fmod(o.x(), 10.24),
          std::fmod(o.y(), 10.24), 1, kTexGrass, 0.8f, Eigen::Vector3d::UnitZ());
-  (void)m;
   dynamic_.back().background = true;
   for (const Poly& p : dynamic_) out.push_back(&p);
 }

@@ -1,6 +1,7 @@
 // Synthetic drive generator (synth/): files and formats, determinism,
 // OXTS consistency with the ground truth, gravity in the accelerations and
 // stereo geometry of the rendered images.
+#include "error_of.hpp"
 #include "synth/motion.hpp"
 #include "synth/renderer.hpp"
 #include "synth/synth.hpp"
@@ -348,6 +349,15 @@ TEST(SynthErrorsTest, BadConfigAndUnwritableFolderThrowClearly) {
     EXPECT_NE(std::string(e.what()).find("cannot create folder"), std::string::npos) << e.what();
   }
   fs::remove(file);
+  // A date that is not on the calendar is refused before anything is written.
+  const fs::path out = fs::path(::testing::TempDir()) / ("locaid_synth_bad_date_" + std::to_string(::getpid()));
+  fs::remove_all(out);
+  cfg.date = "2024_02_30";
+  EXPECT_EQ(locaid::test_support::ErrorOf<locaid::kitti::Error>([&] { synth::ValidateSynthConfig(cfg); }),
+            "synth: date: day 30 out of range in timestamp '2024-02-30 00:00:00.0' (expected "
+            "'YYYY-MM-DD HH:MM:SS.fffffffff')");
+  EXPECT_THROW(synth::GenerateDrive(cfg, out), locaid::kitti::Error);
+  EXPECT_FALSE(fs::exists(out));
 }
 
 TEST(SynthErrorsTest, BadSpeedOrCurveRangeIsRefusedWithTheRange) {
