@@ -1,6 +1,6 @@
 // ErrorOf<E>(f): the message of the E that f throws, or "(no error)" when it
 // throws nothing; the tests then check which file, line, field and reason the
-// message names. Shared by every test folder.
+// message names. Shared by the test folders that check error messages.
 #pragma once
 
 #include <string>
