@@ -1,7 +1,7 @@
 // locaid: command-line client of locaid-server.
 //
 //   locaid health
-//   locaid session start --kitti PATH | --synthetic SEED | --live-json ... [--scenario NAME|--scenario-file F]
+//   locaid session start --kitti PATH | --synthetic SEED [--scenario NAME|--scenario-file F] [--vo M] [--rate R]
 //   locaid session list | get ID | stop ID [--remove]
 //   locaid subscribe ID [--from-start] [--format print|tum|kitti|csv|geojson|mcap] [--out FILE] [--max N]
 //   locaid outage start ID [--duration S] | stop ID | window ID --start S --duration S
@@ -209,12 +209,14 @@ void FillScenario(const std::string& name, const std::string& file, v1::Scenario
 
 // One unary call with the common deadline and credentials: prints the
 // response with `print` (exit 0) or the error status (exit 1).
-template <typename Response, typename Request, typename Call, typename Print>
-int Unary(const Common& c, const Request& req, Call call, Print print) {
+template <typename Request, typename Response, typename Print>
+int Unary(const Common& c, v1::Localization::Stub& stub,
+          grpc::Status (v1::Localization::Stub::*call)(grpc::ClientContext*, const Request&, Response*),
+          const Request& req, Print print) {
   grpc::ClientContext ctx;
   Prepare(c, &ctx, c.timeout_s);
   Response resp;
-  const grpc::Status s = call(&ctx, req, &resp);
+  const grpc::Status s = (stub.*call)(&ctx, req, &resp);
   if (!s.ok()) return Fail(s);
   print(resp);
   return 0;
@@ -266,9 +268,8 @@ int StartSession(const Common& c, v1::Localization::Stub& stub, const StartOptio
   req.set_vo_method(o.vo_method);
   req.set_playback_rate(o.rate);
   req.set_history_size(o.history);
-  return Unary<v1::Session>(
-      c, req, [&](auto* ctx, const auto& r, auto* out) { return stub.StartSession(ctx, r, out); },
-      [](const v1::Session& s) { std::cout << s.id() << "\n"; });
+  return Unary(c, stub, &v1::Localization::Stub::StartSession, req,
+               [](const v1::Session& s) { std::cout << s.id() << "\n"; });
 }
 
 // Streams a session's poses into the chosen format until the stream ends,
@@ -435,34 +436,26 @@ int main(int argc, char** argv) {
       req.set_session_id(session_id);
       return req;
     };
-    const auto print_session = [](const v1::Session& s) { PrintSession(s); };
 
     if (health->parsed()) return Health(c, channel, health_service);
     if (start->parsed()) return StartSession(c, *stub, so);
     if (subscribe->parsed()) return Subscribe(c, *stub, sub);
     if (list->parsed()) {
-      return Unary<v1::ListSessionsResponse>(
-          c, v1::ListSessionsRequest{}, [&](auto* ctx, const auto& r, auto* out) { return stub->ListSessions(ctx, r, out); },
-          [](const v1::ListSessionsResponse& r) {
-            for (const auto& s : r.sessions()) PrintSession(s);
-          });
+      return Unary(c, *stub, &v1::Localization::Stub::ListSessions, v1::ListSessionsRequest{},
+                   [](const v1::ListSessionsResponse& r) {
+                     for (const auto& s : r.sessions()) PrintSession(s);
+                   });
     }
     if (get->parsed()) {
-      return Unary<v1::Session>(
-          c, with_id(v1::GetSessionRequest{}),
-          [&](auto* ctx, const auto& r, auto* out) { return stub->GetSession(ctx, r, out); }, print_session);
+      return Unary(c, *stub, &v1::Localization::Stub::GetSession, with_id(v1::GetSessionRequest{}), PrintSession);
     }
     if (stop->parsed()) {
       v1::StopSessionRequest req = with_id(v1::StopSessionRequest{});
       req.set_remove(remove);
-      return Unary<v1::Session>(
-          c, req, [&](auto* ctx, const auto& r, auto* out) { return stub->StopSession(ctx, r, out); }, print_session);
+      return Unary(c, *stub, &v1::Localization::Stub::StopSession, req, PrintSession);
     }
     if (stats->parsed()) {
-      return Unary<v1::SessionStats>(
-          c, with_id(v1::GetStatsRequest{}),
-          [&](auto* ctx, const auto& r, auto* out) { return stub->GetStats(ctx, r, out); },
-          [](const v1::SessionStats& s) { PrintStats(s); });
+      return Unary(c, *stub, &v1::Localization::Stub::GetStats, with_id(v1::GetStatsRequest{}), PrintStats);
     }
     if (outage->parsed()) {
       v1::InjectOutageRequest req = with_id(v1::InjectOutageRequest{});
@@ -471,14 +464,12 @@ int main(int argc, char** argv) {
       req.set_action(o_start_cmd->parsed()  ? v1::InjectOutageRequest::START_NOW
                      : o_stop_cmd->parsed() ? v1::InjectOutageRequest::STOP_NOW
                                             : v1::InjectOutageRequest::WINDOW);
-      return Unary<v1::Session>(
-          c, req, [&](auto* ctx, const auto& r, auto* out) { return stub->InjectOutage(ctx, r, out); }, print_session);
+      return Unary(c, *stub, &v1::Localization::Stub::InjectOutage, req, PrintSession);
     }
     if (scenario->parsed()) {
       v1::SetScenarioRequest req = with_id(v1::SetScenarioRequest{});
       FillScenario(scenario_name, scenario_file, req.mutable_scenario());
-      return Unary<v1::Session>(
-          c, req, [&](auto* ctx, const auto& r, auto* out) { return stub->SetScenario(ctx, r, out); }, print_session);
+      return Unary(c, *stub, &v1::Localization::Stub::SetScenario, req, PrintSession);
     }
   } catch (const RecordError& e) {
     std::cerr << "error: " << e.what() << "\n";
