@@ -447,13 +447,6 @@ void WsServer::Publish(std::vector<OutMessage> messages, std::chrono::steady_clo
   });
 }
 
-void WsServer::Publish(size_t channel, uint64_t timestamp_ns, std::string data,
-                       std::chrono::steady_clock::time_point since) {
-  std::vector<OutMessage> one;
-  one.push_back({static_cast<Topic>(channel), timestamp_ns, std::move(data)});
-  Publish(std::move(one), since);
-}
-
 WsServerStats WsServer::stats() const {
   const auto q = impl_->delays.QuantilesMs(std::array<double, 3>{0.5, 0.99, 1.0});
   return {impl_->clients_connected.load(), impl_->sent.load(), impl_->dropped.load(), q[0], q[1], q[2]};

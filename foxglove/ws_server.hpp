@@ -103,9 +103,6 @@ class WsServer {
   // writes them all.
   void Publish(std::vector<OutMessage> messages,
                std::chrono::steady_clock::time_point since = std::chrono::steady_clock::now());
-  // One message of channel `channel`.
-  void Publish(size_t channel, uint64_t timestamp_ns, std::string data,
-               std::chrono::steady_clock::time_point since = std::chrono::steady_clock::now());
 
   WsServerStats stats() const;
 

@@ -79,13 +79,20 @@ class WsServerTest : public ::testing::Test {
     server_->Stop();
     thread_.join();
   }
+  // One message on channel `channel` (0 or 1 of the table above).
+  void Publish(size_t channel, uint64_t timestamp_ns, std::string data,
+               std::chrono::steady_clock::time_point since = std::chrono::steady_clock::now()) {
+    std::vector<fx::OutMessage> one;
+    one.push_back({static_cast<fx::Topic>(channel), timestamp_ns, std::move(data)});
+    server_->Publish(std::move(one), since);
+  }
   // Publishes on channel 1 until the client's subscription shows (the
   // protocol has no acknowledgement); returns the first message it read.
   std::string PublishUntilReceived(TestClient& client) {
     std::atomic<bool> received{false};
     std::thread producer([&] {
       for (int i = 0; i < 500 && !received; ++i) {  // at most 5 s
-        server_->Publish(1, 42, "warm-up");
+        Publish(1, 42, "warm-up");
         std::this_thread::sleep_for(std::chrono::milliseconds(10));
       }
     });
@@ -162,7 +169,7 @@ TEST_F(WsServerTest, DelayIsCountedFromWhenTheContentArrived) {
   std::atomic<bool> received{false};
   std::thread producer([&] {
     for (int i = 0; i < 500 && !received; ++i) {
-      server_->Publish(0, 1, "{}", std::chrono::steady_clock::now() - std::chrono::milliseconds(30));
+      Publish(0, 1, "{}", std::chrono::steady_clock::now() - std::chrono::milliseconds(30));
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
   });
@@ -204,10 +211,10 @@ TEST_F(WsServerTest, AClientThatStopsReadingLosesItsOldestMessagesOnly) {
   });
   const std::string body(64 * 1024, 'x');
   for (int i = 0; i < kMessages; ++i) {
-    server_->Publish(1, static_cast<uint64_t>(i), body);
+    Publish(1, static_cast<uint64_t>(i), body);
     if (i % 16 == 0) std::this_thread::sleep_for(std::chrono::milliseconds(2));  // let the fast one keep up
   }
-  server_->Publish(1, kMessages, "last!");
+  Publish(1, kMessages, "last!");
   const bool got_last = fast_reader.wait_for(std::chrono::seconds(30)) == std::future_status::ready;
   if (!got_last) fast.Shutdown();  // unblock the reader before failing
   EXPECT_TRUE(got_last) << "the client that reads did not get the newest message";
