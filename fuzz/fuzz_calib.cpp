@@ -25,7 +25,7 @@ void CheckFinite(const M& m, const std::string& what) {
 }
 
 #if LOCAID_FUZZ_CALIB_KIND != 2
-void CheckStereo(const StereoCamera& cam) {
+void CheckStereo(const locaid::StereoCamera& cam) {
   LOCAID_FUZZ_CHECK(std::isfinite(cam.fx) && std::isfinite(cam.fy) && std::isfinite(cam.cx) &&
                         std::isfinite(cam.cy) && std::isfinite(cam.baseline_m),
                     "stereo model not finite");
@@ -44,7 +44,7 @@ void Check(const kitti::CamToCamCalib& c) {
     CheckFinite(cam.P_rect, "P_rect");
     LOCAID_FUZZ_CHECK(cam.S_rect(0) >= 1 && cam.S_rect(1) >= 1, "S_rect not positive");
   }
-  const StereoCamera stereo = kitti::RectifiedStereo(c);
+  const locaid::StereoCamera stereo = kitti::RectifiedStereo(c);
   CheckStereo(stereo);
   LOCAID_FUZZ_CHECK(stereo.width >= 1 && stereo.height >= 1, "rectified size not positive");
   CheckFinite(kitti::ComputeT_cam0_imu(c, Eigen::Isometry3d::Identity(),
