@@ -7,6 +7,8 @@ for seeds 1..N on each (scenario, IMU / no IMU) case, reusing one VO run per
 drive through --vo-cache, and reports per case:
 
   - rmse_gps_m, end_error_pct (every outage), reconverge_s: median / p90 / max
+    (reconverge_s: time from the outage's end to the first frame within
+    2 sigma_h of the truth; outages that never get there are counted apart)
   - NEES: per-run mean 3-dof position NEES against the run's own 99 %
     chi-square bound (chi2_0.99(3n)/n over its n frames); runs above it
   - max vertical error of every run (worst run)
@@ -17,6 +19,12 @@ drive through --vo-cache, and reports per case:
 
   bench/fusion/outage_sweep.py --drive DIR --scenario scenarios/outage-10s-middle.yaml \\
       [--scenario urban-canyon ...] [--seeds 50] [--no-imu-too] [--jobs 2] [--json] [--runs-csv F]
+
+The VO cache (one file in --cache-dir) is keyed on the drive's content, not
+its path: the drive folder's path and every file's relative path, size and
+modification time, and the locaid-replay binary's size and modification
+time. A drive re-rendered into the same folder, or a rebuilt locaid-replay,
+gets a new cache; an unchanged drive reuses its cache.
 
 Progress goes to stderr; with --json one object goes to stdout. Exit status 0
 even when a target is missed: this measures, it does not judge.
@@ -48,11 +56,32 @@ def summary(values):
             "max": max(values), "values": values} if values else None
 
 
+class ReplayFailed(Exception):
+    pass
+
+
 def run_one(cmd):
     run = subprocess.run(cmd, capture_output=True, text=True)
     if run.returncode != 0:
-        raise RuntimeError(f"{' '.join(cmd)}\nfailed: {run.stderr.strip().splitlines()[-1:]}")
+        last = run.stderr.strip().splitlines()[-1:] or [f"exit status {run.returncode}"]
+        raise ReplayFailed(f"{' '.join(cmd)}\nfailed: {last[0]}")
     return json.loads(run.stdout)
+
+
+def cache_key(drive, replay):
+    """Content key of the VO cache: the drive's path, every file's relative
+    path, size and mtime (ns), and the replay binary's size and mtime."""
+    h = hashlib.sha1()
+    h.update(drive.encode())
+    for root, dirs, files in os.walk(drive):
+        dirs.sort()
+        for name in sorted(files):
+            path = os.path.join(root, name)
+            st = os.stat(path)
+            h.update(f"\0{os.path.relpath(path, drive)}\0{st.st_size}\0{st.st_mtime_ns}".encode())
+    st = os.stat(replay)
+    h.update(f"\0replay\0{st.st_size}\0{st.st_mtime_ns}".encode())
+    return h.hexdigest()[:16]
 
 
 def main():
@@ -64,7 +93,9 @@ def main():
     ap.add_argument("--no-imu-too", action="store_true", help="also run every case without IMU")
     ap.add_argument("--replay", default=os.path.join(here, "..", "..", "build", "bin", "locaid-replay"),
                     help="locaid-replay binary (default build/bin/locaid-replay)")
-    ap.add_argument("--cache-dir", default=tempfile.gettempdir(), help="where the VO cache is kept")
+    ap.add_argument("--cache-dir", default=tempfile.gettempdir(),
+                    help="where the VO cache is kept (default: the temp folder); its name is a hash of the "
+                         "drive's files (paths, sizes, mtimes) and of the locaid-replay binary")
     ap.add_argument("--ekf", action="append", default=[], help="NAME=VALUE passed to locaid-replay --ekf")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel replays (default: cores)")
     ap.add_argument("--runs-csv", help="also write one line per run to this CSV")
@@ -80,8 +111,7 @@ def main():
         ap.error(f"{args.drive}: no such drive folder")
 
     drive = os.path.realpath(args.drive)
-    key = hashlib.sha1(drive.encode()).hexdigest()[:12]
-    cache = os.path.join(args.cache_dir, f"locaid-vo-{key}.v2.cache")
+    cache = os.path.join(args.cache_dir, f"locaid-vo-{cache_key(drive, os.path.realpath(args.replay))}.v3.cache")
     extra = [a for e in args.ekf for a in ("--ekf", e)]
     cases = [(s, imu) for s in args.scenario for imu in ([True, False] if args.no_imu_too else [True])]
     result = {"drive": drive, "seeds": args.seeds, "ekf": args.ekf, "gate_probability": GATE_PROBABILITY,
@@ -96,18 +126,25 @@ def main():
         with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
             futures = {pool.submit(run_one, cmd(s)): s for s in range(2, args.seeds + 1)}
             for n, f in enumerate(concurrent.futures.as_completed(futures), start=2):
-                runs[futures[f]] = f.result()
+                try:
+                    runs[futures[f]] = f.result()
+                except ReplayFailed:
+                    pool.shutdown(wait=True, cancel_futures=True)  # the runs already started finish
+                    raise
                 print(f"\r{scenario} {'IMU' if imu else 'no IMU'} {n}/{args.seeds} runs   ",
                       end="", file=sys.stderr, flush=True)
         rmse, end_pct, reconv, nees_ratio, max_up = [], [], [], [], []
-        fixes = rej_h = rej_v = resets = vo_rej = 0
+        fixes = rej_h = rej_v = resets = vo_rej = never = 0
         over_bound, longest_run = [], 0
         for seed in sorted(runs):
             j = runs[seed]
             rmse.append(j["rmse_gps_m"])
             for o in j["outages"]:
                 end_pct.append(o["end_error_pct"])
-                reconv.append(o["reconverge_s"])
+                if o["reconverge_s"] >= 0:
+                    reconv.append(o["reconverge_s"])
+                else:
+                    never += 1  # no frame within 2 sigma_h before the next outage or the end
             nees_ratio.append(j["nees_mean"] / j["nees_bound_99"])
             if j["nees_mean"] > j["nees_bound_99"]:
                 over_bound.append(seed)
@@ -126,6 +163,7 @@ def main():
         result["cases"].append({
             "scenario": scenario, "use_imu": imu, "rmse_gps_m": summary(rmse),
             "end_error_pct": summary(end_pct), "reconverge_s": summary(reconv),
+            "reconverge_never": never,
             "nees_over_bound_runs": over_bound, "nees_mean_over_bound": summary(nees_ratio),
             "max_vertical_error_m": summary(max_up),
             "gps_fixes": fixes, "gps_rejected": rej_h, "gps_rejected_vertical": rej_v,
@@ -152,6 +190,8 @@ def main():
         print(f"{c['scenario']} ({'IMU' if c['use_imu'] else 'no IMU'})")
         print(f"  rmse_gps_m med/p90/max        {fmt(c['rmse_gps_m'], '%.3f')}")
         print(f"  end_error_pct med/p90/max     {fmt(c['end_error_pct'], '%.2f')}")
+        print(f"  reconverge_s med/p90/max      {fmt(c['reconverge_s'], '%.2f')}"
+              + (f"   never: {c['reconverge_never']} outages" if c['reconverge_never'] else ""))
         print(f"  NEES/bound99 med/p90/max      {fmt(c['nees_mean_over_bound'], '%.2f')}"
               f"   runs over the bound: {len(c['nees_over_bound_runs'])} {c['nees_over_bound_runs'] or ''}")
         print(f"  max vertical error m          {fmt(c['max_vertical_error_m'], '%.2f')}")
@@ -162,4 +202,9 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except ReplayFailed as e:
+        sys.exit(f"outage_sweep.py: {e}")
+    except KeyboardInterrupt:
+        sys.exit(130)
