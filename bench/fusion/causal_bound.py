@@ -18,6 +18,16 @@ against the filter's error there (both also in % of the distance driven in
 the outage, as locaid-replay's end_error_pct).
 The ground truth of each fix is taken at the fix's own time (columns
 gps_gt_e/gps_gt_n), the estimate at the frame the fix was fed at.
+
+Which fixes it counts ("N fixes scored"): the CSV has one row per frame and
+shows the LAST fix fed in that frame; the fit uses every row whose fix the gate
+accepted, and the bound is scored at those rows from the --min-fixes-th on,
+where the filter was initialised and in a GPS mode. So N is smaller than
+locaid-replay's gps_used, which counts every fix the filter used: also a
+frame's earlier fixes (when two or more fixes fall in one frame interval, e.g.
+around a frame without images) and the fixes buffered before the filter
+started and used to initialise it. The output gives the count at each step
+(JSON "fix_accounting").
 """
 import argparse
 import csv
@@ -44,15 +54,24 @@ def main():
     if not rows or not need <= set(rows[0]):
         sys.exit(f"{args.csv}: not a locaid-replay CSV (needs columns {', '.join(sorted(need))})")
 
-    fixes = [i for i, r in enumerate(rows) if r["gps_e"] and r["gps_gt_e"] and r["gps_rejected"] == "0"]
+    fix_rows = [i for i, r in enumerate(rows) if r["gps_e"]]
+    fixes = [i for i in fix_rows if rows[i]["gps_gt_e"] and rows[i]["gps_rejected"] == "0"]
     z = np.array([[float(rows[i]["gps_e"]), float(rows[i]["gps_n"])] for i in fixes])
     gt_fix = np.array([[float(rows[i]["gps_gt_e"]), float(rows[i]["gps_gt_n"])] for i in fixes])
     bound, filt = [], []
+    skipped_uninitialised = skipped_no_gt = skipped_mode = 0
     for k in range(args.min_fixes, len(fixes) + 1):
         rot, qm, pm = rigid_fit(gt_fix[:k], z[:k])
         i = fixes[k - 1]
         r = rows[i]
-        if r["initialized"] != "1" or r["gt_e"] == "" or r["mode"] not in ("GPS_FUSED", "GPS_DEGRADED"):
+        if r["initialized"] != "1":
+            skipped_uninitialised += 1
+            continue
+        if r["gt_e"] == "":
+            skipped_no_gt += 1
+            continue
+        if r["mode"] not in ("GPS_FUSED", "GPS_DEGRADED"):
+            skipped_mode += 1
             continue
         # Both at the fix time: the filter's estimate at the frame carries the
         # motion since the fix, the bound is moved by the same true motion.
@@ -62,13 +81,24 @@ def main():
     if not bound:
         sys.exit(f"{args.csv}: no initialised frames with an accepted fix")
     rms = lambda v: math.sqrt(sum(x * x for x in v) / len(v))
+    accounting = {"frames": len(rows), "frames_with_a_fix": len(fix_rows), "accepted": len(fixes),
+                  "before_min_fixes": min(len(fixes), args.min_fixes - 1),
+                  "filter_not_initialised": skipped_uninitialised, "no_ground_truth": skipped_no_gt,
+                  "not_in_a_gps_mode": skipped_mode, "scored": len(bound)}
     out = {"csv": args.csv, "fixes": len(bound), "causal_ls_rmse_m": rms(bound), "filter_rmse_m": rms(filt),
-           "outages": outage_bounds(rows, fixes, z, gt_fix, args.min_fixes)}
+           "fix_accounting": accounting, "outages": outage_bounds(rows, fixes, z, gt_fix, args.min_fixes)}
     if args.json:
         print(json.dumps(out, indent=2))
         return
-    print(f"{args.csv}: {len(bound)} accepted fixes; causal least-squares bound {out['causal_ls_rmse_m']:.3f} m, "
+    print(f"{args.csv}: {len(bound)} fixes scored; causal least-squares bound {out['causal_ls_rmse_m']:.3f} m, "
           f"filter {out['filter_rmse_m']:.3f} m (horizontal RMSE at the same frames)")
+    a = accounting
+    print(f"  fixes: {a['frames_with_a_fix']} of {a['frames']} frames show one (the last fed in the frame; "
+          f"locaid-replay's gps_used also counts a frame's other fixes and those the filter started from), "
+          f"{a['accepted']} accepted by the gate (with ground truth); not scored: {a['before_min_fixes']} before --min-fixes, "
+          f"{a['filter_not_initialised']} before the filter was initialised"
+          + (f", {a['no_ground_truth']} without ground truth" if a["no_ground_truth"] else "")
+          + (f", {a['not_in_a_gps_mode']} not in a GPS mode" if a["not_in_a_gps_mode"] else ""))
     for o in out["outages"]:
         if o["bound_end_error_m"] is None:
             print(f"  outage at {o['start_s']:.1f} s: only {o['fixes_before']} accepted fixes before it, no bound")
