@@ -1,0 +1,514 @@
+#!/usr/bin/python3
+"""Re-runs every deterministic figure of docs/benchmarks.md and compares it
+with the published value at the digits the document prints.
+
+The published values are in bench/figures.tsv, one figure a line:
+
+  figure   what it is (the table prints it)
+  run      the measurement that produces it (the RUNS table below: a command)
+  keys     comma-separated names of the run's values, one per number in `published`
+  published  the text as docs/benchmarks.md prints it, e.g. "2.11 / 4.68 / 8.04"
+  anchor   a text that is on exactly one line of docs/benchmarks.md; `published`
+           must be on that same line (so the document and the file cannot drift)
+
+Every number in `published` is compared with its key's value rounded to the
+same number of decimals (thousands commas and a leading + are kept). A line
+whose published numbers differ from today's is DIFF; a published text that is
+not on its anchor line is DOC. Timing figures (ms/frame, frames/s, poses/s)
+are not deterministic and are not here: docs/benchmarks.md gives them with the
+date and command of their measurement.
+
+  bench/figures.sh [--fast] [--only RUN ...] [--list] [--bin-dir build/bin]
+                   [--data ../shared/data/kitti] [--work DIR] [--jobs N]
+
+--fast runs the figures that take a few minutes on 2 cores (real excerpt,
+devkit, simulator, MCAP sizes; the test command runs it); without it every
+figure, including the synthetic drives (renders included, ~1 h on 2 cores).
+Exit status: 0 every figure as published, 1 a difference or a failed run,
+77 the shared KITTI data is absent (figures.sh says so and skips).
+"""
+import argparse
+import csv
+import json
+import math
+import os
+import re
+import shlex
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+REAL = "raw/2011_09_26/2011_09_26_drive_unknown_extract"
+NUMBER = re.compile(r"[+-]?\d{1,3}(?:,\d{3})+(?:\.\d+)?|[+-]?\d+(?:\.\d+)?")
+
+
+class RunFailed(Exception):
+    pass
+
+
+class Context:
+    def __init__(self, args):
+        self.bin = os.path.abspath(args.bin_dir)
+        self.data = os.path.abspath(args.data)
+        self.work = args.work
+        self.jobs = args.jobs
+        self.verbose = args.verbose
+        self.commands = []  # (run, command as shown)
+        self._synth = {}
+
+    def exe(self, name):
+        path = os.path.join(self.bin, name)
+        if not os.access(path, os.X_OK):
+            raise RunFailed(f"{path}: not built")
+        return path
+
+    def real(self):
+        return os.path.join(self.data, REAL)
+
+    def run(self, cmd, run_name):
+        shown = " ".join(shlex.quote(c) for c in cmd)
+        for long in (self.bin, self.data, ROOT):  # paths as seen from the repository root
+            shown = shown.replace(long + "/", os.path.relpath(long, ROOT) + "/" if long != ROOT else "")
+        self.commands.append((run_name, shown))
+        if self.verbose:
+            print(f"  $ {shown}", file=sys.stderr, flush=True)
+        p = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+        if p.returncode != 0:
+            tail = "\n".join(p.stderr.strip().splitlines()[-3:])
+            raise RunFailed(f"{shown}\nexit status {p.returncode}: {tail}")
+        return p.stdout
+
+    def json(self, cmd, run_name):
+        out = self.run(cmd, run_name)
+        try:
+            return json.loads(out)
+        except json.JSONDecodeError as e:
+            raise RunFailed(f"{cmd[0]}: output is not JSON ({e})")
+
+    def synth(self, length_m, seed, run_name):
+        """The drive of `locaid-synth --length-m L --seed S`, rendered once per figures run."""
+        key = (length_m, seed)
+        if key not in self._synth:
+            out = os.path.join(self.work, f"synth-{length_m}m-s{seed}")
+            shutil.rmtree(out, ignore_errors=True)
+            self.run([self.exe("locaid-synth"), "--out", out, "--length-m", str(length_m), "--seed", str(seed),
+                      "-q"], run_name)
+            drives = [d for d in os.listdir(out) if d.endswith("_sync")]
+            if len(drives) != 1:
+                raise RunFailed(f"{out}: expected one *_sync drive, found {drives}")
+            self._synth[key] = os.path.join(out, drives[0])
+        return self._synth[key]
+
+
+# --- the runs: each returns {key: value} ---------------------------------
+
+def devkit(ctx):
+    odo = os.path.join(ctx.data, "odometry")
+    out = {}
+    for key, seq, name in (("orb", "00", "00_ORB_SLAM_from_evo"), ("sptam", "00", "00_SPTAM_from_evo"),
+                           ("itl00", "00", "00_kitti-eval-itl_example"), ("itl04", "04", "04_kitti-eval-itl_example")):
+        j = ctx.json([ctx.exe("locaid-eval"), "--json", "--gt", f"{odo}/poses/{seq}.txt",
+                      "--est", f"{odo}/reference_results/{name}.txt"], "devkit")
+        out[f"{key}.t_err"] = j["t_err"]
+        out[f"{key}.r_err"] = j["r_err_rad_per_m"]
+        out[f"{key}.segments"] = j["segments"]
+    return out
+
+
+def vo_method_values(out, prefix, j):
+    out[f"{prefix}.t_rel"] = j.get("t_rel_pct", math.nan)
+    out[f"{prefix}.r_rel"] = j.get("r_rel_deg_per_100m", math.nan)
+    out[f"{prefix}.final"] = j["final_error_pct"]
+    out[f"{prefix}.frames"] = j["evaluated_frames"]
+    out[f"{prefix}.length"] = j["length_m"]
+    if "failed_frames" in j:
+        out[f"{prefix}.failed"] = j["failed_frames"]
+        out[f"{prefix}.degraded"] = j["degraded_frames"]
+    if "boresight_fit" in j:
+        b = j["boresight_fit"]
+        out[f"{prefix}.boresight_yaw"] = b["yaw_deg"]
+        out[f"{prefix}.boresight_pitch"] = b["pitch_deg"]
+        out[f"{prefix}.boresight_t_rel"] = b["t_rel_pct"]
+
+
+def vo_real(ctx):
+    runs = ctx.json([ctx.exe("vo_bench"), "--drive", ctx.real(), "--method", "all", "--lengths", "25", "50", "75",
+                     "100", "--reference-floor"], "vo_real")
+    out = {}
+    for j in runs:
+        vo_method_values(out, "floor" if j["method"] == "reference_floor" else j["method"], j)
+        if "oxts_pos_accuracy_median_m" in j:
+            out["oxts_pos_accuracy_m"] = j["oxts_pos_accuracy_median_m"]
+    return out
+
+
+def vo_real_velocity(ctx):
+    runs = ctx.json([ctx.exe("vo_bench"), "--drive", ctx.real(), "--method", "all", "--lengths", "25", "50", "75",
+                     "100", "--reference", "oxts-velocity", "--fit-boresight"], "vo_real_velocity")
+    out = {}
+    for j in runs:
+        vo_method_values(out, j["method"], j)
+    return out
+
+
+def vo_synth(ctx):
+    out = {}
+    for seed in (1, 2, 3):
+        drive = ctx.synth(1100, seed, "vo_synth")
+        runs = ctx.json([ctx.exe("vo_bench"), "--drive", drive, "--method", "all", "--lengths", "100", "200", "300",
+                         "400", "500", "600", "700", "800", "--reference-floor"], "vo_synth")
+        for j in runs:
+            vo_method_values(out, f"s{seed}." + ("floor" if j["method"] == "reference_floor" else j["method"]), j)
+    for m in ("default", "thesis"):
+        for v in ("t_rel", "r_rel"):
+            seeds = [out[f"s{seed}.{m}.{v}"] for seed in (1, 2, 3)]
+            out[f"{m}.{v}_min"], out[f"{m}.{v}_max"] = min(seeds), max(seeds)
+    return out
+
+
+def vo_motorway(ctx):
+    """Motorway drives (20-30 m/s, 300-1500 m curves), default and --anisotropic render, default VO."""
+    out = {}
+    for seed in (1, 2):
+        for aniso in (False, True):
+            name = f"h{seed}{'a' if aniso else ''}"
+            drive = os.path.join(ctx.work, f"motorway-{name}")
+            shutil.rmtree(drive, ignore_errors=True)
+            ctx.run([ctx.exe("locaid-synth"), "--out", drive, "--length-m", "2000", "--seed", str(seed),
+                     "--speed-min", "20", "--speed-max", "30", "--radius-min", "300", "--radius-max", "1500", "-q"]
+                    + (["--anisotropic"] if aniso else []), "vo_motorway")
+            sync = [d for d in os.listdir(drive) if d.endswith("_sync")][0]
+            runs = ctx.json([ctx.exe("vo_bench"), "--drive", os.path.join(drive, sync), "--method", "default",
+                             "--lengths", "100", "200", "300", "400", "500", "600", "700", "800"], "vo_motorway")
+            vo_method_values(out, f"{name}.default", runs[0])
+            shutil.rmtree(drive, ignore_errors=True)
+    return out
+
+
+def sweep_values(out, prefix, c, seeds):
+    def put(name, s):
+        for q in ("median", "p90", "max"):
+            out[f"{prefix}.{name}_{q}"] = s[q] if s else math.nan
+    put("end", c["end_error_pct"])
+    put("rmse", c["rmse_gps_m"])
+    put("reconverge", c["reconverge_s"])
+    out[f"{prefix}.reconverge_never"] = c.get("reconverge_never", math.nan)
+    out[f"{prefix}.runs"] = seeds
+    out[f"{prefix}.nees_over"] = len(c["nees_over_bound_runs"])
+    out[f"{prefix}.vertical_max"] = c["max_vertical_error_m"]["max"]
+    out[f"{prefix}.fixes"] = c["gps_fixes"]
+    out[f"{prefix}.rejected_h"] = c["gps_rejected"]
+    out[f"{prefix}.rejected_v"] = c["gps_rejected_vertical"]
+    out[f"{prefix}.nominal"] = c["gps_expected_false_alarms"]
+    out[f"{prefix}.longest_run"] = c["gps_longest_rejection_run"]
+    out[f"{prefix}.resets"] = c["gps_resets"]
+    out[f"{prefix}.vo_gated"] = c["vo_rejected_per_run"]
+
+
+def outage_sweep(ctx, run_name, drive, scenarios, seeds, no_imu_too, ekf=()):
+    cmd = ["/usr/bin/python3", os.path.join(HERE, "fusion", "outage_sweep.py"), "--drive", drive]
+    for s in scenarios:
+        cmd += ["--scenario", s]
+    cmd += ["--seeds", str(seeds)] + (["--no-imu-too"] if no_imu_too else [])
+    for e in ekf:
+        cmd += ["--ekf", e]
+    cmd += ["--replay", ctx.exe("locaid-replay"), "--cache-dir", ctx.work, "--jobs", str(ctx.jobs), "--json"]
+    return ctx.json(cmd, run_name)
+
+
+SCENARIO_KEY = {"scenarios/outage-10s-middle.yaml": "outage", "urban-canyon": "urban", "tunnel-30s": "tunnel"}
+
+
+def sweep_real(ctx):
+    r = outage_sweep(ctx, "sweep_real", ctx.real(), ["scenarios/outage-10s-middle.yaml"], 50, True)
+    out = {}
+    for c in r["cases"]:
+        sweep_values(out, "imu" if c["use_imu"] else "noimu", c, r["seeds"])
+    return out
+
+
+def sweep_synth(ctx):
+    scenarios = ["scenarios/outage-10s-middle.yaml", "urban-canyon", "tunnel-30s"]
+    r = outage_sweep(ctx, "sweep_synth", ctx.synth(2200, 3, "sweep_synth"), scenarios, 50, True)
+    out = {}
+    for c in r["cases"]:
+        sweep_values(out, f"{SCENARIO_KEY[c['scenario']]}.{'imu' if c['use_imu'] else 'noimu'}", c, r["seeds"])
+    return out
+
+
+def lever_arm(ctx):
+    drive = ctx.synth(2200, 3, "lever_arm")
+    out = {}
+    for name, ekf in (("off", ()), ("on", ("gps_lever_arm_x_m=1.2", "gps_lever_arm_y_m=0.9"))):
+        r = outage_sweep(ctx, "lever_arm", drive, ["scenarios/open-sky-antenna-1.5m.yaml"], 10, False, ekf)
+        sweep_values(out, name, r["cases"][0], r["seeds"])
+        nees = r["cases"][0]["nees_mean_over_bound"]
+        out[f"{name}.nees_ratio_max"] = nees["max"]
+    out["ratio"] = out["on.rmse_median"] / out["off.rmse_median"]
+    return out
+
+
+def urban_bound(ctx):
+    """Causal least-squares bound (bench/fusion/causal_bound.py) of urban-canyon, seeds 1-10."""
+    drive = ctx.synth(2200, 3, "urban_bound")
+    cache = os.path.join(ctx.work, "urban-bound.vo.cache")
+    bound, filt, rmse = [], [], []
+    for seed in range(1, 11):
+        csv_path = os.path.join(ctx.work, f"urban-s{seed}.csv")
+        j = ctx.json([ctx.exe("locaid-replay"), "--drive", drive, "--scenario", "urban-canyon", "--seed", str(seed),
+                      "--vo-cache", cache, "--json", "--out-csv", csv_path], "urban_bound")
+        b = ctx.json(["/usr/bin/python3", os.path.join(HERE, "fusion", "causal_bound.py"), "--json", csv_path],
+                     "urban_bound")
+        bound.append(b["causal_ls_rmse_m"])
+        filt.append(b["filter_rmse_m"])
+        rmse.append(j["rmse_gps_m"])
+    return {"bound_median": statistics.median(bound), "filter_median": statistics.median(filt),
+            "rmse_median": statistics.median(rmse), "seeds": 10}
+
+
+def urban_2drms(ctx):
+    r = outage_sweep(ctx, "urban_2drms", ctx.synth(2200, 3, "urban_2drms"), ["scenarios/urban-canyon-2drms.yaml"],
+                     10, True)
+    out = {}
+    for c in r["cases"]:
+        sweep_values(out, "imu" if c["use_imu"] else "noimu", c, r["seeds"])
+    return out
+
+
+def replay_urban(ctx):
+    j = ctx.json([ctx.exe("locaid-replay"), "--drive", ctx.synth(2200, 3, "replay_urban"), "--scenario",
+                  "urban-canyon", "--json"], "replay_urban")
+    return {"rmse": j["rmse_gps_m"], "frames": j["frames"]}
+
+
+def consistency_sim(ctx):
+    j = ctx.json([ctx.exe("fusion_consistency_sim"), "--runs", "1000"], "consistency_sim")
+    return {"runs": j["runs"], "over": j["runs_over_bound_99"], "share_pct": 100 * j["share_over_bound"],
+            "nees_mean": j["nees_mean"], "groups": j["groups_of_50"], "tail_over": j["groups_max_over_3x_median"],
+            "end_median_m": j["end_error_median_m"], "end_max_m": j["end_error_max_m"]}
+
+
+def ekf_nees_test(ctx):
+    out_text = ctx.run([ctx.exe("fusion_tests"), "--gtest_filter=EkfNees.*"], "ekf_nees_test")
+    out = {}
+    for m in re.finditer(r"^(IMU|no-IMU) NEES mean (\S+) bounds \[(\S+), (\S+)\]", out_text, re.M):
+        prefix = "imu" if m.group(1) == "IMU" else "noimu"
+        out[f"{prefix}.nees"] = float(m.group(2))
+        out["lo"], out["hi"] = float(m.group(3)), float(m.group(4))
+    if "imu.nees" not in out or "noimu.nees" not in out:
+        raise RunFailed("fusion_tests --gtest_filter=EkfNees.*: no 'NEES mean' lines in its output")
+    return out
+
+
+def mcap(ctx):
+    out = {}
+    for level, prefix in ((None, "l1"), (3, "l3")):
+        j = ctx.json([ctx.exe("mcap_write_bench"), "--poses", "20000", "--out-dir", ctx.work]
+                     + ([] if level is None else ["--zstd-level", str(level)]), "mcap")
+        for r in j:
+            name = f"{prefix}.{'none' if r['compression'] == 'none' else 'zstd'}"
+            out[f"{name}.bytes_per_pose"] = r["bytes_per_pose"]
+            out[f"{name}.mb"] = r["bytes"] / 1e6
+            out[f"{name}.messages"] = r["messages"]
+            out["poses"] = r["poses"]
+    return out
+
+
+# name -> (fast?, function). Order: cheap first.
+RUNS = {
+    "devkit": (True, devkit),
+    "mcap": (True, mcap),
+    "ekf_nees_test": (True, ekf_nees_test),
+    "consistency_sim": (True, consistency_sim),
+    "vo_real": (True, vo_real),
+    "vo_real_velocity": (True, vo_real_velocity),
+    "sweep_real": (True, sweep_real),
+    "replay_urban": (False, replay_urban),
+    "urban_bound": (False, urban_bound),
+    "urban_2drms": (False, urban_2drms),
+    "lever_arm": (False, lever_arm),
+    "sweep_synth": (False, sweep_synth),
+    "vo_synth": (False, vo_synth),
+    "vo_motorway": (False, vo_motorway),
+}
+
+
+# --- comparison ------------------------------------------------------------
+
+def fmt_like(token, value):
+    """`value` printed as `token` is: same decimals, thousands commas, sign."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "nan"
+    decimals = len(token.split(".")[1]) if "." in token else 0
+    text = f"{value:,.{decimals}f}" if "," in token else f"{value:.{decimals}f}"
+    if text.startswith("-") and float(text.replace(",", "")) == 0:
+        text = text[1:]
+    if token.startswith("+") and not text.startswith("-"):
+        text = "+" + text
+    return text
+
+
+def today_text(published, values):
+    tokens = list(NUMBER.finditer(published))
+    pieces, last = [], 0
+    for m, v in zip(tokens, values):
+        pieces.append(published[last:m.start()])
+        pieces.append(fmt_like(m.group(0), v))
+        last = m.end()
+    pieces.append(published[last:])
+    return "".join(pieces)
+
+
+def read_figures(path):
+    with open(path, newline="") as f:
+        rows = [r for r in csv.reader(f, delimiter="\t", quoting=csv.QUOTE_NONE) if r and not r[0].startswith("#")]
+    header, rows = rows[0], rows[1:]
+    need = ["figure", "run", "keys", "published", "anchor"]
+    if header != need:
+        sys.exit(f"{path}: header must be {' '.join(need)} (tab-separated), is {header}")
+    figures = []
+    for n, r in enumerate(rows, start=2):
+        if len(r) != len(need):
+            sys.exit(f"{path}: line {n}: {len(r)} fields, want {len(need)}")
+        fig = dict(zip(need, r))
+        fig["keys"] = [k.strip() for k in fig["keys"].split(",")]
+        if fig["run"] not in RUNS:
+            sys.exit(f"{path}: line {n}: unknown run {fig['run']} (known: {', '.join(RUNS)})")
+        if len(NUMBER.findall(fig["published"])) != len(fig["keys"]):
+            sys.exit(f"{path}: line {n}: {len(NUMBER.findall(fig['published']))} numbers in "
+                     f"'{fig['published']}' for {len(fig['keys'])} keys")
+        figures.append(fig)
+    return figures
+
+
+def doc_check(fig, doc_lines):
+    """'' if `published` is on the one line holding `anchor`, else what is wrong."""
+    lines = [l for l in doc_lines if fig["anchor"] in l]
+    if len(lines) != 1:
+        return f"anchor '{fig['anchor']}' is on {len(lines)} lines of docs/benchmarks.md (want 1)"
+    if fig["published"] not in lines[0]:
+        return f"'{fig['published']}' is not on the line of '{fig['anchor']}' in docs/benchmarks.md"
+    return ""
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--fast", action="store_true", help="only the runs of a few minutes (the test command's)")
+    ap.add_argument("--only", action="append", default=[], metavar="RUN", help="only this run (repeatable)")
+    ap.add_argument("--list", action="store_true", help="list the runs and figures, run nothing")
+    ap.add_argument("--bin-dir", default=os.path.join(ROOT, "build", "bin"), help="built programs (build/bin)")
+    ap.add_argument("--data", default=os.path.join(ROOT, "..", "shared", "data", "kitti"),
+                    help="shared KITTI excerpts (../shared/data/kitti)")
+    ap.add_argument("--figures", default=os.path.join(HERE, "figures.tsv"), help="published values")
+    ap.add_argument("--doc", default=os.path.join(ROOT, "docs", "benchmarks.md"), help="the document")
+    ap.add_argument("--work", help="scratch folder for drives, VO caches and MCAP files (default: a new "
+                                   "temporary folder, removed at the end)")
+    ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel replays in sweeps")
+    ap.add_argument("--verbose", "-v", action="store_true", help="print each command as it starts")
+    args = ap.parse_args()
+    for r in args.only:
+        if r not in RUNS:
+            ap.error(f"--only {r}: unknown run (known: {', '.join(RUNS)})")
+
+    figures = read_figures(args.figures)
+    with open(args.doc) as f:
+        doc_lines = f.read().splitlines()
+    selected = [r for r in RUNS if (not args.only or r in args.only) and (not args.fast or RUNS[r][0])]
+    # Every line of figures.tsv against the document, whatever runs: cheap, and
+    # a published value changed in one place only shows up in --fast too.
+    doc_problems = [(f, p) for f in figures for p in [doc_check(f, doc_lines)] if p]
+    if args.list:
+        for r in RUNS:
+            n = sum(1 for f in figures if f["run"] == r)
+            print(f"{r:18} {'fast' if RUNS[r][0] else 'full':5} {n} figures")
+        for f, p in doc_problems:
+            print(f"DOC {f['figure']}: {p}")
+        return 1 if doc_problems else 0
+    if not os.path.isdir(os.path.join(args.data, REAL)):
+        print(f"SKIP: {os.path.abspath(args.data)} has no {REAL} (the shared KITTI excerpts); "
+              "no figure was checked", flush=True)
+        return 77
+
+    own_work = args.work is None
+    args.work = os.path.abspath(args.work or tempfile.mkdtemp(prefix="locaid-figures-"))
+    os.makedirs(args.work, exist_ok=True)
+    ctx = Context(args)
+    values, failed, seconds = {}, {}, {}
+    try:
+        for r in selected:
+            print(f"[{time.strftime('%H:%M:%S')}] {r} ...", file=sys.stderr, flush=True)
+            t0 = time.monotonic()
+            try:
+                values[r] = RUNS[r][1](ctx)
+            except (RunFailed, KeyError, OSError) as e:
+                failed[r] = f"{type(e).__name__}: {e}"
+            seconds[r] = time.monotonic() - t0
+            print(f"[{time.strftime('%H:%M:%S')}] {r}: {seconds[r]:.0f} s"
+                  + (" FAILED" if r in failed else ""), file=sys.stderr, flush=True)
+    finally:
+        if own_work:
+            shutil.rmtree(args.work, ignore_errors=True)
+
+    rows, bad = [], 0
+    for fig, problem in doc_problems:
+        if fig["run"] not in selected:
+            rows.append((fig, "(not run)", "DOC", problem))
+            bad += 1
+    for fig in figures:
+        if fig["run"] not in selected:
+            continue
+        doc_problem = doc_check(fig, doc_lines)
+        if fig["run"] in failed:
+            rows.append((fig, "(run failed)", "FAIL"))
+            bad += 1
+            continue
+        missing = [k for k in fig["keys"] if k not in values[fig["run"]]]
+        if missing:
+            rows.append((fig, f"(no value {', '.join(missing)})", "FAIL"))
+            bad += 1
+            continue
+        today = today_text(fig["published"], [values[fig["run"]][k] for k in fig["keys"]])
+        status = "OK" if today == fig["published"] else "DIFF"
+        if doc_problem:
+            status = "DOC" if status == "OK" else status + "+DOC"
+        if status != "OK":
+            bad += 1
+        rows.append((fig, today, status, doc_problem))
+
+    order = list(RUNS)
+    rows.sort(key=lambda row: order.index(row[0]["run"]))  # stable: figures.tsv order within a run
+    w_fig = max([len(r[0]["figure"]) for r in rows] + [6])
+    w_pub = max([len(r[0]["published"]) for r in rows] + [9])
+    w_today = max([len(r[1]) for r in rows] + [5])
+    print(f"{'figure':{w_fig}}  {'published':{w_pub}}  {'today':{w_today}}  status")
+    run = None
+    for row in rows:
+        fig, today, status = row[0], row[1], row[2]
+        if fig["run"] != run:
+            run = fig["run"]
+            print(f"-- {run} ({seconds.get(run, 0):.0f} s)")
+        print(f"{fig['figure']:{w_fig}}  {fig['published']:{w_pub}}  {today:{w_today}}  {status}")
+        if len(row) > 3 and row[3]:
+            print(f"{'':{w_fig}}  ^ {row[3]}")
+    for r, why in failed.items():
+        print(f"\nrun {r} failed:\n{why}")
+    print("\ncommands (from the repository root):")
+    for r, c in ctx.commands:
+        print(f"  [{r}] {c}")
+    n = len(rows)
+    print(f"\n{n - bad} of {n} figures as published; {bad} not"
+          f" ({'--only ' + ' '.join(args.only) if args.only else '--fast' if args.fast else 'full run'}"
+          f", {sum(seconds.values()):.0f} s)")
+    return 1 if bad or failed else 0
+
+
+if __name__ == "__main__":
+    try:
+        sys.exit(main())
+    except KeyboardInterrupt:
+        sys.exit(130)
