@@ -33,8 +33,11 @@ const char* ToString(ImuGrade grade) {
 void ValidateScenario(const Scenario& s) {
   if (!s.gps_antenna_body_m.allFinite() || s.gps_antenna_body_m.norm() > 10.0)
     Bad(s, "gps.antenna_body_m", "must be finite and within 10 m of the IMU");
-  if (!(std::isfinite(s.gps_rate_hz) && s.gps_rate_hz > 0))
-    Bad(s, "gps.rate_hz", "must be > 0, got " + std::to_string(s.gps_rate_hz));
+  // FixSlot turns rate x time into an int64 slot: bounded (fuzz_scenario_yaml
+  // found rate_hz: 1e91 overflowing it, undefined behaviour).
+  constexpr double kMaxRateHz = 1000;
+  if (!(std::isfinite(s.gps_rate_hz) && s.gps_rate_hz > 0 && s.gps_rate_hz <= kMaxRateHz))
+    Bad(s, "gps.rate_hz", "must be in (0, 1000], got " + std::to_string(s.gps_rate_hz));
   RequireNonNegative(s, "gps.sigma_h_m", s.gps_sigma_h_m);
   RequireNonNegative(s, "gps.sigma_v_m", s.gps_sigma_v_m);
   RequireNonNegative(s, "gps.bias_sigma_m", s.gps_bias_sigma_m);
@@ -44,6 +47,9 @@ void ValidateScenario(const Scenario& s) {
     Bad(s, "gps.jump_probability", "must be in [0, 1], got " + std::to_string(s.jump_probability));
   RequireNonNegative(s, "gps.jump_size_m", s.jump_size_m);
   RequireNonNegative(s, "gps.jump_duration_s", s.jump_duration_s);
+  // Becomes int64 nanoseconds, like the outages below.
+  if (s.jump_duration_s > 1e6)
+    Bad(s, "gps.jump_duration_s", "must be in [0, 1e6], got " + std::to_string(s.jump_duration_s));
   RequireNonNegative(s, "imu.accel_bias_sigma_mps2", s.imu_accel_bias_sigma_mps2);
   RequireNonNegative(s, "imu.gyro_bias_sigma_radps", s.imu_gyro_bias_sigma_radps);
   RequireNonNegative(s, "imu.accel_noise_mps2_sqrt_hz", s.imu_accel_noise_mps2_sqrt_hz);

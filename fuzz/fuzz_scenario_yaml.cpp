@@ -1,29 +1,60 @@
-// libFuzzer target: scenario YAML (pipeline/scenario_yaml.hpp).
+// libFuzzer target: scenario YAML (pipeline/scenario_yaml.hpp), every key
+// it reads today: name, base (the built-ins), gps.{rate_hz, sigma_h_m,
+// sigma_v_m, bias_sigma_m, bias_tau_s, jump_probability, jump_size_m,
+// jump_duration_s, antenna_body_m}, imu.{grade, accel_bias_sigma_mps2,
+// gyro_bias_sigma_radps, accel_noise_mps2_sqrt_hz, gyro_noise_radps_sqrt_hz},
+// outages[].{start_s, duration_s, end_s, centered}, seed.
 // Contract: ParseScenarioYaml returns a scenario or throws
 // pipeline::ScenarioError (no yaml-cpp or std exception escapes); an accepted
-// scenario passes fusion::ValidateScenario and drives a GpsScenario over a
-// short synthetic drive without undefined behaviour.
+// scenario passes fusion::ValidateScenario, its outages placed on a drive
+// (PlaceOutagesForDrive) and it drives a GpsScenario (with an attitude, so the
+// antenna lever arm is used) and an ImuDegrader over a short synthetic drive
+// without undefined behaviour, every fix and sample finite.
 #include "fuzz/fuzz_support.hpp"
 #include "fusion/scenario.hpp"
 #include "pipeline/scenario_yaml.hpp"
 
+#include <Eigen/Geometry>
+
+#include <cmath>
 #include <exception>
 #include <typeinfo>
 
 namespace {
 
-constexpr int kFixes = 50;
-constexpr int64_t kStepNs = 100'000'000;  // 10 Hz OXTS
+constexpr int kSamples = 200;
+constexpr int64_t kStepNs = 100'000'000;  // 10 Hz OXTS: a 20 s drive
+constexpr double kDriveS = 20.0;
 constexpr int64_t kStartNs = 1'317'000'000'000'000'000;
 
 void Exercise(const locaid::fusion::Scenario& scenario) {
-  locaid::fusion::ValidateScenario(scenario);
-  locaid::fusion::GpsScenario gps(locaid::fusion::PlaceOutagesForDrive(scenario, 60.0));
-  for (int i = 0; i < kFixes; ++i) {
+  namespace fusion = locaid::fusion;
+  fusion::ValidateScenario(scenario);
+  const fusion::Scenario placed = fusion::PlaceOutagesForDrive(scenario, kDriveS);
+  for (const fusion::OutageWindow& o : placed.outages) {
+    LOCAID_FUZZ_CHECK(!o.centered && std::isfinite(o.start_s) && o.start_s >= 0, "outage not placed");
+  }
+  fusion::GpsScenario gps(placed);
+  fusion::ImuDegrader imu(placed);
+  const Eigen::Matrix3d R_enu_body = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  for (int i = 0; i < kSamples; ++i) {
     const int64_t t_ns = kStartNs + i * kStepNs;
-    const auto fix = gps.Apply(t_ns, 49.0 + 1e-6 * i, 8.4, 110.0);
-    (void)fix;
+    if (const auto fix = gps.Apply(t_ns, 49.0 + 1e-6 * i, 8.4, 110.0, &R_enu_body)) {
+      LOCAID_FUZZ_CHECK(fix->t_ns == t_ns, "fix time changed");
+      LOCAID_FUZZ_CHECK(std::isfinite(fix->lat_deg) && std::isfinite(fix->lon_deg) && std::isfinite(fix->alt_m),
+                        "non-finite degraded fix");
+      LOCAID_FUZZ_CHECK(std::isfinite(fix->sigma_h_m) && fix->sigma_h_m >= 0 && std::isfinite(fix->sigma_v_m) &&
+                            fix->sigma_v_m >= 0,
+                        "bad sigma on a degraded fix");
+    }
     (void)gps.InOutage(t_ns);
+    fusion::ImuSample sample;
+    sample.t_ns = t_ns;
+    sample.accel_mps2 = Eigen::Vector3d(0.1, 0.0, 9.81);
+    sample.gyro_radps = Eigen::Vector3d(0.0, 0.0, 0.01);
+    const fusion::ImuSample degraded = imu.Apply(sample);
+    LOCAID_FUZZ_CHECK(degraded.accel_mps2.allFinite() && degraded.gyro_radps.allFinite(),
+                      "non-finite degraded IMU sample");
   }
 }
 

@@ -23,6 +23,8 @@ struct Ctx {
                  const std::set<std::string>& allowed) const {
     if (!map.IsMap()) Fail(map, prefix.empty() ? "(root)" : prefix, "expected a mapping");
     for (const auto& kv : map) {
+      // A mapping or list as a key ("{a: 1}: 2") has no string value.
+      if (!kv.first.IsScalar()) Fail(kv.first, prefix.empty() ? "(root)" : prefix, "a key must be a plain name");
       const auto key = kv.first.as<std::string>();
       if (!allowed.count(key)) {
         std::string list;
