@@ -1,9 +1,12 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets (fuzz/, clang) and runs each for a bounded time
 # on a seed corpus made at run time from the real KITTI excerpts in
-# ../shared/data/kitti (copied into a temporary folder, never into the repo).
-# Prints one summary line per target and exits non-zero when any target found
-# a crash (the reproducer is kept under BUILD_DIR/fuzz-artifacts/).
+# ../shared/data/kitti, the repository's scenarios/ and deploy/server.yaml and
+# small built-in seeds (copied into a temporary folder, never into the repo),
+# plus the committed regression inputs in fuzz/corpus/<target>/ (earlier
+# findings, run first). Prints one summary line per target and exits non-zero
+# when the build fails, a target is missing or any target found a crash (the
+# reproducer is kept under BUILD_DIR/fuzz-artifacts/).
 #
 #   fuzz/run-fuzzers.sh                     # all targets, 60 s each
 #   fuzz/run-fuzzers.sh -t 20 oxts pose_file
@@ -29,25 +32,31 @@ while (($#)); do
     -j) jobs=$2; shift 2 ;;
     --no-build) do_build=0; shift ;;
     --keep-corpus) keep_corpus=1; shift ;;
-    -h|--help) sed -n '2,16p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,18p' "$0"; exit 0 ;;
     -*) echo "run-fuzzers: unknown option $1" >&2; exit 2 ;;
     *) targets+=("${1#fuzz_}"); shift ;;
   esac
 done
 data=${LOCAID_SHARED_DATA:-$repo/../shared/data/kitti}
 all_targets=(oxts timestamps pose_file calib_cam_to_cam calib_rigid calib_odometry
-             scenario_yaml server_config frame_decode)
+             scenario_yaml server_config frame_decode push_sensors)
 ((${#targets[@]})) || targets=("${all_targets[@]}")
 
 if ((do_build)); then
   cxx=${CXX:-clang++}
   command -v "$cxx" >/dev/null || {
     echo "run-fuzzers: $cxx not found (deploy/install-deps.sh --fuzz installs clang)" >&2; exit 2; }
-  cmake -S "$repo" -B "$build_dir" -DCMAKE_CXX_COMPILER="$cxx" -DLOCAID_BUILD_FUZZ=ON \
-        -DLOCAID_BUILD_TESTS=OFF -DLOCAID_BUILD_BENCH=OFF >/dev/null
+  mkdir -p "$build_dir"
+  build_log=$build_dir/fuzz-build.log
   build_targets=()
   for t in "${targets[@]}"; do build_targets+=(--target "fuzz_$t"); done
-  cmake --build "$build_dir" -j"$jobs" "${build_targets[@]}" >/dev/null
+  if ! { cmake -S "$repo" -B "$build_dir" -DCMAKE_CXX_COMPILER="$cxx" -DLOCAID_BUILD_FUZZ=ON \
+           -DLOCAID_BUILD_TESTS=OFF -DLOCAID_BUILD_BENCH=OFF &&
+         cmake --build "$build_dir" -j"$jobs" "${build_targets[@]}"; } >"$build_log" 2>&1; then
+    echo "run-fuzzers: build failed (full log: $build_log):" >&2
+    grep -E -A3 'error|Error' "$build_log" | head -n 40 >&2
+    exit 1
+  fi
 fi
 
 work=$(mktemp -d "${TMPDIR:-/tmp}/locaid-fuzz.XXXXXX")
@@ -107,11 +116,14 @@ make_seeds() {
       fi ;;
     calib_odometry) ((have_data)) && copy_seed "$t" "$odo/sequences/00/calib.txt" ;;
     scenario_yaml)
+      for f in "$repo"/scenarios/*.yaml; do [[ -f $f ]] && seed "$t" "$(basename "$f")" <"$f"; done
       printf 'name: s\nbase: open-sky\ngps: {rate_hz: 1, sigma_h_m: 3, sigma_v_m: 5, bias_sigma_m: 0.3, bias_tau_s: 60, jump_probability: 0.02, jump_size_m: 15, jump_duration_s: 0}\nimu: {grade: mems, accel_bias_sigma_mps2: 0.05, gyro_bias_sigma_radps: 0.002, accel_noise_mps2_sqrt_hz: 0.01, gyro_noise_radps_sqrt_hz: 0.0005}\noutages: [{start_s: 20, duration_s: 10}, {start_s: 60, end_s: 75}, {centered: true, duration_s: 5}]\nseed: 7\n' | seed "$t" builtin
-      printf 'base: urban-canyon\noutages:\n  - start_s: 1\n    duration_s: 2\n' | seed "$t" builtin_block ;;
+      printf 'base: urban-canyon\noutages:\n  - start_s: 1\n    duration_s: 2\n' | seed "$t" builtin_block
+      printf 'base: intermittent\ngps: {antenna_body_m: [1.2, 0.9, 0.0], rate_hz: 5}\n' | seed "$t" builtin_antenna ;;
     server_config)
       [[ -f $repo/deploy/server.yaml ]] && seed "$t" server.yaml <"$repo/deploy/server.yaml"
-      printf 'listen: 127.0.0.1:0\nqueue_size: 8\nmax_queue_size: 16\nkeepalive_time_s: 5\nkeepalive_timeout_s: 2\n' | seed "$t" builtin ;;
+      printf 'listen: 127.0.0.1:0\nqueue_size: 8\nmax_queue_size: 16\nkeepalive_time_s: 5\nkeepalive_timeout_s: 2\n' | seed "$t" builtin
+      printf 'listen: 0.0.0.0:50051\nlisten_unix: /tmp/locaid.sock\nmetrics_listen: 127.0.0.1:9464\nmax_ended_sessions: 100\nended_session_ttl_s: 3600\nmax_concurrent_renders: 2\nmax_synthetic_frames: 2000\nsynthetic_default_frames: 100\n' | seed "$t" builtin_sessions ;;
     frame_decode)
       # First byte selects mode/size (see fuzz_frame_decode.cpp).
       if ((have_data)); then
@@ -129,6 +141,9 @@ png = (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 0,
 open(sys.argv[1], "wb").write(b"\x01" + png)
 EOF
       printf '\x00\x80' | seed "$t" raw_1x1 ;;
+    push_sensors)
+      # PushRequest streams written from text format by protoc (fuzz/make_push_seeds.py).
+      /usr/bin/python3 "$repo/fuzz/make_push_seeds.py" "$work/$t" "$repo" ;;
   esac
   return 0
 }
@@ -139,17 +154,19 @@ printf '%-18s %10s %8s %8s %7s %8s  %s\n' target execs exec/s cov ft corpus resu
 for t in "${targets[@]}"; do
   bin=$build_dir/bin/fuzz_$t
   if [[ ! -x $bin ]]; then
-    printf '%-18s %s\n' "$t" "not built (sources absent or build failed)"; continue
+    printf '%-18s %s\n' "$t" "FAILED: $bin not built"; status=1; continue
   fi
   make_seeds "$t"
   dict=$repo/fuzz/dicts/$t.dict
   dict_arg=(); [[ -f $dict ]] && dict_arg=(-dict="$dict")
+  # Committed regression inputs: a second corpus folder (read, never written).
+  regress=(); [[ -d $repo/fuzz/corpus/$t ]] && regress=("$repo/fuzz/corpus/$t")
   log=$work/$t.log
   rm -f "$artifacts/$t-"*
   set +e
   # ASan's leak checker needs ptrace, unavailable in some containers: off.
   ASAN_OPTIONS=detect_leaks=0:${ASAN_OPTIONS:-} UBSAN_OPTIONS=print_stacktrace=1:${UBSAN_OPTIONS:-} \
-    "$bin" "$work/$t" "${dict_arg[@]}" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
+    "$bin" "$work/$t" "${regress[@]}" "${dict_arg[@]}" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
       -print_final_stats=1 -artifact_prefix="$artifacts/$t-" >"$log" 2>&1
   rc=$?
   set -e

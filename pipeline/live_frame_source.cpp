@@ -130,7 +130,10 @@ void LiveFrameSource::TakeGps(LiveItem item) {
   const auto max_delay_ns = static_cast<int64_t>(setup_.max_gps_delay_s * 1e9);
   // Fused out of order a fix would pull the state back in time: too old
   // against the newest frame, or not after the previous fix, it is dropped.
-  const bool stale = last_frame_ns_ != INT64_MIN && item.t_ns < last_frame_ns_ - max_delay_ns;
+  // Saturated: a frame at t_ns near INT64_MIN overflowed the subtraction
+  // (undefined behaviour, found by fuzz_push_sensors).
+  const int64_t oldest_ns = last_frame_ns_ < INT64_MIN + max_delay_ns ? INT64_MIN : last_frame_ns_ - max_delay_ns;
+  const bool stale = last_frame_ns_ != INT64_MIN && item.t_ns < oldest_ns;
   const bool repeated = last_gps_ns_ && item.t_ns <= *last_gps_ns_;
   if (stale || repeated) {
     ++stats_.gps_fixes_late;

@@ -1,6 +1,6 @@
 #include "server/sensor_requests.hpp"
 
-#include <Eigen/Eigenvalues>
+#include <Eigen/Cholesky>
 
 #include <cmath>
 #include <sstream>
@@ -82,9 +82,14 @@ std::string GpsItemFromProto(const v1::GpsFix& in, pipeline::LiveItem* out) {
     // sigmas (or their defaults) apply, never a NaN in the filter.
     if (!C.hasNaN()) {
       if (!C.allFinite()) return "covariance_enu_m2: not finite";
-      if (!C.isApprox(C.transpose(), 1e-9)) return "covariance_enu_m2: not symmetric";
-      if (Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(C).eigenvalues().minCoeff() <= 0)
-        return "covariance_enu_m2: not positive definite";
+      // Entry by entry against the largest: isApprox's squared norms
+      // underflow to 0 for denormal entries (fuzz_push_sensors).
+      if ((C - C.transpose()).cwiseAbs().maxCoeff() > 1e-9 * C.cwiseAbs().maxCoeff())
+        return "covariance_enu_m2: not symmetric";
+      // Cholesky, not the smallest eigenvalue: the eigensolver returned a
+      // positive one for a zero U variance with a 1e-135 E-U term
+      // (fuzz_push_sensors), so a fix with a zero variance was accepted.
+      if (Eigen::LLT<Eigen::Matrix3d>(C).info() != Eigen::Success) return "covariance_enu_m2: not positive definite";
       f.cov_enu_m2 = C;
     }
   }
