@@ -24,10 +24,16 @@ shows the LAST fix fed in that frame; the fit uses every row whose fix the gate
 accepted, and the bound is scored at those rows from the --min-fixes-th on,
 where the filter was initialised and in a GPS mode. So N is smaller than
 locaid-replay's gps_used, which counts every fix the filter used: also a
-frame's earlier fixes (when two or more fixes fall in one frame interval, e.g.
-around a frame without images) and the fixes buffered before the filter
-started and used to initialise it. The output gives the count at each step
-(JSON "fix_accounting").
+frame's earlier fixes (when two or more fixes fall in one frame interval) and
+the fixes buffered before the filter started and used to initialise it. The
+output gives the count at each step (JSON "fix_accounting"). Measured with
+the fixes of locaid-replay --out-mcap: real excerpt, outage-10s-middle seed 2:
+gps_used 94 = 81 frames with a fix (11 of them got 2-4 fixes) + 13; 61 scored.
+Synthetic 2.2 km drive (locaid-synth --length-m 2200 --seed 3), tunnel-30s:
+gps_used 1345 = 1013 frames with a fix (332 of them got 2) + 332; 996 scored.
+The fit sees only the CSV's fixes: where frames got several, the bound is that
+of an estimator with fewer fixes than the filter had (a looser bound; the
+CSV would need every fix for the exact one).
 """
 import argparse
 import csv
@@ -98,7 +104,8 @@ def main():
           f"{a['accepted']} accepted by the gate (with ground truth); not scored: {a['before_min_fixes']} before --min-fixes, "
           f"{a['filter_not_initialised']} before the filter was initialised"
           + (f", {a['no_ground_truth']} without ground truth" if a["no_ground_truth"] else "")
-          + (f", {a['not_in_a_gps_mode']} not in a GPS mode" if a["not_in_a_gps_mode"] else ""))
+          + (f", {a['not_in_a_gps_mode']} not in a GPS mode" if a["not_in_a_gps_mode"] else "")
+          + ". The fit uses only the fixes the CSV shows (see --help)")
     for o in out["outages"]:
         if o["bound_end_error_m"] is None:
             print(f"  outage at {o['start_s']:.1f} s: only {o['fixes_before']} accepted fixes before it, no bound")
