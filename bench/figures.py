@@ -19,7 +19,7 @@ are not deterministic and are not here: docs/benchmarks.md gives them with the
 date and command of their measurement.
 
   bench/figures.sh [--fast] [--only RUN ...] [--list] [--bin-dir build/bin]
-                   [--data ../shared/data/kitti] [--work DIR] [--jobs N]
+                   [--data ../shared/data/kitti] [--work DIR] [--jobs N] [--values FILE]
 
 --fast runs the figures that take a few minutes on 2 cores (real excerpt,
 devkit, simulator, MCAP sizes; the test command runs it); without it every
@@ -90,19 +90,38 @@ class Context:
         except json.JSONDecodeError as e:
             raise RunFailed(f"{cmd[0]}: output is not JSON ({e})")
 
-    def synth(self, length_m, seed, run_name):
-        """The drive of `locaid-synth --length-m L --seed S`, rendered once per figures run."""
-        key = (length_m, seed)
-        if key not in self._synth:
-            out = os.path.join(self.work, f"synth-{length_m}m-s{seed}")
-            shutil.rmtree(out, ignore_errors=True)
-            self.run([self.exe("locaid-synth"), "--out", out, "--length-m", str(length_m), "--seed", str(seed),
-                      "-q"], run_name)
+    def render(self, name, options, run_name):
+        """The drive `locaid-synth OPTIONS` renders, in WORK/NAME. Rendered once per run; a --work folder
+        kept from an earlier run is reused when its marker names the same options and the same
+        locaid-synth binary (size, mtime): a render is byte-identical for the same options."""
+        out = os.path.join(self.work, name)
+        if out not in self._synth:
+            synth = self.exe("locaid-synth")
+            st = os.stat(synth)
+            marker = f"{' '.join(options)}\nlocaid-synth {st.st_size} {st.st_mtime_ns}\n"
+            marker_path = os.path.join(out, "rendered-by-figures.txt")
+            try:
+                with open(marker_path) as f:
+                    reuse = f.read() == marker
+            except OSError:
+                reuse = False
+            if reuse:
+                self.commands.append((run_name, f"(reused {out}: locaid-synth --out {out} {' '.join(options)})"))
+            else:
+                shutil.rmtree(out, ignore_errors=True)
+                self.run([synth, "--out", out] + options + ["-q"], run_name)
+                with open(marker_path, "w") as f:
+                    f.write(marker)
             drives = [d for d in os.listdir(out) if d.endswith("_sync")]
             if len(drives) != 1:
                 raise RunFailed(f"{out}: expected one *_sync drive, found {drives}")
-            self._synth[key] = os.path.join(out, drives[0])
-        return self._synth[key]
+            self._synth[out] = os.path.join(out, drives[0])
+        return self._synth[out]
+
+    def synth(self, length_m, seed, run_name):
+        """The drive of `locaid-synth --length-m L --seed S`."""
+        return self.render(f"synth-{length_m}m-s{seed}", ["--length-m", str(length_m), "--seed", str(seed)],
+                           run_name)
 
 
 # --- the runs: each returns {key: value} ---------------------------------
@@ -177,16 +196,16 @@ def vo_motorway(ctx):
     for seed in (1, 2):
         for aniso in (False, True):
             name = f"h{seed}{'a' if aniso else ''}"
-            drive = os.path.join(ctx.work, f"motorway-{name}")
-            shutil.rmtree(drive, ignore_errors=True)
-            ctx.run([ctx.exe("locaid-synth"), "--out", drive, "--length-m", "2000", "--seed", str(seed),
-                     "--speed-min", "20", "--speed-max", "30", "--radius-min", "300", "--radius-max", "1500", "-q"]
-                    + (["--anisotropic"] if aniso else []), "vo_motorway")
-            sync = [d for d in os.listdir(drive) if d.endswith("_sync")][0]
-            runs = ctx.json([ctx.exe("vo_bench"), "--drive", os.path.join(drive, sync), "--method", "default",
+            drive = ctx.render(f"motorway-{name}", ["--length-m", "2000", "--seed", str(seed), "--speed-min", "20",
+                                                    "--speed-max", "30", "--radius-min", "300", "--radius-max",
+                                                    "1500"] + (["--anisotropic"] if aniso else []), "vo_motorway")
+            runs = ctx.json([ctx.exe("vo_bench"), "--drive", drive, "--method", "default",
                              "--lengths", "100", "200", "300", "400", "500", "600", "700", "800"], "vo_motorway")
             vo_method_values(out, f"{name}.default", runs[0])
-            shutil.rmtree(drive, ignore_errors=True)
+    for render, names in (("iso", ("h1", "h2")), ("aniso", ("h1a", "h2a"))):
+        for v in ("t_rel", "r_rel"):
+            both = [out[f"{n}.default.{v}"] for n in names]
+            out[f"{render}.{v}_min"], out[f"{render}.{v}_max"] = min(both), max(both)
     return out
 
 
@@ -410,6 +429,7 @@ def main():
                                    "temporary folder, removed at the end)")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel replays in sweeps")
     ap.add_argument("--verbose", "-v", action="store_true", help="print each command as it starts")
+    ap.add_argument("--values", metavar="FILE", help="also write every value each run measured (JSON)")
     args = ap.parse_args()
     for r in args.only:
         if r not in RUNS:
@@ -450,6 +470,10 @@ def main():
             seconds[r] = time.monotonic() - t0
             print(f"[{time.strftime('%H:%M:%S')}] {r}: {seconds[r]:.0f} s"
                   + (" FAILED" if r in failed else ""), file=sys.stderr, flush=True)
+            if args.values:  # after every run: an interrupted run keeps what it measured
+                with open(args.values, "w") as f:
+                    json.dump({"runs": values, "seconds": seconds, "failed": failed, "commands": ctx.commands}, f,
+                              indent=1)
     finally:
         if own_work:
             shutil.rmtree(args.work, ignore_errors=True)
