@@ -1,6 +1,6 @@
 // locaid: command-line client of locaid-server.
 //
-//   locaid health
+//   locaid health [--service NAME] [--wait S]
 //   locaid session start --kitti PATH | --synthetic SEED [--scenario NAME|--scenario-file F] [--vo M] [--rate R]
 //   locaid session list | get ID | stop ID [--remove]
 //   locaid subscribe ID [--from-start] [--format print|tum|kitti|csv|geojson|mcap] [--out FILE] [--max N]
@@ -25,6 +25,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <future>
 #include <iomanip>
@@ -198,10 +199,18 @@ struct SubscribeOptions {
   double stream_timeout_s = 24 * 3600;
 };
 
-// A built-in scenario by name or a YAML file sent as text (neither: unchanged).
+// A built-in scenario by name or a YAML file sent as text (neither:
+// unchanged). A --scenario that names a file (ends in .yaml/.yml, or holds a
+// '/') is read as --scenario-file is.
 void FillScenario(const std::string& name, const std::string& file, v1::Scenario* out) {
+  auto ends_with = [&name](const char* tail) {
+    const std::string t(tail);
+    return name.size() >= t.size() && name.compare(name.size() - t.size(), t.size(), t) == 0;
+  };
   if (!file.empty()) {
     out->set_yaml(ReadFile(file));
+  } else if (ends_with(".yaml") || ends_with(".yml") || name.find('/') != std::string::npos) {
+    out->set_yaml(ReadFile(name));
   } else if (!name.empty()) {
     out->set_name(name);
   }
@@ -224,10 +233,14 @@ int Unary(const Common& c, v1::Localization::Stub& stub,
 
 // grpc.health.v1.Health/Check through the generic stub: the request is
 // {1: service (string)}, the response {1: status (enum, 1 = SERVING)}.
-int Health(const Common& c, const std::shared_ptr<grpc::Channel>& channel, const std::string& service) {
+// wait_s > 0: waits up to wait_s for a server that is still starting (the
+// call is queued until the channel connects) instead of failing at once.
+int Health(const Common& c, const std::shared_ptr<grpc::Channel>& channel, const std::string& service,
+           double wait_s) {
   grpc::GenericStub generic(channel);
   grpc::ClientContext ctx;
-  Prepare(c, &ctx, c.timeout_s);
+  Prepare(c, &ctx, wait_s > 0 ? wait_s : c.timeout_s);
+  if (wait_s > 0) ctx.set_wait_for_ready(true);
   std::string req_bytes;
   if (!service.empty()) {
     req_bytes.push_back(0x0a);
@@ -254,7 +267,8 @@ int Health(const Common& c, const std::shared_ptr<grpc::Channel>& channel, const
 int StartSession(const Common& c, v1::Localization::Stub& stub, const StartOptions& o) {
   v1::StartSessionRequest req;
   if (!o.kitti_path.empty()) {
-    req.mutable_kitti()->set_path(o.kitti_path);
+    // The server opens the path; a relative one means the caller's folder.
+    req.mutable_kitti()->set_path(std::filesystem::absolute(o.kitti_path).lexically_normal().string());
     req.mutable_kitti()->set_first_frame(o.first_frame);
     req.mutable_kitti()->set_last_frame(o.last_frame);
   } else if (o.synthetic) {
@@ -276,6 +290,14 @@ int StartSession(const Common& c, v1::Localization::Stub& stub, const StartOptio
 // --max poses, or SIGINT/SIGTERM. MCAP: the Foxglove bridge's channels in
 // one indexed file, closed (summary and footer written) also on a signal.
 int Subscribe(const Common& c, v1::Localization::Stub& stub, const SubscribeOptions& o) {
+  {  // An unknown id fails here, before a record file exists.
+    grpc::ClientContext ctx;
+    Prepare(c, &ctx, c.timeout_s);
+    v1::GetSessionRequest get;
+    get.set_session_id(o.session_id);
+    v1::Session session;
+    if (const grpc::Status s = stub.GetSession(&ctx, get, &session); !s.ok()) return Fail(s);
+  }
   std::optional<Recorder> recorder;
   std::unique_ptr<locaid::foxglove::McapRecording> mcap;
   if (o.format == "mcap") {
@@ -336,7 +358,11 @@ int Subscribe(const Common& c, v1::Localization::Stub& stub, const SubscribeOpti
   }
   if (o.progress || o.format != "print") std::cerr << "received " << n << " poses, dropped " << dropped << "\n";
   if (o.max_poses > 0 && n >= o.max_poses) return 0;
-  if (!s.ok() && s.error_code() != grpc::CANCELLED) return Fail(s);
+  if (!s.ok() && s.error_code() != grpc::CANCELLED) {
+    // Nothing came (the session went away meanwhile): no empty record left.
+    if (n == 0 && !o.out_path.empty()) std::filesystem::remove(o.out_path);
+    return Fail(s);
+  }
   return 0;
 }
 
@@ -357,18 +383,23 @@ int main(int argc, char** argv) {
   auto* health = app.add_subcommand("health", "grpc.health.v1 check: prints SERVING / NOT_SERVING");
   std::string health_service;
   health->add_option("--service", health_service, "service name (empty = whole server)");
+  double health_wait_s = 0;
+  health->add_option("--wait", health_wait_s, "wait up to this many seconds for a server that is still starting")
+      ->check(CLI::Range(0.0, 3600.0));
 
   auto* session = app.add_subcommand("session", "start, list, get or stop sessions");
   session->require_subcommand(1);
   auto* start = session->add_subcommand("start", "start a session; prints its id");
   StartOptions so;
-  auto* o_kitti = start->add_option("--kitti", so.kitti_path, "KITTI raw drive or odometry sequence folder (server side)");
+  auto* o_kitti = start->add_option("--kitti", so.kitti_path,
+                                    "KITTI raw drive or odometry sequence folder, opened by the server (a relative "
+                                    "path is made absolute from this command's working directory)");
   auto* o_synth = start->add_option("--synthetic", so.synth_seed, "render a synthetic drive with this seed");
   o_kitti->excludes(o_synth);
   start->add_option("--frames", so.synth_frames, "synthetic: number of frames");
   start->add_option("--first", so.first_frame, "kitti: first frame");
   start->add_option("--last", so.last_frame, "kitti: last frame (default: to the end)");
-  start->add_option("--scenario", so.scenario_name, "built-in GPS scenario");
+  start->add_option("--scenario", so.scenario_name, "built-in GPS scenario, or a scenario YAML file (.yaml/.yml)");
   start->add_option("--scenario-file", so.scenario_file, "scenario YAML file (sent as text)");
   start->add_option("--vo", so.vo_method, "VO method");
   start->add_option("--rate", so.rate, "playback: 0 = as fast as possible, 1 = real time, N = N x")->capture_default_str();
@@ -411,14 +442,19 @@ int main(int argc, char** argv) {
   auto* scenario = app.add_subcommand("scenario", "change a running session's GPS scenario");
   std::string scenario_name, scenario_file;
   scenario->add_option("id", session_id)->required();
-  auto* sc_name = scenario->add_option("--name", scenario_name, "built-in scenario");
+  auto* sc_name = scenario->add_option("--name", scenario_name, "built-in scenario (or a .yaml/.yml file)");
   auto* sc_file = scenario->add_option("--file", scenario_file, "scenario YAML file");
   sc_name->excludes(sc_file);
 
   auto* stats = app.add_subcommand("stats", "session statistics");
   stats->add_option("id", session_id)->required();
 
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // --help / --version exit 0; every usage error exits 2 (not CLI11's own codes).
+    return app.exit(e) == 0 ? 0 : 2;
+  }
   if (const std::string why = CheckServerAddress(c.server); !why.empty()) {
     std::cerr << "error: --server '" << c.server << "': " << why << "\n";
     return 2;
@@ -437,7 +473,7 @@ int main(int argc, char** argv) {
       return req;
     };
 
-    if (health->parsed()) return Health(c, channel, health_service);
+    if (health->parsed()) return Health(c, channel, health_service, health_wait_s);
     if (start->parsed()) return StartSession(c, *stub, so);
     if (subscribe->parsed()) return Subscribe(c, *stub, sub);
     if (list->parsed()) {

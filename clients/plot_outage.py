@@ -2,19 +2,22 @@
 """Plot a locaid-replay CSV (--out-csv): top view and error over time.
 
 Usage: /usr/bin/python3 clients/plot_outage.py RUN.csv [--out PREFIX]
-Writes PREFIX_track.png (ground truth, degraded GPS, VO-only and fused tracks,
-outage segments marked) and PREFIX_error.png (horizontal error with the
-3-sigma bound, outage windows shaded). Needs Debian's python3-matplotlib.
+Writes PREFIX_track.png (ground truth, degraded GPS when the CSV has fixes,
+VO-only and fused tracks, outage segments marked) and PREFIX_error.png
+(horizontal error with the 3-sigma bound in metres, outage windows shaded,
+the error at the end of each outage labelled). Needs Debian's python3-matplotlib.
 """
 import argparse
 import csv
 import math
+import os
 import sys
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.ticker  # noqa: E402
 
 
 def read(path):
@@ -54,11 +57,13 @@ def main():
     f = lambda r, k: float(r[k]) if r[k] != "" else math.nan  # empty: no ground truth at that frame
     init = [r for r in rows if r["initialized"] == "1"]
     gps = [r for r in rows if r["gps_e"] != ""]
+    name = os.path.basename(a.csv)
 
     fig, ax = plt.subplots(figsize=(9, 8))
     ax.plot([f(r, "gt_e") for r in rows], [f(r, "gt_n") for r in rows], "k-", lw=2, label="ground truth (OXTS)")
-    ax.plot([f(r, "gps_e") for r in gps], [f(r, "gps_n") for r in gps], ".", color="tab:orange", ms=3,
-            label="degraded GPS")
+    if gps:  # a recording scored by locaid-score carries no fixes: nothing to draw, no legend entry
+        ax.plot([f(r, "gps_e") for r in gps], [f(r, "gps_n") for r in gps], ".", color="tab:orange", ms=3,
+                label="degraded GPS")
     rej = [r for r in gps if r.get("gps_rejected") == "1"]
     if rej:
         ax.plot([f(r, "gps_e") for r in rej], [f(r, "gps_n") for r in rej], "x", color="red", ms=6,
@@ -80,7 +85,8 @@ def main():
     ax.set_aspect("equal", adjustable="datalim")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best")
-    ax.set_title("Top view (ENU, origin at the first GPS fix)")
+    ax.set_title(f"{name}: top view (ENU, origin at the first GPS fix)" +
+                 ("" if gps else "\nGPS fixes not in this recording"))
     fig.tight_layout()
     fig.savefig(prefix + "_track.png", dpi=110)
 
@@ -91,11 +97,25 @@ def main():
             label="3 sigma (horizontal)")
     for i, (t0, t1) in enumerate(windows(rows)):
         ax.axvspan(t0, t1, color="magenta", alpha=0.15, label="GPS outage" if i == 0 else None)
+        # The figure an outage is judged by: the error where GPS comes back.
+        end = [r for r in init if f(r, "t_s") <= t1]
+        if end:
+            e = f(end[-1], "err_h")
+            ax.annotate(f"{e:.2f} m", (f(end[-1], "t_s"), e), textcoords="offset points", xytext=(4, 6),
+                        fontsize=9, color="tab:blue")
     ax.set_xlabel("time since the first frame (s)")
-    ax.set_ylabel("error (m)")
-    ax.set_yscale("symlog", linthresh=1.0)
+    ax.set_ylabel("horizontal error (m)")
+    # Log-like above 1 m (an outage's growth), linear below; ticks labelled in
+    # plain metres so a value can be read off.
+    ax.set_yscale("symlog", linthresh=1.0, linscale=1.0)
+    top = max([v for v in (f(r, "err_h") for r in init) if not math.isnan(v)] + [1.0])
+    ticks = [v for v in (0, 0.25, 0.5, 0.75, 1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000) if v <= 2 * top]
+    ax.yaxis.set_major_locator(matplotlib.ticker.FixedLocator(ticks))
+    ax.yaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+    ax.yaxis.set_minor_locator(matplotlib.ticker.NullLocator())
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper left")
+    ax.set_title(f"{name}: horizontal error of the fused pose, outages shaded (end-of-outage error labelled)")
     fig.tight_layout()
     fig.savefig(prefix + "_error.png", dpi=110)
     print(prefix + "_track.png")

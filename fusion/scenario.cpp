@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <sstream>
 #include <stdexcept>
 
@@ -103,6 +104,36 @@ Scenario PlaceOutagesForDrive(Scenario s, double drive_duration_s) {
     }
   }
   return s;
+}
+
+std::string OutageCoverageWarning(const Scenario& s, double drive_duration_s) {
+  if (drive_duration_s <= 0) return "";
+  // The first moment GPS is not in an outage: windows are merged as they
+  // chain from t = 0 (the filter starts from its first fix).
+  const double period_s = s.gps_rate_hz > 0 ? 1.0 / s.gps_rate_hz : 0.0;
+  double gps_from_s = 0;
+  for (bool moved = true; moved;) {
+    moved = false;
+    for (const auto& o : s.outages) {
+      if (o.start_s <= gps_from_s + 1e-9 && o.start_s + o.duration_s > gps_from_s) {
+        gps_from_s = o.start_s + o.duration_s;
+        moved = true;
+      }
+    }
+  }
+  if (gps_from_s <= period_s) return "";
+  char text[256];
+  if (gps_from_s >= drive_duration_s) {
+    std::snprintf(text, sizeof(text),
+                  "scenario %s: its outages cover the whole %.1f s drive: the filter never gets a GPS fix to "
+                  "start from, so every pose is LOST (use a longer drive or a shorter outage)",
+                  s.name.c_str(), drive_duration_s);
+  } else {
+    std::snprintf(text, sizeof(text),
+                  "scenario %s: an outage covers the drive's first %.1f s: the filter has no GPS fix to start "
+                  "from until then, so those poses are LOST", s.name.c_str(), gps_from_s);
+  }
+  return text;
 }
 
 // ---------------------------------------------------------------- GpsScenario

@@ -70,6 +70,11 @@ Scenario BuiltinScenario(const std::string& name);
 // Scenarios whose outage depends on the drive length ("tunnel-30s": middle of
 // the drive) are placed with this; others are returned unchanged.
 Scenario PlaceOutagesForDrive(Scenario scenario, double drive_duration_s);
+// What a user must be told before running `scenario` (outages placed) on a
+// drive of this length: "" when nothing, else why the filter will have no GPS
+// to start from, e.g. "scenario outage [0, 30) s covers the whole 30.0 s
+// drive: the filter never gets a GPS fix to start from, every pose is LOST".
+std::string OutageCoverageWarning(const Scenario& scenario, double drive_duration_s);
 
 // Decimation slot of a sample t_since_start_ns after the drive start: the
 // nearest whole number of GPS periods (slot k covers [k - 1/2, k + 1/2)

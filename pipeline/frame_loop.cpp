@@ -36,6 +36,7 @@ StepResult FrameLoop::Step() {
   const auto t0 = std::chrono::steady_clock::now();
   if (!first_t_ns_) {
     first_t_ns_ = item.t_ns;
+    if (r.error.empty()) r.error = std::move(notice_);
     for (const auto& [start_s, duration_s] : early_windows_) AddOutageWindow(start_s, duration_s);
     early_windows_.clear();
   }

@@ -97,6 +97,9 @@ class FrameLoop final : public Pipeline {
   // first (a fix reaches the filter before VO runs on the frame), then the
   // frame. OXTS samples of skipped frames go with the next good frame.
   StepResult Step() override;
+  // A message for the user (e.g. OutageCoverageWarning) that the first pose's
+  // result carries in `error` when it has no input error of its own.
+  void set_notice(std::string notice) { notice_ = std::move(notice); }
   void Cancel() override { source_->Cancel(); }
   void Wake() override { source_->Wake(); }
   int64_t total_frames() const override { return source_->total_frames(); }
@@ -122,6 +125,7 @@ class FrameLoop final : public Pipeline {
   std::deque<double> fix_latency_ms_;
   std::optional<int64_t> first_t_ns_;
   int64_t last_t_ns_ = 0;
+  std::string notice_;
   std::vector<std::pair<double, double>> early_windows_;  // before the first frame
   // OXTS samples that came with skipped / corrupt items: given to the
   // estimator with the next good frame instead of being lost.

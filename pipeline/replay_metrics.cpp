@@ -4,6 +4,7 @@
 #include <cmath>
 #include <fstream>
 #include <iomanip>
+#include <sstream>
 #include <stdexcept>
 #include <tuple>
 #include <utility>
@@ -69,6 +70,40 @@ ReplayMetrics ComputeReplayMetrics(const std::vector<ReplaySample>& s, double si
     m.outages.push_back(o);
   }
   return m;
+}
+
+std::string DescribeMetrics(const ReplayMetrics& m) {
+  std::ostringstream out;
+  out << std::fixed << std::setprecision(3) << "frames " << m.frames << ", horizontal RMSE while GPS used: ";
+  if (std::isfinite(m.rmse_gps_m)) {
+    out << m.rmse_gps_m << " m";
+  } else {
+    out << "n/a (no frame had GPS in use with the filter initialised)";
+  }
+  out << ", NEES mean: ";
+  if (std::isfinite(m.nees_mean)) {
+    out << m.nees_mean << " (99 % bound " << m.nees_bound_99 << ")";
+  } else {
+    out << "n/a (the filter was never initialised)";
+  }
+  out << "\n";
+  for (const OutageStats& o : m.outages) {
+    out << "  outage at " << o.start_s << " s for " << o.duration_s << " s over " << o.distance_m << " m: ";
+    if (std::isfinite(o.end_error_m)) {
+      out << "end error " << o.end_error_m << " m";
+      if (std::isfinite(o.end_error_pct)) out << " (" << o.end_error_pct << " %)";
+      out << ", max " << o.max_error_m << " m, ";
+    } else {
+      out << "no end error (the filter had no pose at the outage's end: it never got a GPS fix to start from), ";
+    }
+    if (o.reconverge_s >= 0) {
+      out << "reconverged after " << o.reconverge_s << " s";
+    } else {
+      out << "did not reconverge (within 2 GPS sigma) before the drive ended";
+    }
+    out << "\n";
+  }
+  return out.str();
 }
 
 namespace {

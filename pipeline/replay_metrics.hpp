@@ -72,6 +72,12 @@ VoErrorStats ComputeVoErrorStats(const std::vector<VoErrorPair>& pairs);
 // gps_sigma_h_m: the scenario's horizontal noise (reconvergence threshold 2 sigma).
 ReplayMetrics ComputeReplayMetrics(const std::vector<ReplaySample>& samples, double gps_sigma_h_m);
 
+// The metrics as lines a person reads (locaid-replay, locaid-score): a value
+// that could not be computed says why instead of "nan" / "-1", e.g.
+// "horizontal RMSE while GPS used: n/a (no frame had GPS in use with the
+// filter initialised)", "did not reconverge before the drive ended".
+std::string DescribeMetrics(const ReplayMetrics& m);
+
 // Per-frame columns that locaid-replay knows and a recorded pose stream does
 // not (they stay empty in the CSV when absent).
 struct PlotExtras {

@@ -34,6 +34,11 @@ std::optional<fusion::GpsFix> FixFromGpsd(const GpsdReport& r) {
   else fix.sigma_h_m = Finite(r.eph_m, kDefaultSigmaH * k95Radius2d) / k95Radius2d;
   fix.sigma_v_m = gst && std::isfinite(r.gst_alt_m) && r.gst_alt_m > 0 ? r.gst_alt_m
                                                                          : Finite(r.epv_m, kDefaultSigmaV * k95OneD) / k95OneD;
+  // As for pushed fixes (docs/api.md): a stated error beyond 10 km is a
+  // corrupt report; clamped so the filter's variances cannot overflow.
+  constexpr double kMaxSigmaM = 1e4;
+  fix.sigma_h_m = std::min(fix.sigma_h_m, kMaxSigmaM);
+  fix.sigma_v_m = std::min(fix.sigma_v_m, kMaxSigmaM);
   return fix;
 }
 

@@ -68,7 +68,7 @@ void GpsdReceiver::Run() {
       connected_ = true;
       ++connects_;
     }
-    backoff_s = kFirstBackoffS;
+    bool delivered = false;  // a report came through: the connection was healthy
     try {
       // Short reads so that a stop is noticed within ~100 ms.
       for (;;) {
@@ -79,6 +79,7 @@ void GpsdReceiver::Run() {
         for (const sensors::GpsdReport& report : client->Read(std::chrono::milliseconds(100))) {
           // gpsd may report an epoch more than once (one TPV per sentence
           // that completes it); the first report of an epoch is the fix.
+          delivered = true;
           if (report.t_ns <= last_t_ns) continue;
           last_t_ns = report.t_ns;
           pipeline::LiveItem item;
@@ -101,7 +102,12 @@ void GpsdReceiver::Run() {
       error_ = e.what();
     }
     client.reset();
+    // Only a connection that delivered reports earns a fast retry; one that
+    // failed before its first report (refused, garbage, closed at once) is a
+    // failure like a refused connect, so the wait keeps doubling.
+    if (delivered) backoff_s = kFirstBackoffS;
     if (!SleepFor(backoff_s)) return;
+    if (!delivered) backoff_s = std::min(kMaxBackoffS, 2 * backoff_s);
   }
 }
 

@@ -22,7 +22,10 @@ struct GpsdEndpoint {
 
 class GpsdReceiver final : public pipeline::InputFeeder {
  public:
-  // Backoff between connection attempts: 0.5 s, doubling up to 5 s.
+  // Backoff between connection attempts: 0.5 s, doubling up to 5 s after
+  // every failure (refused, or a connection that ended before its first
+  // report, e.g. a gpsd sending garbage); back to 0.5 s only after a
+  // connection that delivered reports.
   static constexpr double kFirstBackoffS = 0.5, kMaxBackoffS = 5.0;
   // `sink` must outlive the receiver.
   GpsdReceiver(GpsdEndpoint endpoint, pipeline::LiveFrameSource* sink);

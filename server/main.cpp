@@ -32,6 +32,11 @@ int main(int argc, char** argv) {
   sigaddset(&set, SIGINT);
   sigaddset(&set, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &set, nullptr);
+  // A peer that hangs up must cost a connection, never the process: libgps
+  // writes to gpsd with plain write(2), so a gpsd that closes the socket
+  // would otherwise kill the server with SIGPIPE (gRPC's own sockets use
+  // MSG_NOSIGNAL). Writes then fail with EPIPE and are handled as errors.
+  std::signal(SIGPIPE, SIG_IGN);
 
   ServerConfig cli;
   std::string config_file;

@@ -24,13 +24,21 @@ bool Vec(const v1::Vector3& v, Eigen::Vector3d* out) {
   return out->allFinite();
 }
 
-// 0 or NaN = not stated; otherwise finite and > 0.
-std::string Sigma(const char* field, double v, double fallback, double* out) {
-  if (v == 0 || std::isnan(v)) {
+// Largest stated 1-sigma / noise density accepted: beyond these a value is
+// corrupt, and its square (the filter works in variances) must stay far
+// from overflow. docs/api.md lists them.
+constexpr double kMaxSigmaPositionM = 1e4, kMaxSigmaVelocityMps = 1e3;
+constexpr double kMaxAccelNoise = 10.0, kMaxGyroNoise = 1.0;  // per sqrt(Hz)
+
+// 0 (or, where nan_is_unstated, NaN) = not stated: `fallback`; otherwise
+// finite, > 0 and <= max.
+std::string Sigma(const char* field, double v, double fallback, double max, bool nan_is_unstated, double* out) {
+  if (v == 0 || (nan_is_unstated && std::isnan(v))) {
     *out = fallback;
     return "";
   }
   if (!std::isfinite(v) || v < 0) return std::string(field) + ": must be > 0 (or 0 for the default), got " + Number(v);
+  if (v > max) return std::string(field) + ": must be <= " + Number(max) + ", got " + Number(v);
   *out = v;
   return "";
 }
@@ -46,10 +54,12 @@ std::string ImuItemFromProto(const v1::ImuSample& in, pipeline::LiveItem* out) {
   // A car's IMU saturates long before these: larger values are corrupt.
   if (out->imu.accel_mps2.norm() > 2000) return "accel_mps2: |a| = " + Number(out->imu.accel_mps2.norm()) + " > 2000";
   if (out->imu.gyro_radps.norm() > 100) return "gyro_radps: |w| = " + Number(out->imu.gyro_radps.norm()) + " > 100";
-  if (auto e = Sigma("accel_noise_mps2_sqrt_hz", in.accel_noise_mps2_sqrt_hz(), 0, &out->imu.accel_noise_mps2_sqrt_hz);
+  if (auto e = Sigma("accel_noise_mps2_sqrt_hz", in.accel_noise_mps2_sqrt_hz(), 0, kMaxAccelNoise, false,
+                     &out->imu.accel_noise_mps2_sqrt_hz);
       !e.empty())
     return e;
-  return Sigma("gyro_noise_radps_sqrt_hz", in.gyro_noise_radps_sqrt_hz(), 0, &out->imu.gyro_noise_radps_sqrt_hz);
+  return Sigma("gyro_noise_radps_sqrt_hz", in.gyro_noise_radps_sqrt_hz(), 0, kMaxGyroNoise, false,
+               &out->imu.gyro_noise_radps_sqrt_hz);
 }
 
 std::string GpsItemFromProto(const v1::GpsFix& in, pipeline::LiveItem* out) {
@@ -71,8 +81,13 @@ std::string GpsItemFromProto(const v1::GpsFix& in, pipeline::LiveItem* out) {
   if (f.has_altitude && (!std::isfinite(alt) || alt < -1000 || alt > 100000))
     return "altitude_m: must be in [-1000, 100000], got " + Number(alt);
   f.alt_m = f.has_altitude ? alt : 0.0;
-  if (auto e = Sigma("sigma_horizontal_m", in.sigma_horizontal_m(), kDefaultSigmaH, &f.sigma_h_m); !e.empty()) return e;
-  if (auto e = Sigma("sigma_vertical_m", in.sigma_vertical_m(), kDefaultSigmaV, &f.sigma_v_m); !e.empty()) return e;
+  if (auto e = Sigma("sigma_horizontal_m", in.sigma_horizontal_m(), kDefaultSigmaH, kMaxSigmaPositionM, true,
+                     &f.sigma_h_m);
+      !e.empty())
+    return e;
+  if (auto e = Sigma("sigma_vertical_m", in.sigma_vertical_m(), kDefaultSigmaV, kMaxSigmaPositionM, true, &f.sigma_v_m);
+      !e.empty())
+    return e;
   if (in.covariance_enu_m2_size() != 0) {
     if (in.covariance_enu_m2_size() != 9)
       return "covariance_enu_m2: expected 0 or 9 values, got " + std::to_string(in.covariance_enu_m2_size());
@@ -81,7 +96,9 @@ std::string GpsItemFromProto(const v1::GpsFix& in, pipeline::LiveItem* out) {
     // NaN entries (a driver that does not know) mean "not stated": the
     // sigmas (or their defaults) apply, never a NaN in the filter.
     if (!C.hasNaN()) {
-      if (!C.allFinite()) return "covariance_enu_m2: not finite";
+      constexpr double kMaxVariance = kMaxSigmaPositionM * kMaxSigmaPositionM;
+      if (!C.allFinite() || C.cwiseAbs().maxCoeff() > kMaxVariance)
+        return "covariance_enu_m2: every value must be finite with |value| <= " + Number(kMaxVariance) + " m^2";
       // Entry by entry against the largest: isApprox's squared norms
       // underflow to 0 for denormal entries (fuzz_push_sensors).
       if ((C - C.transpose()).cwiseAbs().maxCoeff() > 1e-9 * C.cwiseAbs().maxCoeff())
@@ -97,7 +114,9 @@ std::string GpsItemFromProto(const v1::GpsFix& in, pipeline::LiveItem* out) {
     Eigen::Vector3d v;
     if (!Vec(in.velocity_enu_mps(), &v) || v.norm() > 200) return "velocity_enu_mps: must be finite, |v| <= 200 m/s";
     f.v_enu_mps = v;
-    if (auto e = Sigma("sigma_velocity_mps", in.sigma_velocity_mps(), kDefaultSigmaVel, &f.sigma_v_enu_mps); !e.empty())
+    if (auto e = Sigma("sigma_velocity_mps", in.sigma_velocity_mps(), kDefaultSigmaVel, kMaxSigmaVelocityMps, true,
+                       &f.sigma_v_enu_mps);
+        !e.empty())
       return e;
   }
   return "";

@@ -7,6 +7,7 @@
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/health_check_service_interface.h>
 
+#include <netdb.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/un.h>
@@ -57,6 +58,43 @@ UnixPathState InspectUnixSocketPath(const std::string& path) {
                            std::strerror(err));
 }
 
+namespace {
+
+// Why binding `listen` ("host:port", "[v6]:port") failed, found by binding it
+// ourselves (gRPC only logs the reason): "address already in use (...)" etc.
+std::string DescribeTcpBindFailure(const std::string& listen) {
+  const size_t colon = listen.rfind(':');
+  if (colon == std::string::npos) return "cannot bind (not host:port)";
+  std::string host = listen.substr(0, colon);
+  const std::string port = listen.substr(colon + 1);
+  if (host.size() >= 2 && host.front() == '[' && host.back() == ']') host = host.substr(1, host.size() - 2);
+  addrinfo hints{};
+  hints.ai_socktype = SOCK_STREAM;
+  hints.ai_flags = AI_PASSIVE;
+  addrinfo* found = nullptr;
+  if (const int rc = ::getaddrinfo(host.empty() ? nullptr : host.c_str(), port.c_str(), &hints, &found); rc != 0) {
+    return std::string("cannot bind: cannot resolve the address: ") + ::gai_strerror(rc);
+  }
+  int err = 0;
+  for (addrinfo* a = found; a != nullptr && err == 0; a = a->ai_next) {
+    const int fd = ::socket(a->ai_family, a->ai_socktype | SOCK_CLOEXEC, a->ai_protocol);
+    if (fd < 0) continue;
+    const int one = 1;
+    ::setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof(one));  // as gRPC does: TIME_WAIT is no conflict
+    if (::bind(fd, a->ai_addr, a->ai_addrlen) != 0) err = errno;
+    ::close(fd);
+  }
+  ::freeaddrinfo(found);
+  if (err == EADDRINUSE) {
+    return "cannot bind: address already in use (another locaid-server or another program listens on this "
+           "port; stop it or choose another port)";
+  }
+  if (err != 0) return std::string("cannot bind: ") + std::strerror(err);
+  return "cannot bind (see gRPC's message above)";
+}
+
+}  // namespace
+
 LocalizationServer::LocalizationServer(ServerConfig config, EstimatorFactory estimator_factory)
     : config_(std::move(config)) {
   ValidateConfig(&config_);
@@ -94,6 +132,9 @@ LocalizationServer::LocalizationServer(ServerConfig config, EstimatorFactory est
   }
   builder.RegisterService(service_.get());
   builder.SetMaxReceiveMessageSize(static_cast<int>(config_.max_receive_mb * 1024 * 1024));
+  // gRPC sets SO_REUSEPORT by default, so a second server would share a port
+  // that one already serves, and clients would get either: refused instead.
+  builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
   builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIME_MS, static_cast<int>(config_.keepalive_time_s * 1000));
   builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, static_cast<int>(config_.keepalive_timeout_s * 1000));
   builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
@@ -105,7 +146,7 @@ LocalizationServer::LocalizationServer(ServerConfig config, EstimatorFactory est
       throw std::runtime_error("listen_unix '" + config_.listen_unix +
                                "': cannot bind (the directory is not writable, or see gRPC's message above)");
     }
-    throw std::runtime_error("listen " + config_.listen + ": cannot bind");
+    throw std::runtime_error("listen " + config_.listen + ": " + DescribeTcpBindFailure(config_.listen));
   }
   if (!config_.listen_unix.empty()) {
     // Owner and group may connect (connecting needs write permission on the

@@ -28,6 +28,7 @@ using grpc::StatusCode;
 
 LocalizationService::LocalizationService(ServerConfig config, EstimatorFactory estimator_factory)
     : config_(std::move(config)), estimator_factory_(std::move(estimator_factory)) {
+  reaper_.Start();
   if (const size_t stale = RemoveStaleSyntheticDrives(config_.work_dir); stale > 0 && config_.log_shutdown) {
     std::cout << "locaid-server: removed " << stale << " synthetic drive(s) left by an earlier server in "
               << SyntheticRoot(config_.work_dir).string() << std::endl;
@@ -115,10 +116,15 @@ grpc::ServerUnaryReactor* LocalizationService::StopSession(grpc::CallbackServerC
   std::shared_ptr<Session> session;
   Status s = sessions_.Find(req->session_id(), &session);
   if (!s.ok()) return Reply(ctx, s);
+  // No join here: the reaper finishes the session off this thread, so
+  // concurrent stops (and a stop during shutdown) all answer at once.
   session->Stop();
-  session->Join();
   *resp = session->ToProto();
-  if (req->remove()) sessions_.Remove(req->session_id());
+  if (req->remove()) {
+    sessions_.Remove(req->session_id());
+  } else {
+    reaper_.Retire(session);
+  }
   return Reply(ctx, Status::OK);
 }
 
@@ -249,6 +255,7 @@ void LocalizationService::BeginShutdown() {
 
 void LocalizationService::JoinSessions() {
   for (const auto& s : sessions_.Snapshot()) s->Join();
+  reaper_.Stop();
 }
 
 }  // namespace locaid::server

@@ -120,7 +120,8 @@ class LocalizationService final
 
   // Stops every session and ends every open stream with UNAVAILABLE.
   void BeginShutdown();
-  // Joins every session thread.
+  // Joins every session thread (the registry's, then what the reaper holds)
+  // and the reaper's thread.
   void JoinSessions();
   // Waits until every stream has finished (its status delivered) or the
   // deadline passes; true when none is left.
@@ -143,7 +144,8 @@ class LocalizationService final
 
   const ServerConfig config_;
   const EstimatorFactory estimator_factory_;
-  SessionRegistry sessions_{config_};
+  SessionReaper reaper_;  // before sessions_: outlives the registry
+  SessionRegistry sessions_{config_, reaper_};
   std::mutex mu_;  // streams_
   std::set<std::shared_ptr<Waker>> streams_;
   std::condition_variable streams_cv_;  // streams_ became empty

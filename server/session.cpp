@@ -42,6 +42,9 @@ void Session::Start() {
 
 void Session::Stop() {
   stop_ = true;
+  for (auto from : {locaid::v1::SESSION_STATE_STARTING, locaid::v1::SESSION_STATE_RUNNING}) {
+    if (state_.compare_exchange_strong(from, locaid::v1::SESSION_STATE_STOPPED)) break;
+  }
   {
     std::lock_guard lock(wait_mu_);
   }
@@ -50,9 +53,12 @@ void Session::Stop() {
 }
 
 void Session::Join() {
+  std::lock_guard lock(join_mu_);
+  if (joined_) return;
   if (thread_.joinable()) thread_.join();
   hub_.Close();
   hub_.StopFanoutThread();  // after a last wake round (streams see kEnd)
+  joined_ = true;
 }
 
 void Session::Post(Command command) {
@@ -145,7 +151,8 @@ void Session::Run() {
       auto starting = locaid::v1::SESSION_STATE_STARTING;
       if (pipeline_->ready()) state_.compare_exchange_strong(starting, locaid::v1::SESSION_STATE_RUNNING);
       if (r.kind == pipeline::StepResult::Kind::kEnd) {
-        if (!stop_) state_ = locaid::v1::SESSION_STATE_FINISHED;
+        auto running = locaid::v1::SESSION_STATE_RUNNING;  // a Stop() meanwhile made it STOPPED
+        state_.compare_exchange_strong(running, locaid::v1::SESSION_STATE_FINISHED);
         break;
       }
       if (r.kind == pipeline::StepResult::Kind::kIdle || r.kind == pipeline::StepResult::Kind::kFused) {
@@ -171,15 +178,12 @@ void Session::Run() {
   } catch (const std::exception& e) {
     // Stopping cancels input preparation (a render throws): that is a stop,
     // not a failure.
-    if (!stop_) {
+    for (auto from : {locaid::v1::SESSION_STATE_STARTING, locaid::v1::SESSION_STATE_RUNNING}) {
+      if (stop_ || !state_.compare_exchange_strong(from, locaid::v1::SESSION_STATE_FAILED)) continue;
       std::lock_guard lock(stats_mu_);
       error_ = e.what();
-      state_ = locaid::v1::SESSION_STATE_FAILED;
+      break;
     }
-  }
-  const auto state = state_.load();
-  if (stop_ && (state == locaid::v1::SESSION_STATE_RUNNING || state == locaid::v1::SESSION_STATE_STARTING)) {
-    state_ = locaid::v1::SESSION_STATE_STOPPED;
   }
   try {
     pipeline_->Release();
@@ -256,6 +260,7 @@ locaid::v1::Session Session::ToProto() const {
   out.set_playback_rate(options_.playback_rate);
   out.set_total_frames(total_frames_);
   out.set_created_unix_ns(created_unix_ns_);
+  out.set_ended_unix_ns(ended_unix_ns_.load());
   out.set_history_capacity(static_cast<uint32_t>(options_.history_size));
   {
     std::lock_guard lock(stats_mu_);

@@ -1,5 +1,6 @@
 // One localization session: a pipeline::Pipeline (pipeline/frame_loop.hpp) run by one thread, started by
-// Start() and joined by Join()/the destructor, publishing into a PoseHub.
+// Start() and joined once by Join() (the server's SessionReaper, or shutdown), publishing into a PoseHub.
+// Stop() never blocks and may be called by any number of threads at once.
 #pragma once
 
 #include "locaid/v1/localization.pb.h"
@@ -42,10 +43,17 @@ class Session {
   Session& operator=(const Session&) = delete;
 
   void Start();
-  // Asks the thread to stop after the current frame; the hub is closed when
-  // the thread ends (streams drain their queues and end with OK).
+  // Asks the thread to stop after the current frame and returns at once: a
+  // RUNNING or STARTING session is STOPPED from now on. The hub is closed when
+  // the thread ends (streams drain their queues and end with OK). Any thread,
+  // any number of times.
   void Stop();
+  // Waits for the thread to end, then joins it and the hub's fan-out threads.
+  // Exactly one caller joins; concurrent callers wait for it; later calls
+  // return at once. Never called on the session's own threads.
   void Join();
+  // True for the first caller only: the session is handed to the reaper once.
+  bool MarkRetired() { return !retired_.exchange(true); }
 
   // Runs `command` on the session thread before the next frame (so the
   // pipeline is never touched by two threads).
@@ -73,6 +81,9 @@ class Session {
   };
   MetricsSnapshot Metrics() const;
   locaid::v1::SessionState state() const { return state_.load(); }
+  // Still preparing its input (rendering) on its thread, even if already
+  // STOPPED: what max_concurrent_renders counts.
+  bool preparing() const { return !pipeline_->ready() && ended_unix_ns_.load() == 0; }
   // Wall clock (ns) when the session's thread ended; 0 while it runs.
   int64_t ended_unix_ns() const { return ended_unix_ns_.load(); }
 
@@ -88,6 +99,9 @@ class Session {
   std::unique_ptr<pipeline::Pipeline> pipeline_;
   Hub hub_;
   std::thread thread_;
+  std::mutex join_mu_;  // one Join() at a time; joined_ after the first
+  bool joined_ = false;
+  std::atomic<bool> retired_{false};
   const int64_t created_unix_ns_;
   std::atomic<int64_t> ended_unix_ns_{0};  // when Run() returned; 0 while it runs
   MetricsSnapshot last_;  // pose figures and latency histogram (stats_mu_)

@@ -15,9 +15,8 @@ using grpc::StatusCode;
 
 Status SessionRegistry::Add(SessionOptions options, std::unique_ptr<pipeline::Pipeline> pipeline,
                             pipeline::LiveFrameSource* live, std::string* id) {
-  std::vector<std::shared_ptr<Session>> pruned;  // destroyed after the lock
   std::lock_guard lock(mu_);
-  pruned = PruneEndedLocked();
+  PruneEndedLocked();
   if (closed_) return {StatusCode::UNAVAILABLE, "server is shutting down"};
   size_t active = 0;
   for (const auto& [k, e] : sessions_) {
@@ -30,7 +29,9 @@ Status SessionRegistry::Add(SessionOptions options, std::unique_ptr<pipeline::Pi
   }
   if (!pipeline->ready()) {  // it prepares its input (renders) first
     size_t preparing = 0;
-    for (const auto& [k, e] : sessions_) preparing += e.session->state() == v1::SESSION_STATE_STARTING ? 1 : 0;
+    // A stopped session's render ends after the frame being drawn: it counts
+    // until then, so the bound holds for the render threads themselves.
+    for (const auto& [k, e] : sessions_) preparing += e.session->preparing() ? 1 : 0;
     if (preparing >= config_.max_concurrent_renders) {
       return {StatusCode::RESOURCE_EXHAUSTED, std::to_string(preparing) +
                                                   " sessions are preparing their input (max_concurrent_renders); "
@@ -46,12 +47,11 @@ Status SessionRegistry::Add(SessionOptions options, std::unique_ptr<pipeline::Pi
   return Status::OK;
 }
 
-std::vector<std::shared_ptr<Session>> SessionRegistry::PruneEndedLocked() {
+void SessionRegistry::PruneEndedLocked() {
   const int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(
                           std::chrono::system_clock::now().time_since_epoch()).count();
   const auto ttl_ns = static_cast<int64_t>(config_.ended_session_ttl_s * 1e9);
   std::vector<std::pair<int64_t, std::string>> ended;  // (ended at, id)
-  std::vector<std::shared_ptr<Session>> pruned;
   for (const auto& [id, e] : sessions_) {
     const int64_t at = e.session->ended_unix_ns();
     if (at > 0) ended.emplace_back(at, id);
@@ -60,10 +60,9 @@ std::vector<std::shared_ptr<Session>> SessionRegistry::PruneEndedLocked() {
   for (size_t i = 0; i < ended.size(); ++i) {
     const bool too_many = ended.size() - i > config_.max_ended_sessions;
     if (!too_many && now - ended[i].first <= ttl_ns) continue;
-    pruned.push_back(sessions_.at(ended[i].second).session);
+    reaper_.Retire(sessions_.at(ended[i].second).session);
     sessions_.erase(ended[i].second);
   }
-  return pruned;
 }
 
 Status SessionRegistry::Find(const std::string& id, std::shared_ptr<Session>* out,
@@ -97,18 +96,16 @@ Status SessionRegistry::AttachPush(const std::string& id, bool require_running, 
 }
 
 void SessionRegistry::Remove(const std::string& id) {
-  std::shared_ptr<Session> removed;  // destroyed after the lock
   std::lock_guard lock(mu_);
   auto it = sessions_.find(id);
   if (it == sessions_.end()) return;
-  removed = std::move(it->second.session);
+  reaper_.Retire(std::move(it->second.session));
   sessions_.erase(it);
 }
 
 std::vector<std::shared_ptr<Session>> SessionRegistry::List() {
-  std::vector<std::shared_ptr<Session>> pruned;  // destroyed after the lock
   std::lock_guard lock(mu_);
-  pruned = PruneEndedLocked();
+  PruneEndedLocked();
   return AllLocked();
 }
 

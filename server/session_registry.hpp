@@ -2,7 +2,8 @@
 // max_concurrent_renders), lookup, the PushSensorData attachment of live
 // sessions, pruning of ended sessions (max_ended_sessions,
 // ended_session_ttl_s) and closing for shutdown. Thread-safe; sessions taken
-// out are destroyed (joined) after its lock is released.
+// out (removed, pruned) go to the SessionReaper, which joins them off the
+// calling (gRPC) thread.
 #pragma once
 
 #include "pipeline/frame_loop.hpp"
@@ -10,6 +11,7 @@
 #include "server/config.hpp"
 #include "server/pose_encodings.hpp"
 #include "server/session.hpp"
+#include "server/session_reaper.hpp"
 
 #include <grpcpp/grpcpp.h>
 
@@ -23,7 +25,7 @@ namespace locaid::server {
 
 class SessionRegistry {
  public:
-  explicit SessionRegistry(const ServerConfig& config) : config_(config) {}
+  SessionRegistry(const ServerConfig& config, SessionReaper& reaper) : config_(config), reaper_(reaper) {}
 
   // Admits and starts a session with a fresh random id; prunes ended ones
   // first. RESOURCE_EXHAUSTED beyond max_sessions running (or
@@ -38,6 +40,7 @@ class SessionRegistry {
   // require_running) is not running.
   grpc::Status AttachPush(const std::string& id, bool require_running, std::shared_ptr<Session>* session,
                           pipeline::LiveFrameSource** live);
+  // Takes session `id` out (exactly once, whoever races) and retires it.
   void Remove(const std::string& id);
   // Every session, ended ones beyond the limits pruned first.
   std::vector<std::shared_ptr<Session>> List();
@@ -53,12 +56,12 @@ class SessionRegistry {
     bool push_attached = false;
     std::shared_ptr<PoseEncodings> encodings = std::make_shared<PoseEncodings>();
   };
-  // Takes the ended sessions beyond the limits out (mu_ held); the caller
-  // destroys them after unlocking.
-  std::vector<std::shared_ptr<Session>> PruneEndedLocked();
+  // Takes the ended sessions beyond the limits out and retires them (mu_ held).
+  void PruneEndedLocked();
   std::vector<std::shared_ptr<Session>> AllLocked() const;
 
   const ServerConfig& config_;
+  SessionReaper& reaper_;
   mutable std::mutex mu_;
   std::map<std::string, Entry> sessions_;
   bool closed_ = false;

@@ -104,15 +104,19 @@ Status ParseGpsdSource(const v1::LiveSource& l, std::optional<GpsdEndpoint>* out
   return Status::OK;
 }
 
-// The estimator of a session reading `source`: its camera and extrinsic, and
-// the scenario's outages placed on the drive ("tunnel-30s" is relative to
-// it). Throws what the factory throws.
-std::unique_ptr<pipeline::Estimator> MakeEstimator(const EstimatorFactory& make, EstimatorSetup setup,
-                                                   const pipeline::FrameSource& source) {
-  setup.camera = source.camera();
-  setup.T_cam0_imu = source.T_cam0_imu();
-  if (source.duration_s() > 0) setup.scenario = fusion::PlaceOutagesForDrive(setup.scenario, source.duration_s());
-  return make(setup);
+// The frame loop of a session reading `source`: the estimator gets its camera
+// and extrinsic, and the scenario's outages placed on the drive ("tunnel-30s"
+// is relative to it); an outage that leaves the filter nothing to start from
+// is said with the first pose (Session.error). Throws what the factory throws.
+std::unique_ptr<pipeline::FrameLoop> MakeFrameLoop(const EstimatorFactory& make, EstimatorSetup setup,
+                                                   std::unique_ptr<pipeline::FrameSource> source) {
+  setup.camera = source->camera();
+  setup.T_cam0_imu = source->T_cam0_imu();
+  const double duration_s = source->duration_s();
+  if (duration_s > 0) setup.scenario = fusion::PlaceOutagesForDrive(setup.scenario, duration_s);
+  auto loop = std::make_unique<pipeline::FrameLoop>(std::move(source), make(setup));
+  loop->set_notice(fusion::OutageCoverageWarning(setup.scenario, duration_s));
+  return loop;
 }
 
 }  // namespace
@@ -179,7 +183,14 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
                          std::to_string(PATH_MAX) + ")");
         }
         std::error_code ec;
-        if (!std::filesystem::exists(k.path(), ec)) return Invalid("kitti.path " + Quoted(k.path()) + ": does not exist");
+        if (!std::filesystem::exists(k.path(), ec)) {
+          // A relative path is the server's, not the client's: say from where.
+          const std::string from = std::filesystem::path(k.path()).is_relative()
+                                       ? " (a relative path is resolved from the server's working directory " +
+                                             Quoted(std::filesystem::current_path(ec).string()) + ")"
+                                       : "";
+          return Invalid("kitti.path " + Quoted(k.path()) + ": does not exist on the server" + from);
+        }
         if (!std::filesystem::is_directory(k.path(), ec)) {
           return Invalid("kitti.path " + Quoted(k.path()) + ": not a directory");
         }
@@ -247,8 +258,7 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
             -> std::unique_ptr<pipeline::Pipeline> {
           auto src = std::make_unique<pipeline::DatasetFrameSource>(
               MakeSyntheticDrive(drive_dir, seed, frames, yaml, &cancel), 0, -1);
-          auto estimator = MakeEstimator(make, setup, *src);
-          return std::make_unique<pipeline::FrameLoop>(std::move(src), std::move(estimator));
+          return MakeFrameLoop(make, setup, std::move(src));
         };
         auto remove_drive = [drive_dir] {
           std::error_code ec;
@@ -280,15 +290,14 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
   } catch (const std::invalid_argument& e) {
     return Invalid(e.what());
   }
-  std::unique_ptr<pipeline::Estimator> estimator;
+  std::unique_ptr<pipeline::FrameLoop> loop;
   try {
-    estimator = MakeEstimator(estimator_factory_, setup, *source);
+    loop = MakeFrameLoop(estimator_factory_, setup, std::move(source));
   } catch (const std::exception& e) {
     return Invalid(std::string("vo_method/scenario: ") + e.what());
   }
   if (gpsd) live->AttachFeeder(std::make_unique<GpsdReceiver>(*gpsd, live));
-  return sessions_.Add(std::move(options),
-                       std::make_unique<pipeline::FrameLoop>(std::move(source), std::move(estimator)), live, id);
+  return sessions_.Add(std::move(options), std::move(loop), live, id);
 }
 
 Status LocalizationService::StartLive(const v1::PushStart& start, std::shared_ptr<Session>* session,

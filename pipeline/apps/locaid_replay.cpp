@@ -121,6 +121,8 @@ int main(int argc, char** argv) {
     if (seed >= 0) scenario.seed = static_cast<uint64_t>(seed);
     const double duration_s = static_cast<double>(dataset.time_ns(n_frames - 1) - dataset.time_ns(0)) * 1e-9;
     scenario = fusion::PlaceOutagesForDrive(scenario, duration_s);
+    const std::string coverage = fusion::OutageCoverageWarning(scenario, duration_s);
+    if (!coverage.empty()) std::cerr << "locaid-replay: warning: " << coverage << "\n";
 
     pipeline::LocalizerOptions options;
     options.vo_method = vo_method;
@@ -175,15 +177,12 @@ int main(int argc, char** argv) {
       j["use_imu"] = !no_imu;
       j["vo_method"] = vo_method;
       j["vo_from_cache"] = vo_cache.has_value();
+      j["warnings"] = coverage.empty() ? nlohmann::json::array() : nlohmann::json::array({coverage});
       std::cout << j.dump(2) << std::endl;
     } else {
-      std::cout << "scenario " << scenario.name << (no_imu ? " (no IMU)" : "") << ": frames " << run.poses()
-                << ", rmse_gps_m " << metrics.rmse_gps_m << ", nees_mean " << metrics.nees_mean << ", frames/s "
-                << static_cast<double>(run.poses()) / wall_s << "\n";
-      for (const auto& o : metrics.outages)
-        std::cout << "  outage at " << o.start_s << " s for " << o.duration_s << " s: " << o.distance_m
-                  << " m driven, end error " << o.end_error_m << " m (" << o.end_error_pct << " %), max "
-                  << o.max_error_m << " m, reconverged after " << o.reconverge_s << " s\n";
+      std::cout << "scenario " << scenario.name << (no_imu ? " (no IMU)" : "") << ", frames/s "
+                << static_cast<double>(run.poses()) / wall_s << "\n"
+                << pipeline::DescribeMetrics(metrics);
     }
     return 0;
   } catch (const std::exception& e) {

@@ -192,13 +192,7 @@ int main(int argc, char** argv) {
     if (json) {
       std::cout << j.dump(2) << "\n";
     } else {
-      std::cout << std::fixed << std::setprecision(3) << "frames " << metrics.frames << ", horizontal RMSE while GPS used "
-                << metrics.rmse_gps_m << " m\n";
-      for (const auto& o : metrics.outages) {
-        std::cout << "outage at " << o.start_s << " s for " << o.duration_s << " s over " << o.distance_m
-                  << " m: end error " << o.end_error_m << " m (" << o.end_error_pct << " %), max " << o.max_error_m
-                  << " m, reconverged after " << o.reconverge_s << " s\n";
-      }
+      std::cout << locaid::pipeline::DescribeMetrics(metrics);
     }
   } catch (const std::exception& e) {
     std::cerr << "locaid-score: " << e.what() << "\n";
