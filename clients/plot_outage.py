@@ -98,7 +98,7 @@ def main():
     for i, (t0, t1) in enumerate(windows(rows)):
         ax.axvspan(t0, t1, color="magenta", alpha=0.15, label="GPS outage" if i == 0 else None)
         # The figure an outage is judged by: the error where GPS comes back.
-        end = [r for r in init if f(r, "t_s") <= t1]
+        end = [r for r in init if r["in_outage"] == "1" and t0 <= f(r, "t_s") <= t1]
         if end:
             e = f(end[-1], "err_h")
             ax.annotate(f"{e:.2f} m", (f(end[-1], "t_s"), e), textcoords="offset points", xytext=(4, 6),
@@ -108,7 +108,8 @@ def main():
     # Log-like above 1 m (an outage's growth), linear below; ticks labelled in
     # plain metres so a value can be read off.
     ax.set_yscale("symlog", linthresh=1.0, linscale=1.0)
-    top = max([v for v in (f(r, "err_h") for r in init) if not math.isnan(v)] + [1.0])
+    drawn = [f(r, "err_h") for r in init] + [3 * math.hypot(f(r, "sigma_e"), f(r, "sigma_n")) for r in init]
+    top = max([v for v in drawn if not math.isnan(v)] + [1.0])
     ticks = [v for v in (0, 0.25, 0.5, 0.75, 1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000) if v <= 2 * top]
     ax.yaxis.set_major_locator(matplotlib.ticker.FixedLocator(ticks))
     ax.yaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
