@@ -4,6 +4,7 @@
 #include "eval/devkit.hpp"
 #include "eval/trajectory_metrics.hpp"
 #include "kitti/pose_io.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -91,14 +92,7 @@ std::vector<Eigen::Isometry3d> StraightLine(size_t frames, double step_m, double
 class EvalAppTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    if (!fs::exists(kBinary)) GTEST_SKIP() << kBinary << " not built (build target locaid-eval)";
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::path(::testing::TempDir()) / (std::string("eval_app_") + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override {
-    if (!dir_.empty()) fs::remove_all(dir_);
+    ASSERT_TRUE(fs::exists(kBinary)) << kBinary << " not built (build target locaid-eval, a dependency of eval_tests)";
   }
 
   ProcessResult Exec(const std::string& args) {
@@ -113,7 +107,7 @@ class EvalAppTest : public ::testing::Test {
     return r;
   }
 
-  fs::path dir_;
+  const locaid::test_support::ScopedTempDir dir_{"eval_app"};
 };
 
 TEST_F(EvalAppTest, JsonMatchesLibraryOnKittiFiles) {

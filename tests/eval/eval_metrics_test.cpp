@@ -5,6 +5,7 @@
 #include "eval/trajectory_metrics.hpp"
 #include "kitti/pose_io.hpp"
 #include "kitti/types.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -162,14 +163,7 @@ TEST(EvalAssociate, MissingJitteredAndDuplicateStamps) {
 
 class EvalMatchTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::path(::testing::TempDir()) / (std::string("eval_match_") + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  fs::path dir_;
+  const locaid::test_support::ScopedTempDir dir_{"eval_match"};
 };
 
 TEST_F(EvalMatchTest, TumByTimeKittiByLine) {

@@ -7,6 +7,7 @@
 #include "kitti/timestamps.hpp"
 
 #include "kitti/types.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -47,8 +48,8 @@ TEST(FuzzRegressionTimestamps, ExtremeAcceptedYearsRoundTrip) {
 }
 
 TEST(FuzzRegressionTimestamps, FileWithFarFutureLineNamesTheLine) {
-  const std::filesystem::path path =
-      std::filesystem::path(::testing::TempDir()) / "fuzz_regression_timestamps.txt";
+  const test_support::ScopedTempDir dir("fuzz_regression");
+  const std::filesystem::path path = dir / "timestamps.txt";
   {
     std::ofstream out(path);
     out << "2011-09-26 14:05:35.499560704\n9999-12-31 23:59:59.999999999\n";
@@ -60,7 +61,6 @@ TEST(FuzzRegressionTimestamps, FileWithFarFutureLineNamesTheLine) {
     EXPECT_NE(std::string(e.what()).find(path.string() + ":2: year 9999"), std::string::npos)
         << e.what();
   }
-  std::filesystem::remove(path);
 }
 
 }  // namespace

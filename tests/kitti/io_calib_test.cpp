@@ -1,6 +1,7 @@
 #include "core/stereo_camera.hpp"
 #include "error_of.hpp"
 #include "kitti/calib.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -45,12 +46,6 @@ CamToCamCalib MakeCamToCam() {
   return c;
 }
 
-fs::path TempDir(const std::string& name) {
-  const fs::path d = fs::path(::testing::TempDir()) / name;
-  fs::create_directories(d);
-  return d;
-}
-
 TEST(IoCalib, ParsesVeloToCam) {
   const RigidCalib c = ParseRigidCalib(kVeloToCam, "v.txt");
   EXPECT_EQ(c.calib_time, "15-Mar-2012 11:37:16");
@@ -90,7 +85,7 @@ TEST(IoCalib, RigidErrorsNameFileKeyAndReason) {
 }
 
 TEST(IoCalib, CamToCamRoundTripAndErrors) {
-  const fs::path dir = TempDir("io_calib_c2c");
+  const test_support::ScopedTempDir dir("io_calib");
   const CamToCamCalib c = MakeCamToCam();
   WriteCamToCam(dir / "calib_cam_to_cam.txt", c);
   const CamToCamCalib back = ReadCamToCam(dir / "calib_cam_to_cam.txt");
@@ -137,7 +132,7 @@ TEST(IoCalib, RealCamToCamValues) {
 }
 
 TEST(IoCalib, RigidWritersRoundTrip) {
-  const fs::path dir = TempDir("io_calib_rigid");
+  const test_support::ScopedTempDir dir("io_calib");
   RigidCalib v;
   v.calib_time = "t";
   v.T_to_from.linear() = Eigen::AngleAxisd(1.3, Eigen::Vector3d(0.2, -0.5, 1).normalized())
@@ -173,7 +168,7 @@ TEST(IoCalib, DerivedCam0ImuFollowsDevkitChain) {
 }
 
 TEST(IoCalib, OdometryCalibRoundTripAndStereo) {
-  const fs::path dir = TempDir("io_calib_odo");
+  const test_support::ScopedTempDir dir("io_calib");
   OdometryCalib c;
   for (int i = 0; i < 4; ++i)
     c.P[i] << 718.856, 0, 607.1928, -386.1448 * i, 0, 718.856, 185.2157, 0, 0, 0, 1, 0;

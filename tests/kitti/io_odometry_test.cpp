@@ -2,6 +2,7 @@
 #include "kitti/calib.hpp"
 #include "kitti/dataset.hpp"
 #include "kitti/odometry_sequence.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
@@ -14,10 +15,11 @@ namespace locaid::kitti {
 namespace {
 
 namespace fs = std::filesystem;
+using test_support::ScopedTempDir;
 
-fs::path WriteSequence(const std::string& test, int frames, int poses) {
-  const fs::path root = fs::path(::testing::TempDir()) / ("io_odo_" + test);
-  fs::remove_all(root);
+// root/sequences/07 (returned) with `frames` stereo frames, root/poses/07.txt
+// with `poses` poses.
+fs::path WriteSequence(const fs::path& root, int frames, int poses) {
   const fs::path seq = root / "sequences/07";
   fs::create_directories(seq / "image_0");
   fs::create_directories(seq / "image_1");
@@ -43,7 +45,8 @@ fs::path WriteSequence(const std::string& test, int frames, int poses) {
 }
 
 TEST(IoOdometry, SequenceWithImagesAndPoses) {
-  const fs::path seq = WriteSequence("full", 5, 5);
+  const ScopedTempDir dir("io_odometry");
+  const fs::path seq = WriteSequence(dir, 5, 5);
   fs::remove(seq / "image_1/000003.png");
   const auto ds = OpenDataset(seq);
   EXPECT_EQ(ds->kind(), "odometry");
@@ -69,7 +72,8 @@ TEST(IoOdometry, SequenceWithImagesAndPoses) {
 }
 
 TEST(IoOdometry, FewerPosesThanFramesIsNoted) {
-  const fs::path seq = WriteSequence("short", 4, 2);
+  const ScopedTempDir dir("io_odometry");
+  const fs::path seq = WriteSequence(dir, 4, 2);
   const OdometrySequence ds(seq);
   EXPECT_TRUE(ds.has_ground_truth());
   EXPECT_TRUE(ds.ground_truth(1).has_value());
@@ -80,7 +84,8 @@ TEST(IoOdometry, FewerPosesThanFramesIsNoted) {
 }
 
 TEST(IoOdometry, BadCalibNamesFileAndKey) {
-  const fs::path seq = WriteSequence("badcalib", 2, 2);
+  const ScopedTempDir dir("io_odometry");
+  const fs::path seq = WriteSequence(dir, 2, 2);
   std::ofstream(seq / "calib.txt", std::ios::trunc) << "P0: 1 2 3\n";
   try {
     OpenDataset(seq);

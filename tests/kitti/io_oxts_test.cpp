@@ -1,5 +1,6 @@
 #include "kitti/oxts.hpp"
 #include "error_of.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -100,8 +101,7 @@ TEST(IoOxts, WriteRoundTripsExactly) {
 }
 
 TEST(IoOxts, ReadFileNamesPathAndLine) {
-  const auto dir = std::filesystem::path(::testing::TempDir()) / "io_oxts_test";
-  std::filesystem::create_directories(dir);
+  const test_support::ScopedTempDir dir("io_oxts");
   const auto good = dir / "0000000003.txt";
   std::ofstream(good) << kRealLine << "\n";
   EXPECT_DOUBLE_EQ(ReadOxtsFile(good).lat_deg, 49.032378698576);

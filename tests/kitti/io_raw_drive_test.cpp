@@ -6,6 +6,7 @@
 #include "kitti/oxts.hpp"
 #include "kitti/raw_drive.hpp"
 #include "kitti/timestamps.hpp"
+#include "temp_dir.hpp"
 
 #include <GeographicLib/LocalCartesian.hpp>
 #include <gtest/gtest.h>
@@ -21,6 +22,7 @@ namespace locaid::kitti {
 namespace {
 
 namespace fs = std::filesystem;
+using test_support::ScopedTempDir;
 
 constexpr int kFrames = 6;
 constexpr int64_t kT0 = 1317045935500923136LL;  // 2011-09-26 14:05:35.500923136
@@ -59,11 +61,10 @@ struct DriveSpec {
   int oxts_per_frame = 1;  // 10 for extract-like 100 Hz
 };
 
-// Writes date/<name>/ with kFrames stereo frames of seeded noise and OXTS of a
+// Writes root/2011_09_26/<name>/ with kFrames stereo frames of seeded noise and OXTS of a
 // car driving east at kSpeedMps, heading east (yaw 0).
-fs::path WriteDrive(const std::string& test, const DriveSpec& spec) {
-  const fs::path date = fs::path(::testing::TempDir()) / ("io_raw_" + test) / "2011_09_26";
-  fs::remove_all(date);
+fs::path WriteDrive(const fs::path& root, const DriveSpec& spec) {
+  const fs::path date = root / "2011_09_26";
   const fs::path drive = date / spec.name;
   for (const char* d : {"image_00/data", "image_01/data", "oxts/data"})
     fs::create_directories(drive / d);
@@ -119,7 +120,8 @@ bool HasNote(const StereoDataset& ds, const std::string& text) {
 }
 
 TEST(IoRawDrive, SyncDriveReadsBackImagesTimesAndGroundTruth) {
-  const fs::path drive = WriteDrive("sync", {});
+  const ScopedTempDir dir("io_raw");
+  const fs::path drive = WriteDrive(dir, {});
   // One left image stored as 3-channel BGR: Load converts it to gray.
   cv::Mat color(60, 80, CV_8UC3, cv::Scalar(10, 100, 200));
   cv::imwrite((drive / "image_00/data" / Name(1, "png")).string(), color);
@@ -164,7 +166,8 @@ TEST(IoRawDrive, SyncDriveReadsBackImagesTimesAndGroundTruth) {
 }
 
 TEST(IoRawDrive, MissingAndCorruptImagesAreReportedAndNamed) {
-  const fs::path drive = WriteDrive("defects", {});
+  const ScopedTempDir dir("io_raw");
+  const fs::path drive = WriteDrive(dir, {});
   fs::remove(drive / "image_01/data" / Name(3, "png"));
   const fs::path corrupt = drive / "image_00/data" / Name(4, "png");
   std::ofstream(corrupt, std::ios::binary | std::ios::trunc) << "\x89PNG garbage bytes, not an image";
@@ -186,7 +189,8 @@ TEST(IoRawDrive, MissingAndCorruptImagesAreReportedAndNamed) {
 }
 
 TEST(IoRawDrive, BadOxtsThrowsOrIsSkippedOnRequest) {
-  const fs::path drive = WriteDrive("badoxts", {});
+  const ScopedTempDir dir("io_raw");
+  const fs::path drive = WriteDrive(dir, {});
   const fs::path bad = drive / "oxts/data" / Name(2, "txt");
   std::string line;
   std::getline(std::ifstream(bad), line);
@@ -214,7 +218,8 @@ TEST(IoRawDrive, ExtractDriveRectifiesWithMapsAndEstimatesOxtsTimes) {
   DriveSpec spec;
   spec.name = "2011_09_26_drive_0001_extract";
   spec.oxts_per_frame = 10;
-  const fs::path drive = WriteDrive("extract", spec);
+  const ScopedTempDir dir("io_raw");
+  const fs::path drive = WriteDrive(dir, spec);
   const auto ds = OpenDataset(drive);
   EXPECT_EQ(ds->kind(), "raw_extract");
   // Identity rectification (D = 0, R_rect = I, P_rect = K): remap returns the input.
@@ -238,7 +243,8 @@ TEST(IoRawDrive, OxtsTimestampsFileIsUsedWhenPresent) {
   spec.name = "2011_09_26_drive_0001_extract";
   spec.oxts_per_frame = 10;
   spec.oxts_timestamps = true;
-  const auto ds = OpenDataset(WriteDrive("oxtsts", spec));
+  const ScopedTempDir dir("io_raw");
+  const auto ds = OpenDataset(WriteDrive(dir, spec));
   EXPECT_FALSE(ds->report().oxts_timestamps_estimated);
   EXPECT_EQ(ds->oxts()[7].t_ns, kT0 + 70'000'000);
   // Records at 0.00..0.59 s cover every frame (0.0..0.5 s): world = cam0 at frame 0.
@@ -253,7 +259,8 @@ TEST(IoRawDrive, LayoutFromImageSizeWhenNameHasNoSuffix) {
   spec.name = "some_drive";
   spec.raw = {100, 80};
   spec.rect = {80, 60};
-  const auto ds = OpenDataset(WriteDrive("bysize", spec));
+  const ScopedTempDir dir("io_raw");
+  const auto ds = OpenDataset(WriteDrive(dir, spec));
   EXPECT_EQ(ds->kind(), "raw_extract");
   const StereoImages im = ds->Load(0);
   EXPECT_EQ(im.left.size(), cv::Size(80, 60));
@@ -261,13 +268,12 @@ TEST(IoRawDrive, LayoutFromImageSizeWhenNameHasNoSuffix) {
 }
 
 TEST(IoRawDrive, OpenDatasetRejectsUnknownFolders) {
-  const fs::path dir = fs::path(::testing::TempDir()) / "io_raw_empty";
-  fs::create_directories(dir);
+  const ScopedTempDir dir("io_raw");
   try {
     OpenDataset(dir);
     FAIL() << "no throw";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find(dir.string() + ": not a KITTI dataset"),
+    EXPECT_NE(std::string(e.what()).find(dir.path().string() + ": not a KITTI dataset"),
               std::string::npos);
   }
   EXPECT_THROW(OpenDataset(dir / "absent"), Error);

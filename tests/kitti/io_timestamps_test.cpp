@@ -2,6 +2,7 @@
 #include "error_of.hpp"
 
 #include "kitti/types.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -59,8 +60,7 @@ TEST(IoTimestamps, RejectsMalformedLines) {
 }
 
 TEST(IoTimestamps, FileRoundTripAndLineNumbers) {
-  const fs::path dir = fs::path(::testing::TempDir()) / "io_timestamps";
-  fs::create_directories(dir);
+  const test_support::ScopedTempDir dir("io_timestamps");
   const std::vector<int64_t> t = {1317045935500923136LL, 1317045935602942464LL,
                                   1317045935706851072LL};
   WriteTimestampsFile(dir / "timestamps.txt", t);
@@ -81,8 +81,7 @@ TEST(IoTimestamps, FileRoundTripAndLineNumbers) {
 }
 
 TEST(IoTimestamps, OdometryTimes) {
-  const fs::path dir = fs::path(::testing::TempDir()) / "io_times";
-  fs::create_directories(dir);
+  const test_support::ScopedTempDir dir("io_timestamps");
   std::ofstream(dir / "times.txt") << "0.000000e+00\n1.037359e-01\n2.073381e-01\n";
   const auto t = ReadOdometryTimes(dir / "times.txt");
   ASSERT_EQ(t.size(), 3u);

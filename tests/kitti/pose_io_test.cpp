@@ -1,5 +1,6 @@
 #include "kitti/pose_io.hpp"
 #include "error_of.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -18,21 +19,13 @@ namespace fs = std::filesystem;
 
 class PoseIoTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    dir_ = fs::path(::testing::TempDir()) / (std::string("pose_io_") + info->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-
   fs::path Write(const std::string& name, const std::string& content) {
     fs::path p = dir_ / name;
     std::ofstream(p) << content;
     return p;
   }
 
-  fs::path dir_;
+  const test_support::ScopedTempDir dir_{"pose_io"};
 };
 
 // Random rigid transforms with a fixed seed (rotations cover all of SO(3)).

@@ -3,6 +3,7 @@
 // clock, ground truth), over scripted items, a rendered drive and a live
 // source.
 #include "cli_support.hpp"
+#include "temp_dir.hpp"
 
 #include "kitti/dataset.hpp"
 #include "kitti/raw_drive.hpp"
@@ -108,11 +109,9 @@ ArrivedFix Fix(int64_t t_ns) {
   return f;
 }
 
-// A 12-frame drive rendered by locaid-synth into TempDir()/NAME_PID; the
-// drive folder, or empty (the failure recorded) when rendering failed.
-fs::path RenderDrive(const std::string& name) {
-  const fs::path dir = fs::path(::testing::TempDir()) / (name + "_" + std::to_string(getpid()));
-  fs::remove_all(dir);
+// A 12-frame drive rendered by locaid-synth into `dir`; the drive folder, or
+// empty (the failure recorded) when rendering failed.
+fs::path RenderDrive(const fs::path& dir) {
   const auto rendered = test::RunCommand(std::string(LOCAID_BIN_DIR) + "/locaid-synth -q --out " + dir.string() +
                                          " --frames 12 --width 320 --height 96 --seed 3");
   EXPECT_EQ(rendered.exit_code, 0) << rendered.out;
@@ -205,7 +204,8 @@ TEST(FrameLoop, TruthIsInTheFiltersEnuFrameOnceItHasOne) {
 // the loop skips the three, and the OXTS samples that came with them reach
 // the estimator with the next good frame; none is lost.
 TEST(FrameLoop, OxtsOfSkippedFramesReachTheEstimatorWithTheNextFrame) {
-  const fs::path drive = RenderDrive("frame_loop");
+  const test_support::ScopedTempDir dir("frame_loop");
+  const fs::path drive = RenderDrive(dir);
   ASSERT_FALSE(drive.empty());
   auto png = [&](const char* camera, int i) {
     char name[32];
@@ -233,13 +233,13 @@ TEST(FrameLoop, OxtsOfSkippedFramesReachTheEstimatorWithTheNextFrame) {
   EXPECT_EQ(skipped, (std::vector<int64_t>{3, 4, 7}));
   EXPECT_EQ(log->frame_t_ns.size(), 9u);
   EXPECT_EQ(log->oxts_samples, expected);
-  fs::remove_all(drive.parent_path());
 }
 
 // The server opens KITTI drives with skip_bad_oxts: the OXTS files the reader
 // left out are reported by the frame source, once, as bad OXTS lines.
 TEST(DatasetFrameSource, CountsTheOxtsFilesTheReaderSkipped) {
-  const fs::path drive = RenderDrive("dataset_source");
+  const test_support::ScopedTempDir dir("dataset_source");
+  const fs::path drive = RenderDrive(dir);
   ASSERT_FALSE(drive.empty());
   std::ofstream(drive / "oxts" / "data" / "0000000004.txt", std::ios::trunc) << "1 2 3\n";  // 3 fields
   {
@@ -269,7 +269,6 @@ TEST(DatasetFrameSource, CountsTheOxtsFilesTheReaderSkipped) {
   EXPECT_EQ(bad, 2);
   EXPECT_EQ(oxts, expected_oxts);
   EXPECT_NE(first_error.find("OXTS"), std::string::npos) << first_error;
-  fs::remove_all(drive.parent_path());
 }
 
 TEST(LiveFrameSource, OrderingAndBadRecordsAreCountedNotFatal) {

@@ -11,10 +11,12 @@
 // (bench fusion_consistency_sim, docs/benchmarks.md); an over-confident filter
 // is off by orders of magnitude, as seeds 5 and 13 were.
 #include "cli_support.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <unistd.h>
 
@@ -30,12 +32,13 @@ const fs::path kDrive =
 class RealOutage : public ::testing::TestWithParam<int> {
  protected:
   static void SetUpTestSuite() {
-    cache_ = fs::path(::testing::TempDir()) / ("real_outage_vo_" + std::to_string(getpid()) + ".cache");
+    dir_ = std::make_unique<locaid::test_support::ScopedTempDir>("real_outage");
+    cache_ = *dir_ / "vo.cache";
   }
-  static void TearDownTestSuite() { fs::remove(cache_); }
-  static fs::path cache_;
+  static void TearDownTestSuite() { dir_.reset(); }
+  static inline std::unique_ptr<locaid::test_support::ScopedTempDir> dir_;
+  static inline fs::path cache_;
 };
-fs::path RealOutage::cache_;
 
 double Number(const std::string& json, const std::string& key) {
   const std::string text = JsonField(json, key);

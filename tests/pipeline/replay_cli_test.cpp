@@ -4,10 +4,12 @@
 // bench/fusion/causal_bound.py, on a CSV whose answer is known by hand and on
 // a real locaid-replay CSV.
 #include "cli_support.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <memory>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -24,20 +26,20 @@ using locaid::test::RunCommand;
 class ReplayCli : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    // One folder per process: CTest runs each test of the suite as its own process.
-    root_ = fs::path(::testing::TempDir()) / ("replay_cli_" + std::to_string(getpid()));
-    fs::remove_all(root_);
+    dir_ = std::make_unique<locaid::test_support::ScopedTempDir>("replay_cli");
+    root_ = *dir_;
     const auto r = RunCommand(std::string(LOCAID_BIN_DIR) + "/locaid-synth --out " + root_.string() +
                        " --frames 80 --width 640 --height 192 --seed 7 -q");
     ASSERT_EQ(r.exit_code, 0) << r.out;
     for (const auto& e : fs::directory_iterator(root_))
       if (e.is_directory()) drive_ = e.path();
   }
-  static void TearDownTestSuite() { fs::remove_all(root_); }
+  static void TearDownTestSuite() { dir_.reset(); }
   static std::string Replay(const std::string& args) {
     return std::string(LOCAID_BIN_DIR) + "/locaid-replay --drive " + drive_.string() +
            " --scenario open-sky --json " + args;
   }
+  static inline std::unique_ptr<locaid::test_support::ScopedTempDir> dir_;
   static inline fs::path root_, drive_;
 };
 

@@ -1,5 +1,6 @@
 // Replay metrics and the plot CSV shared by locaid-replay and locaid-score.
 #include "pipeline/replay_metrics.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -13,6 +14,7 @@ namespace {
 
 using locaid::pipeline::PlotExtras;
 using locaid::pipeline::ReplaySample;
+using locaid::test_support::ScopedTempDir;
 
 std::vector<std::string> Lines(const std::string& path) {
   std::ifstream in(path);
@@ -60,7 +62,8 @@ TEST(ReplayMetrics, FramesWithoutGroundTruthAreLeftOutOfEveryMetric) {
   EXPECT_NEAR(metrics.outages[0].max_error_m, 1.0, 1e-9);
   EXPECT_NEAR(metrics.outages[0].max_jump_m, 0.0, 1e-9);
 
-  const std::string path = (std::filesystem::path(::testing::TempDir()) / "plot_no_gt.csv").string();
+  const ScopedTempDir dir("replay_metrics");
+  const std::string path = (dir / "plot_no_gt.csv").string();
   locaid::pipeline::WritePlotCsv(path, samples);
   const auto lines = Lines(path);
   ASSERT_EQ(lines.size(), 61u);
@@ -70,7 +73,7 @@ TEST(ReplayMetrics, FramesWithoutGroundTruthAreLeftOutOfEveryMetric) {
 
 TEST(ReplayMetrics, PlotCsvLeavesUnknownTracksEmptyAndFillsKnownOnes) {
   const auto samples = StraightDrive(3);
-  const auto dir = std::filesystem::path(::testing::TempDir());
+  const ScopedTempDir dir("replay_metrics");
   const std::string bare = (dir / "plot_bare.csv").string();
   locaid::pipeline::WritePlotCsv(bare, samples);
   const auto lines = Lines(bare);
@@ -93,7 +96,7 @@ TEST(ReplayMetrics, PlotCsvLeavesUnknownTracksEmptyAndFillsKnownOnes) {
 
 TEST(ReplayMetrics, PlotCsvRejectsMismatchedExtrasAndUnwritablePaths) {
   const auto samples = StraightDrive(3);
-  const auto dir = std::filesystem::path(::testing::TempDir());
+  const ScopedTempDir dir("replay_metrics");
   EXPECT_THROW(locaid::pipeline::WritePlotCsv((dir / "x.csv").string(), samples, std::vector<PlotExtras>(2)),
                std::invalid_argument);
   EXPECT_THROW(locaid::pipeline::WritePlotCsv("/proc/no/such/dir/plot.csv", samples), std::runtime_error);

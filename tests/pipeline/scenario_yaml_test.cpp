@@ -1,5 +1,6 @@
 // Scenario YAML files: good files load, bad files fail naming the field.
 #include "pipeline/scenario_yaml.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -10,8 +11,11 @@
 namespace locaid::pipeline {
 namespace {
 
-std::string WriteTemp(const std::string& name, const std::string& text) {
-  const auto path = std::filesystem::path(::testing::TempDir()) / name;
+using test_support::ScopedTempDir;
+
+// `name` in `dir`, holding `text` (a scenario file is named after its file).
+std::string WriteTemp(const ScopedTempDir& dir, const std::string& name, const std::string& text) {
+  const auto path = dir / name;
   std::ofstream(path) << text;
   return path.string();
 }
@@ -38,7 +42,8 @@ TEST(ScenarioYaml, ShippedExamplesLoad) {
 }
 
 TEST(ScenarioYaml, LoadsAGoodFile) {
-  const auto path = WriteTemp("good.yaml",
+  const ScopedTempDir dir("scenario_yaml");
+  const auto path = WriteTemp(dir, "good.yaml",
                               "base: urban-canyon\n"
                               "gps: {rate_hz: 2, sigma_h_m: 4.5, jump_probability: 0.1}\n"
                               "imu: {grade: mems}\n"
@@ -71,7 +76,8 @@ class BadScenarioFile : public ::testing::TestWithParam<BadCase> {};
 
 TEST_P(BadScenarioFile, ErrorNamesFieldAndReason) {
   const auto& c = GetParam();
-  const auto path = WriteTemp(std::string(c.name) + ".yaml", c.yaml);
+  const ScopedTempDir dir("scenario_yaml");
+  const auto path = WriteTemp(dir, std::string(c.name) + ".yaml", c.yaml);
   try {
     LoadScenario(path);
     FAIL() << "accepted: " << c.yaml;

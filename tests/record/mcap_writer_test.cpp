@@ -13,6 +13,7 @@
 
 #include "mcap_test_reader.hpp"
 #include "sample_recording.hpp"
+#include "temp_dir.hpp"
 
 namespace fs = std::filesystem;
 using locaid::record::McapOptions;
@@ -25,13 +26,7 @@ constexpr size_t kSmallChunkBytes = 4096;  // many chunks from a few seconds of 
 
 class McapWriterFileTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("locaid_mcap_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  fs::path dir_;
+  const locaid::test_support::ScopedTempDir dir_{"mcap"};
 };
 
 TEST(McapCrc32, MatchesTheStandardCheckValue) {
@@ -206,9 +201,10 @@ TEST(McapWriterErrors, FullDiskIsReportedWithTheErrnoText) {
 }
 
 TEST(McapWriterErrors, ZstdLevelOutOfRangeIsRejected) {
-  EXPECT_THROW(McapWriter("/tmp/never-created.mcap", McapOptions{.zstd = true, .zstd_level = 1000}),
-               std::invalid_argument);
-  EXPECT_FALSE(fs::exists("/tmp/never-created.mcap"));
+  const locaid::test_support::ScopedTempDir dir("mcap");
+  const fs::path path = dir / "never-created.mcap";
+  EXPECT_THROW(McapWriter(path, McapOptions{.zstd = true, .zstd_level = 1000}), std::invalid_argument);
+  EXPECT_FALSE(fs::exists(path));
 }
 
 }  // namespace

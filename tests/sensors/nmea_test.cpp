@@ -3,7 +3,9 @@
 // for a rendered drive with a scripted outage.
 #include "sensors/nmea.hpp"
 
+#include "needs_tool.hpp"
 #include "pipeline/cli_support.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -68,11 +70,9 @@ int Count(const std::string& text, const std::string& needle) {
 }
 
 TEST(NmeaGpsd, GpsdParsesTheReplayedDriveAndSeesTheOutage) {
-  if (Shell("command -v gpsfake >/dev/null 2>&1").exit_code != 0)
-    GTEST_SKIP() << "gpsfake not installed (deploy/install-deps.sh installs Debian's gpsd, gpsd-clients, python3-gps)";
-  const fs::path dir = fs::path(::testing::TempDir()) / ("locaid_nmea_" + std::to_string(getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  LOCAID_NEEDS_TOOL(test_support::HaveCommand("gpsfake"),
+                    "gpsfake not installed (deploy/install-deps.sh installs Debian's gpsd, gpsd-clients, python3-gps)");
+  const test_support::ScopedTempDir dir("nmea");
   const std::string bin = LOCAID_BIN_DIR;
   ASSERT_EQ(Shell(bin + "/locaid-synth -q --out " + (dir / "d").string() +
                   " --frames 80 --width 160 --height 64 --seed 2").exit_code, 0);
@@ -108,7 +108,6 @@ TEST(NmeaGpsd, GpsdParsesTheReplayedDriveAndSeesTheOutage) {
   // The outage (3-5 s after the first record) reaches gpsd as epochs without a fix.
   EXPECT_GE(Count(gpsd.out, "\"mode\":1,\"time\":\"2024-05-17T12:00:0"), 5) << gpsd.out.substr(0, 3000);
   EXPECT_NE(gpsd.out.find("\"time\":\"2024-05-17T12:00:0"), std::string::npos);
-  fs::remove_all(dir);
 }
 
 }  // namespace

@@ -1,6 +1,7 @@
 // Server configuration: YAML + validation give precise errors.
 #include "server/config.hpp"
 #include "error_of.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -12,8 +13,11 @@
 namespace locaid::server {
 namespace {
 
-std::filesystem::path WriteTemp(const std::string& name, const std::string& text) {
-  const auto path = std::filesystem::path(::testing::TempDir()) / name;
+using locaid::test_support::ScopedTempDir;
+
+// `name` in `dir`, holding `text`.
+std::filesystem::path WriteTemp(const ScopedTempDir& dir, const std::string& name, const std::string& text) {
+  const auto path = dir / name;
   std::ofstream(path) << text;
   return path;
 }
@@ -21,8 +25,9 @@ std::filesystem::path WriteTemp(const std::string& name, const std::string& text
 std::string ErrorOf(const std::function<void()>& f) { return locaid::test_support::ErrorOf<ConfigError>(f); }
 
 TEST(ServerConfig, YamlOverridesDefaultsAndValidates) {
+  const ScopedTempDir dir("config");
   ServerConfig c;
-  ApplyYamlConfig(WriteTemp("ok.yaml", "listen: 127.0.0.1:0\nqueue_size: 32\nshutdown_grace_s: 0.5\n"), &c);
+  ApplyYamlConfig(WriteTemp(dir, "ok.yaml", "listen: 127.0.0.1:0\nqueue_size: 32\nshutdown_grace_s: 0.5\n"), &c);
   EXPECT_EQ(c.listen, "127.0.0.1:0");
   EXPECT_EQ(c.queue_size, 32u);
   EXPECT_DOUBLE_EQ(c.shutdown_grace_s, 0.5);
@@ -30,16 +35,18 @@ TEST(ServerConfig, YamlOverridesDefaultsAndValidates) {
 }
 
 TEST(ServerConfig, UnknownKeyNamesFileLineAndKey) {
+  const ScopedTempDir dir("config");
   ServerConfig c;
-  const auto path = WriteTemp("bad_key.yaml", "listen: 127.0.0.1:0\nqueue_sise: 3\n");
+  const auto path = WriteTemp(dir, "bad_key.yaml", "listen: 127.0.0.1:0\nqueue_sise: 3\n");
   const std::string e = ErrorOf([&] { ApplyYamlConfig(path, &c); });
   EXPECT_NE(e.find("bad_key.yaml:2"), std::string::npos) << e;
   EXPECT_NE(e.find("queue_sise"), std::string::npos) << e;
 }
 
 TEST(ServerConfig, WrongTypeAndRangeAreReported) {
+  const ScopedTempDir dir("config");
   ServerConfig c;
-  std::string e = ErrorOf([&] { ApplyYamlConfig(WriteTemp("type.yaml", "queue_size: many\n"), &c); });
+  std::string e = ErrorOf([&] { ApplyYamlConfig(WriteTemp(dir, "type.yaml", "queue_size: many\n"), &c); });
   EXPECT_NE(e.find("queue_size"), std::string::npos) << e;
   ServerConfig bad;
   bad.listen = "localhost";
@@ -81,6 +88,7 @@ TEST(ServerConfig, ListenPortOverflowIsAConfigErrorNamingListen) {
 }
 
 TEST(ServerConfig, EveryNumericYamlFieldReportsFieldValueAndReason) {
+  const ScopedTempDir dir("config");
   struct Case {
     std::string yaml, value, reason;
   };
@@ -97,7 +105,7 @@ TEST(ServerConfig, EveryNumericYamlFieldReportsFieldValueAndReason) {
   for (const auto& field : size_fields) {
     for (const auto& k : size_cases) {
       ServerConfig c;
-      const auto path = WriteTemp("num" + std::to_string(n++) + ".yaml", "listen: 127.0.0.1:0\n" + field + ": " + k.yaml + "\n");
+      const auto path = WriteTemp(dir, "num" + std::to_string(n++) + ".yaml", "listen: 127.0.0.1:0\n" + field + ": " + k.yaml + "\n");
       const std::string e = ErrorOf([&] { ApplyYamlConfig(path, &c); });
       EXPECT_NE(e.find(":2: key '" + field + "'"), std::string::npos) << e;
       EXPECT_NE(e.find("'" + k.value + "'"), std::string::npos) << e;
@@ -112,7 +120,7 @@ TEST(ServerConfig, EveryNumericYamlFieldReportsFieldValueAndReason) {
   for (const std::string field : {"keepalive_time_s", "keepalive_timeout_s", "shutdown_grace_s"}) {
     for (const auto& k : real_cases) {
       ServerConfig c;
-      const auto path = WriteTemp("real" + std::to_string(n++) + ".yaml", field + ": " + k.yaml + "\n");
+      const auto path = WriteTemp(dir, "real" + std::to_string(n++) + ".yaml", field + ": " + k.yaml + "\n");
       const std::string e = ErrorOf([&] { ApplyYamlConfig(path, &c); });
       EXPECT_NE(e.find(":1: key '" + field + "'"), std::string::npos) << e;
       EXPECT_NE(e.find("'" + k.value + "'"), std::string::npos) << e;
@@ -120,7 +128,7 @@ TEST(ServerConfig, EveryNumericYamlFieldReportsFieldValueAndReason) {
     }
   }
   ServerConfig ok;
-  ApplyYamlConfig(WriteTemp("num_ok.yaml", "max_sessions: 3\nkeepalive_time_s: 2.5e1\nqueue_size: +7\n"), &ok);
+  ApplyYamlConfig(WriteTemp(dir, "num_ok.yaml", "max_sessions: 3\nkeepalive_time_s: 2.5e1\nqueue_size: +7\n"), &ok);
   EXPECT_EQ(ok.max_sessions, 3u);
   EXPECT_DOUBLE_EQ(ok.keepalive_time_s, 25.0);
   EXPECT_EQ(ok.queue_size, 7u);
@@ -130,8 +138,9 @@ TEST(ServerConfig, EveryNumericYamlFieldReportsFieldValueAndReason) {
 }
 
 TEST(ServerConfig, TokenFileIsRead) {
+  const ScopedTempDir dir("config");
   ServerConfig c;
-  c.token_file = WriteTemp("token.txt", "s3cret\n").string();
+  c.token_file = WriteTemp(dir, "token.txt", "s3cret\n").string();
   ValidateConfig(&c);
   EXPECT_EQ(c.token, "s3cret");
 }

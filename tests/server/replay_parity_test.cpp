@@ -15,7 +15,7 @@ namespace {
 namespace fs = std::filesystem;
 
 TEST(ReplayParity, AServerSessionStreamsThePosesLocaidReplayComputes) {
-  const fs::path dir = FreshTestDir("replay_parity");
+  const ScopedTempDir dir("replay_parity");
   std::string error;
   const fs::path drive = RenderSynthDrive(dir / "drive", 40, 5, 320, 96, &error);
   ASSERT_FALSE(drive.empty()) << error;

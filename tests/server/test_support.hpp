@@ -8,6 +8,7 @@
 
 #include "locaid/v1/localization.grpc.pb.h"
 #include "server/service.hpp"
+#include "temp_dir.hpp"
 
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
@@ -39,6 +40,7 @@
 namespace locaid::server::testing {
 
 namespace v1 = locaid::v1;
+using locaid::test_support::ScopedTempDir;
 
 // Moves 1 m east per frame. Mode: VO_ONLY inside an outage (forced or a
 // scheduled window on the frame clock), else GPS_FUSED. Counts OXTS samples
@@ -109,9 +111,12 @@ inline EstimatorFactory FakeFactory() {
   };
 }
 
-inline ServerConfig LoopbackConfig() {
+// `work_dir`: the test's own folder (synthetic drives; the default is shared
+// by every server of the user, and a starting server clears it).
+inline ServerConfig LoopbackConfig(const std::filesystem::path& work_dir) {
   ServerConfig c;
   c.listen = "127.0.0.1:0";
+  c.work_dir = work_dir.string();
   c.shutdown_grace_s = 0.5;
   return c;
 }
@@ -132,12 +137,11 @@ inline std::string ShellQuote(const std::string& s) {
   return q + "'";
 }
 
-// Runs a command line (already quoted), capturing stdout and stderr.
+// Runs a command line (already quoted), capturing stdout and stderr (through
+// files in a folder of the call's own).
 inline CliResult RunShell(const std::string& command) {
-  static int counter = 0;
-  const auto dir = std::filesystem::path(::testing::TempDir());
-  const std::string stem = "cli_" + std::to_string(::getpid()) + "_" + std::to_string(counter++);
-  const auto out = dir / (stem + ".out"), err = dir / (stem + ".err");
+  const ScopedTempDir dir("cli");
+  const auto out = dir / "out", err = dir / "err";
   const int rc = std::system((command + " >" + out.string() + " 2>" + err.string()).c_str());
   CliResult r;
   r.exit_code = WIFEXITED(rc) ? WEXITSTATUS(rc) : -1;
@@ -507,15 +511,6 @@ inline std::filesystem::path RenderSynthDrive(const std::filesystem::path& date_
   }
   *error = "locaid-synth wrote no *_sync folder into " + date_dir.string();
   return {};
-}
-
-// A folder of its own under TempDir() for one test of this process.
-inline std::filesystem::path FreshTestDir(const std::string& name) {
-  const auto dir = std::filesystem::path(::testing::TempDir()) /
-                   ("locaid_" + name + "_" + std::to_string(::getpid()));
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir;
 }
 
 // A push stream attached to (or creating) a live session.

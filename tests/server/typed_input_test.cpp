@@ -36,10 +36,11 @@ v1::PushRequest Fix(int64_t t_ns, v1::GpsFixType type = v1::GPS_FIX_3D, double l
 class TypedInput : public ::testing::Test {
  protected:
   void SetUp() override {
-    server_ = std::make_unique<LocalizationServer>(LoopbackConfig(), FakeFactory());
+    server_ = std::make_unique<LocalizationServer>(LoopbackConfig(dir_ / "work"), FakeFactory());
     stub_ = MakeStub(server_->port());
   }
   void TearDown() override { server_->Shutdown(); }
+  const ScopedTempDir dir_{"typed_input"};  // the server's work_dir; outlives the server
   std::unique_ptr<LocalizationServer> server_;
   std::unique_ptr<v1::Localization::Stub> stub_;
 };

@@ -1,8 +1,10 @@
 // The optional Unix-domain socket listener (--listen-unix / listen_unix): the
 // real server (in-process with the fake estimator, and the real
-// locaid-server binary) on 127.0.0.1 plus a socket in a per-process temp
+// locaid-server binary) on 127.0.0.1 plus a socket in the test's temporary
 // folder, driven by the real `locaid` CLI and the Python client.
 #include "test_support.hpp"
+
+#include "needs_tool.hpp"
 
 #include <sys/socket.h>
 #include <sys/stat.h>
@@ -13,30 +15,6 @@
 
 namespace locaid::server::testing {
 namespace {
-
-// The folder of this test process (ctest runs every test in its own process,
-// two at a time) under /tmp, short enough for sun_path; removed when the
-// process's tests are done.
-std::filesystem::path ProcessDir() {
-  return std::filesystem::temp_directory_path() / ("locaid-uds-" + std::to_string(::getpid()));
-}
-
-class RemoveProcessDir : public ::testing::Environment {
- public:
-  void TearDown() override {
-    std::error_code ec;
-    std::filesystem::remove_all(ProcessDir(), ec);
-  }
-};
-[[maybe_unused]] ::testing::Environment* const kRemoveProcessDir =
-    ::testing::AddGlobalTestEnvironment(new RemoveProcessDir);
-
-std::filesystem::path UdsDir(const std::string& name) {
-  const auto dir = ProcessDir() / name;
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir;
-}
 
 bool IsSocket(const std::filesystem::path& p) {
   struct stat st {};
@@ -93,8 +71,8 @@ size_t CountLinesStartingWith(const std::string& text, const std::string& prefix
 }
 
 TEST(UnixSocketConfig, PathErrorsNameTheKeyAndTheReason) {
-  const auto dir = UdsDir("config");
-  ServerConfig c = LoopbackConfig();
+  const ScopedTempDir dir("uds");  // under $TMPDIR: short enough for sun_path
+  ServerConfig c = LoopbackConfig(dir / "work");
   c.listen_unix = (dir / "ok.sock").string();
   EXPECT_EQ(ConfigErrorOf(c), "");
 
@@ -137,7 +115,7 @@ TEST(UnixSocketConfig, PathErrorsNameTheKeyAndTheReason) {
 }
 
 TEST(UnixSocketConfig, YamlKeyIsReadAndAnEmptyValueIsAnError) {
-  const auto dir = UdsDir("yaml");
+  const ScopedTempDir dir("uds");
   const auto good = dir / "good.yaml", empty = dir / "empty.yaml";
   std::ofstream(good) << "listen: 127.0.0.1:0\nlisten_unix: " << (dir / "s.sock").string() << "\n";
   std::ofstream(empty) << "listen: 127.0.0.1:0\nlisten_unix: ''\n";
@@ -158,7 +136,7 @@ TEST(UnixSocketConfig, YamlKeyIsReadAndAnEmptyValueIsAnError) {
 class UnixSocketTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = UdsDir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = tmp_.path();
     sock_ = dir_ / "locaid.sock";
     target_ = "unix:" + sock_.string();
   }
@@ -166,13 +144,13 @@ class UnixSocketTest : public ::testing::Test {
     if (server_) server_->Shutdown();
   }
   ServerConfig Config() const {
-    ServerConfig c = LoopbackConfig();
+    ServerConfig c = LoopbackConfig(dir_ / "work");
     c.listen_unix = sock_.string();
-    c.work_dir = (dir_ / "work").string();
     return c;
   }
   void Start(const ServerConfig& c) { server_ = std::make_unique<LocalizationServer>(c, FakeFactory()); }
 
+  const ScopedTempDir tmp_{"uds"};  // under $TMPDIR: short enough for sun_path
   std::filesystem::path dir_, sock_;
   std::string target_;
   std::unique_ptr<LocalizationServer> server_;
@@ -291,7 +269,7 @@ TEST_F(UnixSocketTest, RelativePathIsBoundInTheWorkingDirectoryAndRemovedOnShutd
 }
 
 TEST_F(UnixSocketTest, TlsConfiguredAppliesOnTheSocketToo) {
-  if (std::system("command -v openssl >/dev/null 2>&1") != 0) GTEST_SKIP() << "openssl not installed";
+  LOCAID_NEEDS_TOOL(test_support::HaveCommand("openssl"), "openssl not installed");
   const auto cert = dir_ / "cert.pem", key = dir_ / "key.pem";
   const CliResult gen = RunShell("openssl req -x509 -newkey rsa:2048 -nodes -days 1 -subj /CN=localhost -addext "
                                  "subjectAltName=IP:127.0.0.1,DNS:localhost -keyout " +
@@ -311,7 +289,7 @@ TEST_F(UnixSocketTest, TlsConfiguredAppliesOnTheSocketToo) {
 }
 
 TEST_F(UnixSocketTest, PythonClientSubscribesOverTheSocket) {
-  if (!HavePythonGrpc()) GTEST_SKIP() << "python3-grpcio not installed";
+  LOCAID_NEEDS_TOOL(HavePythonGrpc(), "python3-grpcio not installed");
   Start(Config());
   constexpr int kFrames = 5;
   CliResult r = RunCliAt(target_, {"session", "start", "--synthetic", "3", "--frames", std::to_string(kFrames),
@@ -349,7 +327,7 @@ TEST(UnixSocketCli, BadServerAddressesAreUsageErrors) {
         << c.address << ": " << r.err;
   }
   // A well-formed socket path nobody listens on is an RPC error, not a usage error.
-  const auto dir = UdsDir("cli");
+  const ScopedTempDir dir("uds");
   const CliResult r = RunCliAt("unix:" + (dir / "nobody.sock").string(), {"health"}, {"--timeout-s", "2"});
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.err.find("UNAVAILABLE"), std::string::npos) << r.err;
@@ -358,7 +336,7 @@ TEST(UnixSocketCli, BadServerAddressesAreUsageErrors) {
 // The real locaid-server binary: the startup line names the socket; SIGKILL
 // leaves a stale socket file that the next server replaces; SIGTERM removes it.
 TEST(UnixSocketProcess, StaleFileAfterACrashIsReplacedAndSigtermRemovesTheSocket) {
-  const auto dir = UdsDir("process");
+  const ScopedTempDir dir("uds");
   const auto sock = dir / "locaid.sock";
   const std::string target = "unix:" + sock.string();
   {
@@ -385,7 +363,7 @@ TEST(UnixSocketProcess, StaleFileAfterACrashIsReplacedAndSigtermRemovesTheSocket
 }
 
 TEST(UnixSocketProcess, ARegularFileAtThePathStopsStartupWithAClearError) {
-  const auto dir = UdsDir("process_file");
+  const ScopedTempDir dir("uds");
   const auto path = dir / "locaid.sock";
   std::ofstream(path) << "not a socket\n";
   ServerProcess server(dir / "run", {"--listen-unix", path.string()});
@@ -399,7 +377,7 @@ TEST(UnixSocketProcess, ARegularFileAtThePathStopsStartupWithAClearError) {
 }
 
 TEST(UnixSocketProcess, ConfigErrorsExitWithCode2) {
-  const auto dir = UdsDir("process_config");
+  const ScopedTempDir dir("uds");
   ServerProcess missing(dir / "run", {"--listen-unix", (dir / "nope" / "s.sock").string()});
   ASSERT_TRUE(missing.process().Wait(10));
   EXPECT_EQ(missing.process().exit_code(), 2);

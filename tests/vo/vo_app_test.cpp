@@ -1,6 +1,7 @@
 // build/bin/locaid-vo as a program: a short rendered drive with and without
 // the sliding window, at a lower frame rate, and option errors.
 #include "kitti/pose_io.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -12,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -56,21 +58,19 @@ struct Result {
 class VoAppTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
+    dir_ = std::make_unique<locaid::test_support::ScopedTempDir>("vo_app");
+    root_ = *dir_;
     if (!fs::exists(kBinDir / "locaid-vo") || !fs::exists(kBinDir / "locaid-synth")) return;
-    // One folder per process: CTest runs the tests of this suite in parallel.
-    root_ = fs::path(::testing::TempDir()) / ("vo_app_test_" + std::to_string(getpid()));
-    fs::remove_all(root_);
-    fs::create_directories(root_);
     const std::string cmd = Quote((kBinDir / "locaid-synth").string()) + " -q --out " +
                             Quote((root_ / "synth").string()) + " --frames " + std::to_string(kFrames) +
                             " --seed 3 >/dev/null 2>&1";
     if (std::system(cmd.c_str()) != 0) return;
     drive_ = DriveIn(root_ / "synth");
   }
-  static void TearDownTestSuite() { fs::remove_all(root_); }
+  static void TearDownTestSuite() { dir_.reset(); }
 
   void SetUp() override {
-    if (!fs::exists(kBinDir / "locaid-vo")) GTEST_SKIP() << "locaid-vo not built";
+    ASSERT_TRUE(fs::exists(kBinDir / "locaid-vo")) << "locaid-vo not built (a dependency of vo_tests)";
     ASSERT_FALSE(drive_.empty()) << "locaid-synth did not render a drive under " << root_;
   }
 
@@ -86,6 +86,7 @@ class VoAppTest : public ::testing::Test {
     return r;
   }
 
+  static inline std::unique_ptr<locaid::test_support::ScopedTempDir> dir_;
   static inline fs::path root_, drive_;
 };
 
