@@ -4,6 +4,7 @@
 // server tests' ChildProcess / ServerProcess (tests/server/test_support.hpp).
 #pragma once
 
+#include "needs_tool.hpp"
 #include "server/test_support.hpp"
 
 #include <nlohmann/json.hpp>
@@ -17,7 +18,7 @@ namespace v1 = locaid::v1;
 namespace st = locaid::server::testing;
 using nlohmann::json;
 
-inline bool HaveNode() { return std::system("node --version > /dev/null 2>&1") == 0; }
+inline bool HaveNode() { return test_support::HaveCommand("node"); }
 
 // A port the OS had free a moment ago (bind to 0, read it, close).
 inline int FreeLoopbackPort() {

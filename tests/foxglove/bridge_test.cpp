@@ -1,7 +1,8 @@
 // locaid-foxglove end to end: the real locaid-server on a loopback port, the
 // real bridge, and Foxglove's own client (@foxglove/ws-protocol over `ws`,
 // js/client.mjs). Also: switching to a newer session, SIGTERM, a server that
-// is not there, and flag errors. Skips when node is missing.
+// is not there, and flag errors. Skips when node is missing (fails when CI is
+// set: needs_tool.hpp).
 #include "bridge_support.hpp"
 
 #include <gtest/gtest.h>
@@ -17,9 +18,6 @@ constexpr uint32_t kFrames = 60;  // 6 s of a synthetic drive at 10 Hz
 
 class BridgeTest : public ::testing::Test {
  protected:
-  void SetUp() override {
-    dir_ = st::FreshTestDir(::testing::UnitTest::GetInstance()->current_test_info()->name());
-  }
   // client.mjs in the background, its JSON summary in `dir_`/client.json.
   std::unique_ptr<st::ChildProcess> StartClient(int ws_port, int sessions, uint64_t updates) {
     const std::vector<std::string> argv = {"/usr/bin/env",  "node",
@@ -44,7 +42,7 @@ class BridgeTest : public ::testing::Test {
     return ids;
   }
 
-  std::filesystem::path dir_;
+  const locaid::test_support::ScopedTempDir dir_{"bridge"};  // outlives the processes of the test
 };
 
 // A server, the bridge following its newest session, and Foxglove's client
@@ -53,10 +51,9 @@ class BridgeTest : public ::testing::Test {
 class BridgeClientTest : public BridgeTest {
  protected:
   void SetUp() override {
-    BridgeTest::SetUp();
-    if (!ft::HaveNode()) GTEST_SKIP() << "node is not installed; the Foxglove client (@foxglove/ws-protocol) needs it";
+    LOCAID_NEEDS_TOOL(ft::HaveNode(), "node is not installed; the Foxglove client (@foxglove/ws-protocol) needs it");
     ASSERT_TRUE(std::filesystem::exists(kJsDir / "node_modules/@foxglove/ws-protocol"))
-        << "run " << (kJsDir / "setup.sh") << " (the FoxgloveJsClientSetup CTest fixture does)";
+        << "run tests/foxglove/js/setup.sh " << kJsDir << " (the FoxgloveJsClientSetup CTest fixture does)";
     server_ = std::make_unique<st::ServerProcess>(dir_ / "server");
     ASSERT_GT(server_->port(), 0) << server_->log();
     stub_ = st::MakeStub(server_->port());
@@ -191,7 +188,7 @@ TEST_F(BridgeClientTest, SwitchesToANewerSessionWithANewServerInfo) {
 // newest update. A small queue and kernel send buffer (--queue,
 // --send-buffer) make the loss happen within a short session.
 TEST_F(BridgeTest, TwentyClientsOneStalledTheOthersGetEverything) {
-  if (!ft::HaveNode()) GTEST_SKIP() << "node is not installed; the Foxglove client (@foxglove/ws-protocol) needs it";
+  LOCAID_NEEDS_TOOL(ft::HaveNode(), "node is not installed; the Foxglove client (@foxglove/ws-protocol) needs it");
   constexpr int kClients = 20;
   constexpr uint32_t kCrowdFrames = 100;
   st::ServerProcess server(dir_ / "server");
@@ -269,7 +266,7 @@ TEST_F(BridgeTest, ReconnectsWhenTheServerComesBack) {
 // a Foxglove client connected to the bridge the whole time gets a new
 // serverInfo and the new server's session, without reconnecting itself.
 TEST_F(BridgeTest, AFoxgloveClientStaysConnectedAcrossAServerRestart) {
-  if (!ft::HaveNode()) GTEST_SKIP() << "node is not installed; the Foxglove client (@foxglove/ws-protocol) needs it";
+  LOCAID_NEEDS_TOOL(ft::HaveNode(), "node is not installed; the Foxglove client (@foxglove/ws-protocol) needs it");
   const int grpc_port = ft::FreeLoopbackPort();
   auto server = std::make_unique<st::ServerProcess>(dir_ / "server1", std::vector<std::string>{}, grpc_port);
   ASSERT_EQ(server->port(), grpc_port) << server->log();

@@ -1,6 +1,6 @@
 // `locaid subscribe ID --format mcap`: the Foxglove channels in an MCAP file,
 // read by Foxglove's own reader (@mcap/core via tests/record/js/read_mcap.mjs).
-// Skips when node is missing.
+// Skips when node is missing (fails when CI is set: needs_tool.hpp).
 #include "bridge_support.hpp"
 
 #include <gtest/gtest.h>
@@ -30,10 +30,9 @@ void ExpectEveryMessageDecoded(const json& read) {
 class McapSubscribeTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    if (!ft::HaveNode()) GTEST_SKIP() << "node is not installed; the official MCAP reader (@mcap/core) needs it";
+    LOCAID_NEEDS_TOOL(ft::HaveNode(), "node is not installed; the official MCAP reader (@mcap/core) needs it");
     ASSERT_TRUE(std::filesystem::exists(kMcapJsDir / "node_modules/@mcap/core"))
-        << "run " << (kMcapJsDir / "setup.sh") << " (the McapJsReaderSetup CTest fixture does)";
-    dir_ = st::FreshTestDir(::testing::UnitTest::GetInstance()->current_test_info()->name());
+        << "run tests/record/js/setup.sh " << kMcapJsDir << " (the McapJsReaderSetup CTest fixture does)";
     server_ = std::make_unique<st::ServerProcess>(dir_ / "server");
     ASSERT_GT(server_->port(), 0) << server_->log();
     stub_ = st::MakeStub(server_->port());
@@ -58,7 +57,7 @@ class McapSubscribeTest : public ::testing::Test {
     });
   }
 
-  std::filesystem::path dir_;
+  const locaid::test_support::ScopedTempDir dir_{"mcap_subscribe"};  // outlives the server
   std::unique_ptr<st::ServerProcess> server_;
   std::unique_ptr<locaid::v1::Localization::Stub> stub_;
 };
@@ -134,8 +133,8 @@ namespace {
 // `locaid-replay --out-mcap`: offline, the same channels; a synthetic drive
 // has ground truth, so the truth channels are there too.
 TEST(McapReplay, RecordsEveryReplayedPoseWithItsTruthAndFixes) {
-  if (!ft::HaveNode()) GTEST_SKIP() << "node is not installed; the official MCAP reader (@mcap/core) needs it";
-  const auto dir = st::FreshTestDir("mcap_replay");
+  LOCAID_NEEDS_TOOL(ft::HaveNode(), "node is not installed; the official MCAP reader (@mcap/core) needs it");
+  const locaid::test_support::ScopedTempDir dir("mcap_replay");
   const std::string bin = LOCAID_BIN_DIR;
   ASSERT_EQ(std::system((bin + "/locaid-synth -q --out " + (dir / "d").string() +
                          " --frames 120 --width 320 --height 96 --seed 5").c_str()), 0);

@@ -1,7 +1,7 @@
 // McapWriter's files read by Foxglove's TypeScript reader (@mcap/core, pinned
 // in js/package-lock.json, installed by js/setup.sh as a CTest fixture):
 // js/read_mcap.mjs prints what McapIndexedReader and McapStreamReader found.
-// Skips when node is not installed.
+// Skips when node is not installed (fails when CI is set: needs_tool.hpp).
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -16,8 +16,10 @@
 #include <thread>
 
 #include "mcap_test_reader.hpp"
+#include "needs_tool.hpp"
 #include "record/mcap_writer.hpp"
 #include "sample_recording.hpp"
+#include "temp_dir.hpp"
 
 namespace fs = std::filesystem;
 using locaid::record::McapOptions;
@@ -58,17 +60,10 @@ NodeRun ReadWithNode(const std::string& args) {
 class McapOfficialReaderTest : public ::testing::Test {
  protected:
   void SetUp() override {
-    if (std::system("node --version > /dev/null 2>&1") != 0) {
-      GTEST_SKIP() << "node is not installed; the official MCAP reader (@mcap/core) needs it";
-    }
+    LOCAID_NEEDS_TOOL(locaid::test_support::HaveCommand("node"),
+                      "node is not installed; the official MCAP reader (@mcap/core) needs it");
     ASSERT_TRUE(fs::exists(kJsDir / "node_modules/@mcap/core"))
-        << "run " << (kJsDir / "setup.sh") << " (the McapJsReaderSetup CTest fixture does)";
-    dir_ = fs::temp_directory_path() / ("locaid_mcap_js_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::create_directories(dir_);
-  }
-  void TearDown() override {
-    if (!dir_.empty()) fs::remove_all(dir_);
+        << "run tests/record/js/setup.sh " << kJsDir << " (the McapJsReaderSetup CTest fixture does)";
   }
 
   // Both readers read the whole file and agree (read_mcap.mjs checks that).
@@ -78,7 +73,7 @@ class McapOfficialReaderTest : public ::testing::Test {
     return run.exit_code == 0 ? json::parse(run.out) : json::object();
   }
 
-  fs::path dir_;
+  const locaid::test_support::ScopedTempDir dir_{"mcap_js"};
 };
 
 void ExpectMatchesSample(const json& read, const rt::SampleRecording& sample) {
