@@ -3,6 +3,8 @@
 // built from proto/ alone, the way an outside client sees it.
 #include "test_support.hpp"
 
+#include "needs_tool.hpp"
+
 #include <cstdlib>
 #include <limits>
 #include <set>
@@ -12,18 +14,31 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path TestDir(const std::string& name) {
-  const fs::path dir = fs::path(::testing::TempDir()) / ("contract_" + name + "_" + std::to_string(getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
 void WriteFile(const fs::path& p, const std::string& text) { std::ofstream(p) << text; }
+
+// The container's deploy/entrypoint.sh `server` with the container's
+// variables `env` (NAME=value) and `server_args`, as a child process (killed
+// when it goes out of scope). Its scratch is in `dir`: LOCAID_WORK_DIR, and a
+// LOCAID_CONFIG naming the same folder as the server's work_dir.
+std::unique_ptr<ChildProcess> StartEntrypoint(const fs::path& dir, const std::vector<std::string>& env,
+                                              const std::vector<std::string>& server_args) {
+  fs::create_directories(dir);
+  const fs::path work = dir / "work";
+  WriteFile(dir / "entry.yaml", "work_dir: " + work.string() + "\n");
+  const char* path = std::getenv("PATH");
+  std::vector<std::string> argv = {"/usr/bin/env",
+                                   "PATH=" + std::string(LOCAID_BIN_DIR) + ":" + (path ? path : "/usr/bin:/bin"),
+                                   "LOCAID_WORK_DIR=" + work.string(), "LOCAID_CONFIG=" + (dir / "entry.yaml").string(),
+                                   "LOCAID_LISTEN=127.0.0.1:0"};
+  argv.insert(argv.end(), env.begin(), env.end());
+  argv.insert(argv.end(), {"bash", std::string(LOCAID_SOURCE_DIR) + "/deploy/entrypoint.sh", "server"});
+  argv.insert(argv.end(), server_args.begin(), server_args.end());
+  return std::make_unique<ChildProcess>(argv, ChildProcess::Options{dir / "entry.out", dir / "entry.err", 0});
+}
 
 // Defect 1: the documented ways to keep the token out of argv.
 TEST(Contract, TokenFileWorksAsFlagConfigKeyAndContainerVariable) {
-  const fs::path dir = TestDir("token");
+  const ScopedTempDir dir("contract_token");
   WriteFile(dir / "token", "s3cret\n");
   WriteFile(dir / "server.yaml", "token_file: " + (dir / "token").string() + "\n");
   auto check = [&dir](int port, const std::string& how) {
@@ -47,30 +62,24 @@ TEST(Contract, TokenFileWorksAsFlagConfigKeyAndContainerVariable) {
     check(yaml.port(), "token_file: in --config\n" + yaml.log());
   }
   // The container's entrypoint maps LOCAID_TOKEN_FILE to --token-file.
-  const fs::path port_file = dir / "entry.port";
-  const std::string cmd = "PATH=" + std::string(LOCAID_BIN_DIR) + ":$PATH LOCAID_TOKEN_FILE=" +
-                          (dir / "token").string() + " LOCAID_LISTEN=127.0.0.1:0 LOCAID_CONFIG=" +
-                          (dir / "absent.yaml").string() + " bash " + LOCAID_SOURCE_DIR +
-                          "/deploy/entrypoint.sh server --port-file " + port_file.string() + " >" +
-                          (dir / "entry.log").string() + " 2>&1 & echo $!";
-  FILE* pipe = popen(cmd.c_str(), "r");
-  ASSERT_NE(pipe, nullptr);
-  int pid = 0;
-  ASSERT_EQ(fscanf(pipe, "%d", &pid), 1);
-  pclose(pipe);
+  const fs::path entry_dir = dir / "entry", port_file = dir / "entry.port";
+  const auto entry = StartEntrypoint(entry_dir, {"LOCAID_TOKEN_FILE=" + (dir / "token").string()},
+                                     {"--port-file", port_file.string()});
   int port = 0;
-  for (int i = 0; i < 1000 && port == 0; ++i) {
+  for (int i = 0; i < 1000 && port == 0 && entry->running(); ++i) {  // at most 10 s
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
     std::ifstream(port_file) >> port;
+    entry->Wait(0);
   }
-  check(port, "LOCAID_TOKEN_FILE\n" + Slurp(dir / "entry.log"));
-  kill(pid, SIGTERM);
-  for (int i = 0; i < 500 && kill(pid, 0) == 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  check(port, "LOCAID_TOKEN_FILE\n" + Slurp(entry_dir / "entry.err"));
+  EXPECT_TRUE(entry->Signal(SIGTERM));
+  EXPECT_TRUE(entry->Wait(30)) << "the entrypoint's server did not exit after SIGTERM";
 }
 
 // Defect 15: grpc.health.v1 answers for the service's full name too.
 TEST(Contract, HealthAnswersForTheServerAndForTheServiceName) {
-  ServerProcess server(TestDir("health"));
+  const ScopedTempDir dir("contract_health");
+  ServerProcess server(dir);
   ASSERT_GT(server.port(), 0) << server.log();
   EXPECT_EQ(RunCli(server.port(), {"health"}).out, "SERVING\n");
   EXPECT_EQ(RunCli(server.port(), {"health", "--service", "locaid.v1.Localization"}).out, "SERVING\n");
@@ -105,7 +114,7 @@ v1::Session Get(v1::Localization::Stub* stub, const std::string& id) {
 
 // Defects 2, 14 and 16 (scenario name): a session of the real pipeline.
 TEST(Contract, SessionReportsItsOriginIdsAreUniqueAcrossRestartsYamlScenarioIsNamedYaml) {
-  const fs::path dir = TestDir("session");
+  const ScopedTempDir dir("contract_session");
   std::set<std::string> ids;
   std::string first_id;
   for (int run = 0; run < 2; ++run) {  // two server processes: a restart
@@ -153,7 +162,8 @@ TEST(Contract, SessionReportsItsOriginIdsAreUniqueAcrossRestartsYamlScenarioIsNa
 // since the previous pose (with its gate's verdict) and, for drives with
 // ground truth, the true pose in the same ENU frame and the error.
 TEST(Contract, PosesCarryTheFixesTheFilterSawAndTheGroundTruth) {
-  ServerProcess server(TestDir("viewer"));
+  const ScopedTempDir dir("contract_viewer");
+  ServerProcess server(dir);
   ASSERT_GT(server.port(), 0) << server.log();
   auto stub = v1::Localization::NewStub(server.NewChannel());
   const v1::Session s = StartSynthetic(stub.get(), "base: open-sky\nseed: 2\n", 60);
@@ -191,7 +201,7 @@ TEST(Contract, PosesCarryTheFixesTheFilterSawAndTheGroundTruth) {
 class ContractRequests : public ::testing::Test {
  protected:
   void SetUp() override {
-    server_ = std::make_unique<ServerProcess>(TestDir("requests"));
+    server_ = std::make_unique<ServerProcess>(dir_);
     ASSERT_GT(server_->port(), 0) << server_->log();
     stub_ = v1::Localization::NewStub(server_->NewChannel());
   }
@@ -203,6 +213,7 @@ class ContractRequests : public ::testing::Test {
     if (out) *out = resp;
     return s;
   }
+  const ScopedTempDir dir_{"contract_requests"};  // outlives the server
   std::unique_ptr<ServerProcess> server_;
   std::unique_ptr<v1::Localization::Stub> stub_;
 };
@@ -234,7 +245,7 @@ TEST_F(ContractRequests, HugeInputsGetTheirOwnCodeAndACutEcho) {
 // Defects 8 and 9: ranges are checked before the session exists.
 TEST_F(ContractRequests, FrameRangeAndPlaybackRateAreCheckedBeforeOk) {
   v1::StartSessionRequest req;
-  req.mutable_kitti()->set_path(::testing::TempDir());  // exists: the range check comes next
+  req.mutable_kitti()->set_path(dir_.path().string());  // exists: the range check comes next
   req.mutable_kitti()->set_first_frame(10);
   req.mutable_kitti()->set_last_frame(5);
   grpc::Status s = Start(req);
@@ -296,7 +307,7 @@ TEST_F(ContractRequests, SyntheticOptionsAreValidatedBeforeOk) {
 
 // Defect 11: a KITTI drive without right images is refused at StartSession.
 TEST_F(ContractRequests, KittiDriveWithoutRightImagesIsFailedPrecondition) {
-  const fs::path dir = TestDir("no_image_01");
+  const ScopedTempDir dir("contract_no_image_01");
   std::string error;
   const fs::path drive = RenderSynthDrive(dir / "2024_05_17", 6, 1, 160, 64, &error);
   ASSERT_FALSE(drive.empty()) << error;
@@ -341,9 +352,11 @@ TEST_F(ContractRequests, OutageAndScenarioOnAStoppedSessionAreFailedPrecondition
 }
 
 // Defects 3 and 16 (state): rendering is STARTING, cancellable, parallel and
-// bounded; StopSession never waits for a render and other RPCs never wait.
-TEST(Contract, StopDuringRenderReturnsPromptlyAndRendersAreBounded) {
-  const fs::path dir = TestDir("render");
+// bounded; StopSession never waits for a render (a full-size render takes a
+// minute or more: a stop that waited would miss its 30 s deadline) and other
+// RPCs answer meanwhile. How fast a stop returns is measured in bench/.
+TEST(Contract, StopDuringRenderCancelsItAndRendersAreBounded) {
+  const ScopedTempDir dir("contract_render");
   ServerProcess server(dir, {"--max-concurrent-renders", "3"});
   ASSERT_GT(server.port(), 0) << server.log();
   auto stub = v1::Localization::NewStub(server.NewChannel());
@@ -370,7 +383,6 @@ TEST(Contract, StopDuringRenderReturnsPromptlyAndRendersAreBounded) {
   EXPECT_NE(busy.error_message().find("max_concurrent_renders"), std::string::npos) << busy.error_message();
   std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the renders are under way
   // Stop all three at once, from three threads, while ListSessions runs.
-  std::vector<double> stop_ms(ids.size());
   std::vector<std::thread> stoppers;
   for (size_t i = 0; i < ids.size(); ++i) {
     stoppers.emplace_back([&, i] {
@@ -381,31 +393,38 @@ TEST(Contract, StopDuringRenderReturnsPromptlyAndRendersAreBounded) {
       req.set_session_id(ids[i]);
       req.set_remove(true);
       v1::Session out;
-      const auto t0 = std::chrono::steady_clock::now();
-      EXPECT_TRUE(own->StopSession(&ctx, req, &out).ok());
-      stop_ms[i] = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      const grpc::Status st = own->StopSession(&ctx, req, &out);
+      EXPECT_TRUE(st.ok()) << st.error_code() << " " << st.error_message();
       EXPECT_EQ(out.state(), v1::SESSION_STATE_STOPPED);
     });
   }
-  const auto t0 = std::chrono::steady_clock::now();
   {
     grpc::ClientContext ctx;
     SetDeadline(&ctx, 30);
     v1::ListSessionsResponse list;
-    EXPECT_TRUE(stub->ListSessions(&ctx, v1::ListSessionsRequest{}, &list).ok());
+    const grpc::Status st = stub->ListSessions(&ctx, v1::ListSessionsRequest{}, &list);
+    EXPECT_TRUE(st.ok()) << st.error_code() << " " << st.error_message();
   }
-  const double list_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   for (auto& t : stoppers) t.join();
-  std::printf("[ render   ] StopSession during render: %.0f / %.0f / %.0f ms; ListSessions meanwhile %.0f ms\n",
-              stop_ms[0], stop_ms[1], stop_ms[2], list_ms);
-  // The contract is 200 ms; the bound here leaves room for a loaded CI machine.
-  for (double ms : stop_ms) EXPECT_LT(ms, 1000.0);
-  EXPECT_LT(list_ms, 1000.0);
-  // Cancelled renders leave no partial drive behind.
-  size_t left = 0;
-  if (fs::exists(dir / "work" / "synthetic"))
-    for (const auto& e : fs::directory_iterator(dir / "work" / "synthetic")) left += e.is_directory() ? 1 : 0;
-  EXPECT_EQ(left, 0u) << "rendered folders left in " << (dir / "work" / "synthetic");
+  // Removed with their stop: nothing is left to list.
+  {
+    grpc::ClientContext ctx;
+    SetDeadline(&ctx, 30);
+    v1::ListSessionsResponse list;
+    ASSERT_TRUE(stub->ListSessions(&ctx, v1::ListSessionsRequest{}, &list).ok());
+    EXPECT_EQ(list.sessions_size(), 0);
+  }
+  // Cancelled renders leave no partial drive behind: StopSession answers at
+  // once and each render's thread deletes its folder after the frame being
+  // drawn, so the folders go soon after (bounded wait: a hang, not a speed).
+  auto left = [&dir] {
+    size_t n = 0;
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(dir / "work" / "synthetic", ec)) n += e.is_directory() ? 1 : 0;
+    return n;
+  };
+  for (int i = 0; i < 1200 && left() > 0; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  EXPECT_EQ(left(), 0u) << "rendered folders left in " << (dir / "work" / "synthetic");
   EXPECT_EQ(RunCli(server.port(), {"health"}).out, "SERVING\n");
 }
 
@@ -419,7 +438,7 @@ size_t CountDirs(const fs::path& dir) {
 // Defect 4: rendered drives live as long as their session's pipeline, and
 // drives a killed server left behind are removed when the next one starts.
 TEST(Contract, RenderedDrivesAreDeletedWithTheirSessionAndStaleOnesAtStartup) {
-  const fs::path dir = TestDir("disk");
+  const ScopedTempDir dir("contract_disk");
   const fs::path synthetic = dir / "work" / "synthetic";
   fs::create_directories(synthetic / "left-by-a-killed-server" / "2024_05_17");
   WriteFile(synthetic / "left-by-a-killed-server" / "2024_05_17" / "big.png", std::string(4096, 'x'));
@@ -443,7 +462,7 @@ TEST(Contract, RenderedDrivesAreDeletedWithTheirSessionAndStaleOnesAtStartup) {
 
 // Defect 5: ended sessions are kept for a while, not forever.
 TEST(Contract, EndedSessionsAreCappedByCountAndAge) {
-  const fs::path dir = TestDir("ended");
+  const ScopedTempDir dir("contract_ended");
   ServerProcess server(dir, {"--max-ended-sessions", "3"});
   ASSERT_GT(server.port(), 0) << server.log();
   auto stub = v1::Localization::NewStub(server.NewChannel());
@@ -501,9 +520,9 @@ std::string Scrape(int port) {
 }
 
 TEST(Contract, MetricsScrapePassesPromtoolAndCarriesTheSession) {
-  if (RunShell("command -v promtool").exit_code != 0)
-    GTEST_SKIP() << "promtool not installed (deploy/install-deps.sh installs Debian's prometheus package)";
-  const fs::path dir = TestDir("metrics");
+  LOCAID_NEEDS_TOOL(test_support::HaveCommand("promtool"),
+                    "promtool not installed (deploy/install-deps.sh installs Debian's prometheus package)");
+  const ScopedTempDir dir("contract_metrics");
   WriteFile(dir / "server.yaml", "metrics_listen: 127.0.0.1:0\n");
   ServerProcess server(dir, {"--config", (dir / "server.yaml").string()});
   ASSERT_GT(server.port(), 0) << server.log();
@@ -537,10 +556,14 @@ TEST(Contract, MetricsScrapePassesPromtoolAndCarriesTheSession) {
   for (int i = 0; i < 200 && MetricsPortFromLog(by_flag.log()) == 0; ++i)
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
   EXPECT_NE(Scrape(MetricsPortFromLog(by_flag.log())).find("locaid_sessions{"), std::string::npos);
-  const CliResult entry = RunShell("PATH=" + std::string(LOCAID_BIN_DIR) + ":$PATH LOCAID_METRICS_LISTEN=127.0.0.1:0 "
-                                   "LOCAID_LISTEN=127.0.0.1:0 LOCAID_CONFIG=/nonexistent timeout 3 bash " +
-                                   std::string(LOCAID_SOURCE_DIR) + "/deploy/entrypoint.sh server");
-  EXPECT_NE(entry.out.find("metrics on 127.0.0.1:"), std::string::npos) << entry.out << entry.err;
+  const fs::path entry_dir = dir / "entry";
+  const auto entry = StartEntrypoint(entry_dir, {"LOCAID_METRICS_LISTEN=127.0.0.1:0"}, {});
+  auto entry_log = [&] { return Slurp(entry_dir / "entry.out") + Slurp(entry_dir / "entry.err"); };
+  for (int i = 0; i < 1000 && MetricsPortFromLog(entry_log()) == 0 && !entry->Wait(0); ++i)  // at most 10 s
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  EXPECT_GT(MetricsPortFromLog(entry_log()), 0) << entry_log();
+  EXPECT_TRUE(entry->Signal(SIGTERM));
+  EXPECT_TRUE(entry->Wait(30)) << "the entrypoint's server did not exit after SIGTERM";
 }
 
 }  // namespace

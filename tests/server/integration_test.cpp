@@ -4,6 +4,7 @@
 #include "test_support.hpp"
 
 #include "kitti/dataset.hpp"
+#include "needs_tool.hpp"
 
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -19,12 +20,12 @@ constexpr int64_t kFramePeriodNs = 100'000'000;  // 10 Hz
 
 class ServerTest : public ::testing::Test {
  protected:
-  void StartServer(ServerConfig config = LoopbackConfig()) {
+  void StartServer(const ServerConfig& config) {
     server_ = std::make_unique<LocalizationServer>(config, FakeFactory());
     port_ = server_->port();
     stub_ = MakeStub(port_);
   }
-  void SetUp() override { StartServer(); }
+  void SetUp() override { StartServer(LoopbackConfig(dir_ / "work")); }
   void TearDown() override {
     if (server_) server_->Shutdown();
   }
@@ -50,6 +51,7 @@ class ServerTest : public ::testing::Test {
               n);
   }
 
+  const ScopedTempDir dir_{"server_test"};  // the test's files; outlives the server
   std::unique_ptr<LocalizationServer> server_;
   int port_ = 0;
   std::unique_ptr<v1::Localization::Stub> stub_;
@@ -262,9 +264,8 @@ TEST_F(ServerTest, SubscribeRecordsEveryFormatAndFromStartReplaysHistory) {
   for (int i = 0; i < kFrames; ++i) ASSERT_TRUE(push.Write(Gray8Frame((i + 1) * kFramePeriodNs)));
   ASSERT_TRUE(push.WaitPoses(kFrames));
   ASSERT_TRUE(push.Close().ok());  // session finished: history stays
-  const auto dir = std::filesystem::path(::testing::TempDir());
   for (const std::string format : {"csv", "tum", "kitti", "geojson"}) {
-    const auto out = dir / ("poses." + format);
+    const auto out = dir_ / ("poses." + format);
     const CliResult r = RunCli(port_, {"subscribe", id, "--from-start", "--format", format, "--out", out.string()});
     ASSERT_EQ(r.exit_code, 0) << format << ": " << r.err;
     const std::string text = Slurp(out);
@@ -288,9 +289,7 @@ TEST_F(ServerTest, SubscribeRecordsEveryFormatAndFromStartReplaysHistory) {
 }
 
 TEST_F(ServerTest, PythonClientRecordsCsvWithTheCliColumns) {
-  if (std::system("/usr/bin/python3 -c 'import grpc' 2>/dev/null") != 0) {
-    GTEST_SKIP() << "python3-grpcio not installed";
-  }
+  LOCAID_NEEDS_TOOL(std::system("/usr/bin/python3 -c 'import grpc' 2>/dev/null") == 0, "python3-grpcio not installed");
   Pusher push(stub_.get(), "");
   ASSERT_TRUE(push.ok());
   const std::string id = push.session().id();
@@ -298,8 +297,7 @@ TEST_F(ServerTest, PythonClientRecordsCsvWithTheCliColumns) {
   for (int i = 0; i < kFrames; ++i) ASSERT_TRUE(push.Write(Gray8Frame((i + 1) * kFramePeriodNs)));
   ASSERT_TRUE(push.WaitPoses(kFrames));
   ASSERT_TRUE(push.Close().ok());
-  const auto dir = std::filesystem::path(::testing::TempDir());
-  const auto py_csv = dir / "python.csv", cli_csv = dir / "cli.csv";
+  const auto py_csv = dir_ / "python.csv", cli_csv = dir_ / "cli.csv";
   const CliResult py = RunShell("PYTHONPATH=" + ShellQuote(LOCAID_PYTHON_STUBS) + " /usr/bin/python3 " +
                                 ShellQuote(std::string(LOCAID_SOURCE_DIR) + "/clients/python/locaid_client.py") +
                                 " --server 127.0.0.1:" + std::to_string(port_) + " subscribe " + id +
@@ -316,9 +314,7 @@ TEST_F(ServerTest, PythonClientRecordsCsvWithTheCliColumns) {
 // ignores SIGXFSZ, so the write fails with EFBIG): exit 4, a message naming
 // the file and the poses kept, and a CSV that ends with its last complete row.
 TEST_F(ServerTest, PythonRecorderKeepsAValidCsvWhenTheFileCannotGrow) {
-  if (std::system("/usr/bin/python3 -c 'import grpc' 2>/dev/null") != 0) {
-    GTEST_SKIP() << "python3-grpcio not installed";
-  }
+  LOCAID_NEEDS_TOOL(std::system("/usr/bin/python3 -c 'import grpc' 2>/dev/null") == 0, "python3-grpcio not installed");
   Pusher push(stub_.get(), "");
   ASSERT_TRUE(push.ok());
   const std::string id = push.session().id();
@@ -326,7 +322,7 @@ TEST_F(ServerTest, PythonRecorderKeepsAValidCsvWhenTheFileCannotGrow) {
   for (int i = 0; i < kFrames; ++i) ASSERT_TRUE(push.Write(Gray8Frame((i + 1) * kFramePeriodNs)));
   ASSERT_TRUE(push.WaitPoses(kFrames));
   ASSERT_TRUE(push.Close().ok());
-  const auto csv = std::filesystem::path(::testing::TempDir()) / "python_limited.csv";
+  const auto csv = dir_ / "python_limited.csv";
   const CliResult py = RunShell("ulimit -f 1; PYTHONPATH=" + ShellQuote(LOCAID_PYTHON_STUBS) + " /usr/bin/python3 " +
                                 ShellQuote(std::string(LOCAID_SOURCE_DIR) + "/clients/python/locaid_client.py") +
                                 " --server 127.0.0.1:" + std::to_string(port_) + " subscribe " + id +
@@ -385,7 +381,7 @@ TEST_F(ServerTest, BadRequestsGetPreciseStatusesAndTheServerKeepsServing) {
   EXPECT_NE(r.err.find("INVALID_ARGUMENT: kitti.path '/nonexistent/drive_0001_sync': does not exist"),
             std::string::npos)
       << r.err;
-  const auto empty = std::filesystem::path(::testing::TempDir()) / "not_a_drive";
+  const auto empty = dir_ / "not_a_drive";
   std::filesystem::create_directories(empty);
   r = RunCli(port_, {"session", "start", "--kitti", empty.string()});
   EXPECT_NE(r.err.find("FAILED_PRECONDITION"), std::string::npos) << r.err;
@@ -503,7 +499,7 @@ TEST_F(ServerTest, OxtsOlderThanTheLastAcceptedIsCountedNotUsed) {
 
 TEST_F(ServerTest, OversizeMessageIsRejectedAndTheStreamEnds) {
   server_->Shutdown();
-  ServerConfig c = LoopbackConfig();
+  ServerConfig c = LoopbackConfig(dir_ / "work");
   c.max_receive_mb = 1;
   StartServer(c);
   Pusher push(stub_.get(), "");
@@ -521,11 +517,7 @@ TEST_F(ServerTest, KittiDriveFromSharedDataSkipsMissingFramesAndCountsThem) {
       std::filesystem::path(LOCAID_SHARED_DATA) / "raw/2011_09_26/2011_09_26_drive_unknown_extract";
   if (!std::filesystem::exists(drive)) GTEST_SKIP() << "shared KITTI excerpt not found at " << drive;
   std::unique_ptr<kitti::StereoDataset> dataset;
-  try {
-    dataset = kitti::OpenDataset(drive);
-  } catch (const std::exception& e) {
-    GTEST_SKIP() << "kitti reader cannot open the excerpt yet: " << e.what();
-  }
+  ASSERT_NO_THROW(dataset = kitti::OpenDataset(drive)) << "the reader must open the excerpt";
   constexpr int64_t kLast = 30;
   uint64_t missing = 0;
   for (size_t i = 0; i <= kLast; ++i) missing += dataset->has_stereo(i) ? 0 : 1;
@@ -533,7 +525,7 @@ TEST_F(ServerTest, KittiDriveFromSharedDataSkipsMissingFramesAndCountsThem) {
                                      "--history", "1000"});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const std::string id = r.out.substr(0, r.out.find('\n'));
-  const auto csv = std::filesystem::path(::testing::TempDir()) / "kitti.csv";
+  const auto csv = dir_ / "kitti.csv";
   const CliResult sub = RunCli(port_, {"subscribe", id, "--from-start", "--format", "csv", "--out", csv.string()});
   ASSERT_EQ(sub.exit_code, 0) << sub.err;
   const v1::SessionStats stats = Stats(id);
@@ -545,7 +537,7 @@ TEST_F(ServerTest, KittiDriveFromSharedDataSkipsMissingFramesAndCountsThem) {
 
 TEST_F(ServerTest, TokenIsRequiredWhenConfigured) {
   server_->Shutdown();
-  ServerConfig c = LoopbackConfig();
+  ServerConfig c = LoopbackConfig(dir_ / "work");
   c.token = "s3cret";
   StartServer(c);
   CliResult r = RunCli(port_, {"session", "list"});
@@ -560,16 +552,14 @@ TEST_F(ServerTest, TokenIsRequiredWhenConfigured) {
 }
 
 TEST_F(ServerTest, TlsWithSelfSignedCertificate) {
-  if (std::system("command -v openssl >/dev/null 2>&1") != 0) GTEST_SKIP() << "openssl not installed";
-  const auto dir = std::filesystem::path(::testing::TempDir()) / "tls";
-  std::filesystem::create_directories(dir);
-  const auto cert = dir / "cert.pem", key = dir / "key.pem";
+  LOCAID_NEEDS_TOOL(test_support::HaveCommand("openssl"), "openssl not installed");
+  const auto cert = dir_ / "cert.pem", key = dir_ / "key.pem";
   const CliResult gen = RunShell("openssl req -x509 -newkey rsa:2048 -nodes -days 1 -subj /CN=localhost -addext "
                                  "subjectAltName=IP:127.0.0.1,DNS:localhost -keyout " +
                                  key.string() + " -out " + cert.string());
   ASSERT_EQ(gen.exit_code, 0) << gen.err;
   server_->Shutdown();
-  ServerConfig c = LoopbackConfig();
+  ServerConfig c = LoopbackConfig(dir_ / "work");
   c.tls_cert_file = cert.string();
   c.tls_key_file = key.string();
   StartServer(c);
@@ -584,17 +574,15 @@ TEST_F(ServerTest, TlsWithSelfSignedCertificate) {
 // The real locaid-server binary: SIGTERM ends open streams with a status and
 // the process exits (bounded wait; the 2 s target is measured in bench/).
 TEST(ServerProcess, SigtermEndsStreamsAndExits) {
-  const auto dir = std::filesystem::path(::testing::TempDir()) / "sigterm";
-  std::filesystem::create_directories(dir);
+  const ScopedTempDir dir("sigterm");
   const auto port_file = dir / "port";
-  std::filesystem::remove(port_file);
+  const std::string bin = std::string(LOCAID_BIN_DIR) + "/locaid-server";
+  const std::string pf = port_file.string(), work = (dir / "work").string();
   const pid_t pid = fork();
   ASSERT_GE(pid, 0);
   if (pid == 0) {
-    const std::string bin = std::string(LOCAID_BIN_DIR) + "/locaid-server";
-    const std::string pf = port_file.string();
-    execl(bin.c_str(), bin.c_str(), "--listen", "127.0.0.1:0", "--port-file", pf.c_str(), "--shutdown-grace-s",
-          "1", static_cast<char*>(nullptr));
+    execl(bin.c_str(), bin.c_str(), "--listen", "127.0.0.1:0", "--port-file", pf.c_str(), "--work-dir", work.c_str(),
+          "--shutdown-grace-s", "1", static_cast<char*>(nullptr));
     _exit(127);
   }
   int port = 0;

@@ -20,9 +20,14 @@
 // Memory: VmRSS of the server after a warm-up phase (same load, shorter) and
 // after the main phase, both measured idle (all sessions removed, all
 // subscribers gone); the second must be within kMaxRssGrowth of the first.
+// Coverage: the main phase goes on (another round of the same length) until
+// it has exercised every path: sessions that ended while others started, a
+// slow subscriber that lost poses, streams ended by their session and by
+// their deadline. How much load a machine carries per second is no assertion
+// (bench/ measures it); only a phase that never gets there fails.
 //
-// Duration of the main phase: LOCAID_SOAK_SECONDS (default 45). A few
-// minutes: `LOCAID_SOAK_SECONDS=300 ctest -R Soak --output-on-failure`.
+// Duration of a round of the main phase: LOCAID_SOAK_SECONDS (default 45). A
+// few minutes: `LOCAID_SOAK_SECONDS=300 ctest -R Soak --output-on-failure`.
 #include "test_support.hpp"
 
 #include <algorithm>
@@ -44,7 +49,8 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 constexpr double kDefaultSoakSeconds = 45;
-constexpr double kMaxSoakSeconds = 600;          // + warm-up and drain stays under the CTest TIMEOUT (900 s)
+constexpr double kMaxSoakSeconds = 600;          // all rounds; + warm-up and drain stays under the CTest TIMEOUT (900 s)
+constexpr int kMaxRounds = 3;                    // main-phase rounds until every path was exercised
 constexpr double kMaxRssGrowth = 0.10;           // end RSS <= warm RSS * (1 + this)
 constexpr int kSubscriberWorkers = 100;          // max concurrent subscribers
 constexpr int kConcurrentSessions = 3;
@@ -72,20 +78,18 @@ long VmRssKb(pid_t pid) {
   return -1;
 }
 
-// The real server binary on 127.0.0.1, port picked by the OS.
+// The real server binary on 127.0.0.1, port picked by the OS; its port
+// file and work_dir in a folder of its own.
 class ServerProcess {
  public:
   ServerProcess() {
-    const auto dir = std::filesystem::path(::testing::TempDir()) / ("soak_" + std::to_string(::getpid()));
-    std::filesystem::create_directories(dir);
-    const auto port_file = dir / "port";
-    std::filesystem::remove(port_file);
+    const auto port_file = dir_ / "port";
+    const std::string bin = std::string(LOCAID_BIN_DIR) + "/locaid-server";
+    const std::string pf = port_file.string(), work = (dir_ / "work").string();
     pid_ = fork();
     if (pid_ == 0) {
-      const std::string bin = std::string(LOCAID_BIN_DIR) + "/locaid-server";
-      const std::string pf = port_file.string();
-      execl(bin.c_str(), bin.c_str(), "--listen", "127.0.0.1:0", "--port-file", pf.c_str(), "--shutdown-grace-s", "1",
-            "--max-sessions", "8", static_cast<char*>(nullptr));
+      execl(bin.c_str(), bin.c_str(), "--listen", "127.0.0.1:0", "--port-file", pf.c_str(), "--work-dir",
+            work.c_str(), "--shutdown-grace-s", "1", "--max-sessions", "8", static_cast<char*>(nullptr));
       _exit(127);
     }
     for (int i = 0; i < 1000 && port_ == 0 && alive(); ++i) {
@@ -127,6 +131,7 @@ class ServerProcess {
   }
 
  private:
+  const ScopedTempDir dir_{"soak"};
   pid_t pid_ = -1;
   int port_ = 0;
   bool exited_ = false;
@@ -479,6 +484,16 @@ void PrintFigures(const char* phase, double seconds, const Figures& f) {
   std::fflush(stdout);
 }
 
+// The paths a main phase must have exercised; "" when it has.
+std::string NotExercised(const Figures& f) {
+  std::string missing;
+  if (f.sessions.load() <= kConcurrentSessions) missing += " sessions that ended while others started;";
+  if (f.drops_seen.load() == 0) missing += " a slow subscriber that lost poses (drop accounting);";
+  if (f.ended_ok.load() == 0) missing += " a stream ended by its session;";
+  if (f.disconnected.load() == 0) missing += " a stream ended by its deadline;";
+  return missing;
+}
+
 void ExpectNoFailures(const Figures& f, const char* phase) {
   EXPECT_TRUE(f.failures.empty()) << phase << ": " << f.failures.size() << " failure(s), first: "
                                   << (f.failures.empty() ? "" : f.failures.front());
@@ -502,10 +517,15 @@ TEST(Soak, ChurningSubscribersWhileSessionsStartAndStop) {
   const long rss_warm_kb = VmRssKb(server.pid());
 
   Figures main;
-  Load(server.port(), kSeed + 1, &main).Run(soak_s);
-  PrintFigures("load", soak_s, main);
-  ASSERT_TRUE(server.alive()) << "server died under load: " << server.Describe();
+  int rounds = 0;
+  do {
+    Load(server.port(), kSeed + 1 + static_cast<uint64_t>(rounds), &main).Run(soak_s);
+    ++rounds;
+    PrintFigures("load", soak_s * rounds, main);
+    ASSERT_TRUE(server.alive()) << "server died under load: " << server.Describe();
+  } while (!NotExercised(main).empty() && rounds < kMaxRounds && soak_s * (rounds + 1) <= kMaxSoakSeconds);
   ExpectNoFailures(main, "load");
+  EXPECT_EQ(NotExercised(main), "") << "not exercised in " << rounds << " rounds of " << soak_s << " s";
   EXPECT_EQ(ListedSessions(server.port()), 0);
   std::this_thread::sleep_for(std::chrono::milliseconds(static_cast<int64_t>(kSettleS * 1000)));
   const long rss_end_kb = VmRssKb(server.pid());
@@ -515,13 +535,6 @@ TEST(Soak, ChurningSubscribersWhileSessionsStartAndStop) {
               rss_end_kb, 100 * growth, 100 * kMaxRssGrowth);
   ASSERT_GT(rss_warm_kb, 0);
   EXPECT_LE(growth, kMaxRssGrowth) << "server memory grew from " << rss_warm_kb << " kB to " << rss_end_kb << " kB";
-  if (soak_s >= kDefaultSoakSeconds) {
-    EXPECT_GE(main.subscribers.load(), 300);
-  }
-  EXPECT_GT(main.sessions.load(), kConcurrentSessions);  // sessions ended and new ones started
-  EXPECT_GT(main.drops_seen.load(), 0u) << "no slow subscriber lost a pose: the drop accounting was not exercised";
-  EXPECT_GT(main.ended_ok.load(), 0);
-  EXPECT_GT(main.disconnected.load(), 0);
   EXPECT_EQ(server.Terminate(), 0) << server.Describe();
 }
 
