@@ -177,8 +177,8 @@ class Contract(unittest.TestCase):
             pb.StartSessionRequest(kitti=pb.KittiSource(path="")),
             pb.StartSessionRequest(kitti=pb.KittiSource(path="/nonexistent/drive")),
             pb.StartSessionRequest(kitti=pb.KittiSource(path="/" + "p" * (31 << 20))),
-            pb.StartSessionRequest(kitti=pb.KittiSource(path=tempfile.gettempdir(), first_frame=-1)),
-            pb.StartSessionRequest(kitti=pb.KittiSource(path=tempfile.gettempdir(), first_frame=10, last_frame=5)),
+            pb.StartSessionRequest(kitti=pb.KittiSource(path=self.workdir, first_frame=-1)),
+            pb.StartSessionRequest(kitti=pb.KittiSource(path=self.workdir, first_frame=10, last_frame=5)),
             pb.StartSessionRequest(synthetic=pb.SyntheticSource(frames=100000)),
             pb.StartSessionRequest(synthetic=pb.SyntheticSource(frames=1)),
             pb.StartSessionRequest(synthetic=pb.SyntheticSource(frames=20, options_yaml="width: [")),
@@ -241,32 +241,60 @@ class Contract(unittest.TestCase):
         self.assertEqual(code, grpc.StatusCode.NOT_FOUND)
 
     def test_concurrent_start_and_stop(self):
+        # 6 clients run 5 start/stop cycles each at once; every cycle must
+        # complete. 6 sessions are below max_sessions (16), but
+        # RESOURCE_EXHAUSTED is the documented answer at the cap, so a start
+        # refused with it is retried (bounded) rather than ending the worker.
+        workers, cycles, max_retries = 6, 5, 200
+        done = [0] * workers
+        ids = [[] for _ in range(workers)]
         errors = []
 
-        def worker():
+        def worker(i):
+            retries = 0
             try:
-                for _ in range(5):
-                    s = self.start_live()
-                    self.stop(s.id, remove=True)
-            except grpc.RpcError as e:  # RESOURCE_EXHAUSTED is allowed under the session cap
-                if e.code() != grpc.StatusCode.RESOURCE_EXHAUSTED:
-                    errors.append(e)
-        threads = [threading.Thread(target=worker) for _ in range(6)]
+                while done[i] < cycles:
+                    try:
+                        s = self.start_live()
+                    except grpc.RpcError as e:
+                        if e.code() == grpc.StatusCode.RESOURCE_EXHAUSTED and retries < max_retries:
+                            retries += 1
+                            time.sleep(0.05)
+                            continue
+                        raise
+                    ids[i].append(s.id)
+                    stopped = self.stop(s.id, remove=True)
+                    if stopped.state != pb.SESSION_STATE_STOPPED:
+                        errors.append(f"worker {i}: {s.id} stopped in state {stopped.state}")
+                    done[i] += 1
+            except Exception as e:  # noqa: BLE001 -- any failure of a worker fails the case
+                errors.append(f"worker {i} after {done[i]} cycles: {e!r}")
+        threads = [threading.Thread(target=worker, args=(i,)) for i in range(workers)]
         for t in threads:
             t.start()
         for t in threads:
-            t.join(timeout=60)
+            t.join(timeout=120)  # a guard against a hang, not a speed requirement
+        self.assertEqual([t.name for t in threads if t.is_alive()], [], "workers still running")
         self.assertEqual(errors, [])
+        self.assertEqual(done, [cycles] * workers)
+        started = {sid for per_worker in ids for sid in per_worker}
+        self.assertEqual(len(started), workers * cycles, "a session id was handed out twice")
+        listed = {s.id for s in self.stub.ListSessions(pb.ListSessionsRequest(), timeout=10).sessions}
+        self.assertEqual(started & listed, set(), "removed sessions are still listed")
 
-    def test_synthetic_session_is_starting_then_runs_and_stops_fast(self):
+    def test_synthetic_session_is_starting_and_a_stop_cancels_its_render(self):
+        # 1500 full-size frames render for minutes: a StopSession that waited
+        # for the render would miss its deadline, and the session would have
+        # played frames. How fast the stop returns is a benchmark figure.
         s = self.stub.StartSession(pb.StartSessionRequest(synthetic=pb.SyntheticSource(seed=5, frames=1500)),
                                    timeout=30)
         self.assertEqual(s.state, pb.SESSION_STATE_STARTING)
-        time.sleep(0.3)
-        t0 = time.monotonic()
-        stopped = self.stop(s.id, remove=True)
-        self.assertLess(time.monotonic() - t0, 1.0)
+        stopped = self.stub.StopSession(pb.StopSessionRequest(session_id=s.id), timeout=30)
         self.assertEqual(stopped.state, pb.SESSION_STATE_STOPPED)
+        after = self.stub.GetSession(pb.GetSessionRequest(session_id=s.id), timeout=10)
+        self.assertEqual(after.state, pb.SESSION_STATE_STOPPED)
+        self.assertEqual(after.stats.frames_in, 0, "the session played frames: the render was not cancelled")
+        self.stop(s.id, remove=True)
 
     def test_push_stream_contract(self):
         call = self.stub.PushSensorData(iter([pb.PushRequest(frame=pb.StereoFrame(t_ns=1))]), timeout=10)

@@ -27,14 +27,37 @@ TEST(IoOxtsPose, AttitudeFollowsOxtsConvention) {
   EXPECT_LT((R - want).norm(), kTol);
 }
 
+// A record 12.5 m east, 3 m south and 1.5 m above the origin, placed by hand
+// with the WGS84 radii of curvature at the origin (latitude 49 deg, 100 m up;
+// independent of GeographicLib and of the code under test). That placement is
+// first order in the offset: at 13 m the tangent plane differs by ~2e-5 m
+// (curvature), below kFirstOrderTolM, while a sphere instead of the ellipsoid
+// (0.3 % in the north scale here), the origin's height left out (2e-4 m) or
+// swapped axes are off by more.
 TEST(IoOxtsPose, EnuPoseFromLatLon) {
-  const GeographicLib::LocalCartesian enu(49.0, 8.4, 100.0);
+  constexpr double kLat0Deg = 49.0, kLon0Deg = 8.4, kAlt0M = 100.0;
+  constexpr double kEastM = 12.5, kNorthM = -3.0, kUpM = 1.5;
+  constexpr double kFirstOrderTolM = 1e-4;
+  constexpr double kA = 6378137.0, kF = 1 / 298.257223563, kE2 = kF * (2 - kF);  // WGS84
+  const double phi = kLat0Deg * M_PI / 180;
+  const double w = 1 - kE2 * std::sin(phi) * std::sin(phi);
+  const double meridian_m = kA * (1 - kE2) / std::pow(w, 1.5);  // north-south radius of curvature
+  const double prime_vertical_m = kA / std::sqrt(w);            // east-west, before cos(latitude)
   OxtsRecord r;
-  enu.Reverse(12.5, -3.0, 1.5, r.lat_deg, r.lon_deg, r.alt_m);
+  r.lat_deg = kLat0Deg + kNorthM / (meridian_m + kAlt0M) * 180 / M_PI;
+  r.lon_deg = kLon0Deg + kEastM / ((prime_vertical_m + kAlt0M) * std::cos(phi)) * 180 / M_PI;
+  r.alt_m = kAlt0M + kUpM;
   r.yaw_rad = 0.7;
+  const GeographicLib::LocalCartesian enu(kLat0Deg, kLon0Deg, kAlt0M);
   const Eigen::Isometry3d T = OxtsToEnuPose(r, enu);
-  EXPECT_LT((T.translation() - Eigen::Vector3d(12.5, -3.0, 1.5)).norm(), 1e-6);
-  EXPECT_LT((T.linear() - OxtsAttitude(0, 0, 0.7)).norm(), kTol);
+  EXPECT_LT((T.translation() - Eigen::Vector3d(kEastM, kNorthM, kUpM)).norm(), kFirstOrderTolM)
+      << T.translation().transpose();
+  // Yaw 0.7 rad, no roll or pitch: a rotation about up, written out.
+  Eigen::Matrix3d want;
+  want << std::cos(0.7), -std::sin(0.7), 0,  //
+      std::sin(0.7), std::cos(0.7), 0,       //
+      0, 0, 1;
+  EXPECT_LT((T.linear() - want).norm(), kTol);
 }
 
 TEST(IoOxtsPose, InterpolatesLinearlyAndBySlerp) {

@@ -7,6 +7,7 @@
 #include "synth/synth.hpp"
 #include "synth/texture.hpp"
 #include "synth/world.hpp"
+#include "temp_dir.hpp"
 
 #include <GeographicLib/LocalCartesian.hpp>
 #include <gtest/gtest.h>
@@ -23,6 +24,7 @@
 
 namespace fs = std::filesystem;
 namespace synth = locaid::synth;
+using locaid::test_support::ScopedTempDir;
 
 namespace {
 
@@ -82,8 +84,7 @@ constexpr int kWidth = 621, kHeight = 188;  // half KITTI size keeps the suite f
 class SynthDriveTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = new fs::path(fs::path(::testing::TempDir()) / ("locaid_synth_drive_test_" + std::to_string(::getpid())));
-    fs::remove_all(*dir_);
+    dir_ = new ScopedTempDir("synth_drive");
     synth::SynthConfig cfg;
     cfg.seed = 7;
     cfg.frames = kFrames;
@@ -92,14 +93,13 @@ class SynthDriveTest : public ::testing::Test {
     summary_ = new synth::SynthSummary(synth::GenerateDrive(cfg, *dir_));
   }
   static void TearDownTestSuite() {
-    fs::remove_all(*dir_);
     delete dir_;
     delete summary_;
   }
-  static fs::path* dir_;
+  static ScopedTempDir* dir_;
   static synth::SynthSummary* summary_;
 };
-fs::path* SynthDriveTest::dir_ = nullptr;
+ScopedTempDir* SynthDriveTest::dir_ = nullptr;
 synth::SynthSummary* SynthDriveTest::summary_ = nullptr;
 
 TEST_F(SynthDriveTest, WritesKittiSyncLayoutWithRightCountsAndFormats) {
@@ -301,14 +301,15 @@ TEST(SynthMotionTest, SpeedStaysBetween5And20AndBrakingPitchesFrontDown) {
   EXPECT_GE(vmin, 4.99);
   EXPECT_LE(vmax, 20.01);
   EXPECT_GT(vmax - vmin, 5.0) << "speed should change along the drive";
-  if (braking > 0) {
-    EXPECT_GT(front_down, braking * 0.8);
-  }
+  // The pitch check needs braking on the level to look at: seed 11 brakes
+  // there for 5 s (100 samples); at least 1 s is required.
+  constexpr int kMinBrakingSamples = 20;
+  ASSERT_GE(braking, kMinBrakingSamples) << "too little braking on level road to check the pitch; pick another seed";
+  EXPECT_GT(front_down, braking * 0.8) << front_down << " of " << braking << " braking samples pitch front down";
 }
 
 TEST(SynthDeterminismTest, SameSeedSameBytesOtherSeedDifferent) {
-  const fs::path base = fs::path(::testing::TempDir()) / ("locaid_synth_determinism_" + std::to_string(::getpid()));
-  fs::remove_all(base);
+  const ScopedTempDir base("synth_determinism");
   auto run = [&](const std::string& name, uint64_t seed) {
     synth::SynthConfig cfg;
     cfg.seed = seed;
@@ -328,19 +329,19 @@ TEST(SynthDeterminismTest, SameSeedSameBytesOtherSeedDifferent) {
   int differing = 0;
   for (const auto& [name, text] : a) differing += c.count(name) && c.at(name) != text;
   EXPECT_GT(differing, 20);  // images, oxts, ground truth differ
-  fs::remove_all(base);
 }
 
 TEST(SynthErrorsTest, BadConfigAndUnwritableFolderThrowClearly) {
+  const ScopedTempDir dir("synth_errors");
   synth::SynthConfig cfg;
   cfg.frames = 1;
-  EXPECT_THROW(synth::GenerateDrive(cfg, fs::path(::testing::TempDir()) / "x"), locaid::kitti::Error);
+  EXPECT_THROW(synth::GenerateDrive(cfg, dir / "x"), locaid::kitti::Error);
   cfg.frames = 3;
   cfg.width = 10;
-  EXPECT_THROW(synth::GenerateDrive(cfg, fs::path(::testing::TempDir()) / "x"), locaid::kitti::Error);
+  EXPECT_THROW(synth::GenerateDrive(cfg, dir / "x"), locaid::kitti::Error);
   cfg.width = 320;
   cfg.height = 96;
-  const fs::path file = fs::path(::testing::TempDir()) / "locaid_synth_not_a_dir";
+  const fs::path file = dir / "not_a_dir";
   std::ofstream(file) << "x";
   try {
     synth::GenerateDrive(cfg, file / "sub");
@@ -348,10 +349,8 @@ TEST(SynthErrorsTest, BadConfigAndUnwritableFolderThrowClearly) {
   } catch (const locaid::kitti::Error& e) {
     EXPECT_NE(std::string(e.what()).find("cannot create folder"), std::string::npos) << e.what();
   }
-  fs::remove(file);
   // A date that is not on the calendar is refused before anything is written.
-  const fs::path out = fs::path(::testing::TempDir()) / ("locaid_synth_bad_date_" + std::to_string(::getpid()));
-  fs::remove_all(out);
+  const fs::path out = dir / "bad_date";
   cfg.date = "2024_02_30";
   EXPECT_EQ(locaid::test_support::ErrorOf<locaid::kitti::Error>([&] { synth::ValidateSynthConfig(cfg); }),
             "synth: date: day 30 out of range in timestamp '2024-02-30 00:00:00.0' (expected "
@@ -365,9 +364,10 @@ TEST(SynthErrorsTest, BadSpeedOrCurveRangeIsRefusedWithTheRange) {
   cfg.frames = 3;
   cfg.width = 320;
   cfg.height = 96;
+  const ScopedTempDir dir("synth_errors");
   auto message = [&]() -> std::string {
     try {
-      synth::GenerateDrive(cfg, fs::path(::testing::TempDir()) / "locaid_synth_bad_range");
+      synth::GenerateDrive(cfg, dir / "bad_range");
     } catch (const locaid::kitti::Error& e) {
       return e.what();
     }
@@ -385,14 +385,12 @@ TEST(SynthErrorsTest, BadSpeedOrCurveRangeIsRefusedWithTheRange) {
   cfg.curve_radius_min_m = 500;
   cfg.curve_radius_max_m = 400;
   EXPECT_NE(message().find("curve radius range 500"), std::string::npos) << message();
-  fs::remove_all(fs::path(::testing::TempDir()) / "locaid_synth_bad_range");
 }
 
 // A motorway drive (20-30 m/s, wide curves) at 20 Hz: the speeds stay in the
 // range, and the frames and OXTS records come at the asked rate.
 TEST(SynthMotionTest, MotorwaySpeedAndFrameRateAreHonoured) {
-  const fs::path base = fs::path(::testing::TempDir()) / ("locaid_synth_motorway_" + std::to_string(::getpid()));
-  fs::remove_all(base);
+  const ScopedTempDir base("synth_motorway");
   synth::SynthConfig cfg;
   cfg.seed = 4;
   cfg.frames = 60;
@@ -416,7 +414,6 @@ TEST(SynthMotionTest, MotorwaySpeedAndFrameRateAreHonoured) {
   if (gap < 0) gap += 60;
   EXPECT_NEAR(gap, 0.05, 0.004);
   EXPECT_EQ(Lines(s.drive_dir / "oxts" / "timestamps.txt").size(), 60u);
-  fs::remove_all(base);
 }
 
 // Stereo geometry: a textured scene point seen in the left image is found in
