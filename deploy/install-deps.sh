@@ -2,10 +2,17 @@
 # Installs everything locaid needs to build, test and run, from Debian 12
 # packages only. Used by the README commands, .ci/run and deploy/Containerfile.
 #
-#   deploy/install-deps.sh            # build + test dependencies
+#   deploy/install-deps.sh            # build + test dependencies (everything a test runs)
 #   deploy/install-deps.sh --build    # build dependencies only (container build stage)
 #   deploy/install-deps.sh --runtime  # only the shared libraries the binaries need
-#   deploy/install-deps.sh --fuzz     # build + test dependencies and clang/libFuzzer (fuzz/)
+#   deploy/install-deps.sh --fuzz     # the same as no option (kept: clang/libFuzzer are
+#                                     # test dependencies now, for the fuzz targets' test)
+#
+# Node.js and npm (the Foxglove client and the official MCAP reader tests):
+# Debian's nodejs and npm are installed only when `node` or `npm` is missing,
+# so a newer Node.js already on the machine (CI images carry Node.js 20) is
+# kept. A test that needs a tool this script installs fails when CI is set
+# and the tool is missing (tests/needs_tool.hpp, tests/record/js/setup.sh).
 set -euo pipefail
 
 build_pkgs=(
@@ -25,13 +32,22 @@ runtime_pkgs=(
   libprometheus-cpp-pull1.0 libprometheus-cpp-core1.0 libgps28 libzstd1 zlib1g
 )
 
-fuzz_pkgs=(clang libclang-rt-14-dev)  # optional: libFuzzer + sanitizer runtimes
-test_pkgs=(prometheus gpsd gpsd-clients python3-gps)  # promtool (metrics test); gpsd + gpsfake (NMEA test)
+test_pkgs=(
+  prometheus                      # promtool (metrics test)
+  gpsd gpsd-clients python3-gps   # gpsd + gpsfake (NMEA and gpsd tests)
+  openssl                         # self-signed certificates (TLS tests)
+  clang libclang-rt-14-dev        # libFuzzer + sanitizer runtimes (fuzz/ targets and their test)
+)
+node_pkgs=()  # Debian's Node.js only where none is installed (see above)
+command -v node >/dev/null 2>&1 || node_pkgs+=(nodejs)
+command -v npm >/dev/null 2>&1 || node_pkgs+=(npm)
 
-pkgs=("${build_pkgs[@]}" "${test_pkgs[@]}")
-[[ "${1:-}" == "--build" ]] && pkgs=("${build_pkgs[@]}")
-[[ "${1:-}" == "--runtime" ]] && pkgs=("${runtime_pkgs[@]}")
-[[ "${1:-}" == "--fuzz" ]] && pkgs+=("${fuzz_pkgs[@]}")
+case "${1:-}" in
+  "" | --fuzz) pkgs=("${build_pkgs[@]}" "${test_pkgs[@]}" "${node_pkgs[@]}") ;;
+  --build) pkgs=("${build_pkgs[@]}") ;;
+  --runtime) pkgs=("${runtime_pkgs[@]}") ;;
+  *) echo "install-deps: unknown option '$1' (--build, --runtime, --fuzz or none)" >&2; exit 2 ;;
+esac
 
 missing=()
 for p in "${pkgs[@]}"; do

@@ -5,4 +5,4 @@
 # Fails without node/npm when CI is set (see tests/record/js/setup.sh).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
-exec bash "$here/../../record/js/setup.sh" "${1:-$here}" "$here"
+exec "${BASH:-bash}" "$here/../../record/js/setup.sh" "${1:-$here}" "$here"
