@@ -44,7 +44,8 @@ import time
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 REAL = "raw/2011_09_26/2011_09_26_drive_unknown_extract"
-NUMBER = re.compile(r"[+-]?\d{1,3}(?:,\d{3})+(?:\.\d+)?|[+-]?\d+(?:\.\d+)?")
+# A number as printed: 1,009 / 0.957 / +0.15; a '-' right after a digit is a range ("0.267-0.419"), not a sign.
+NUMBER = re.compile(r"(?:(?<![\w.])[+-])?(?:\d{1,3}(?:,\d{3})+|\d+)(?:\.\d+)?")
 
 
 class RunFailed(Exception):
