@@ -94,7 +94,11 @@ inline NodeRun RunNode(const std::filesystem::path& script, const std::vector<st
   return {r.exit_code, json::parse(r.out, nullptr, false), r.out + r.err};
 }
 
-// StartSession{synthetic{seed, frames}} at `rate` (0: as fast as possible).
+// StartSession{synthetic{seed, frames}} at `rate` (0: as fast as possible),
+// returned once its drive is rendered (the session is past STARTING): how
+// long a render takes depends on the machine, so the tests' bounded waits for
+// what the bridge does start from there. The wait itself is only a guard
+// against a hang.
 inline std::string StartSynthetic(v1::Localization::Stub* stub, uint64_t seed, uint32_t frames, double rate) {
   v1::StartSessionRequest req;
   req.mutable_synthetic()->set_seed(seed);
@@ -105,6 +109,13 @@ inline std::string StartSynthetic(v1::Localization::Stub* stub, uint64_t seed, u
   v1::Session session;
   const grpc::Status s = stub->StartSession(&ctx, req, &session);
   EXPECT_TRUE(s.ok()) << s.error_message();
+  if (!s.ok()) return session.id();
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(300);
+  while (session.state() == v1::SESSION_STATE_STARTING && std::chrono::steady_clock::now() < until) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    session = st::GetSession(stub, session.id());
+  }
+  EXPECT_NE(session.state(), v1::SESSION_STATE_STARTING) << session.id() << ": the render never ended";
   return session.id();
 }
 
