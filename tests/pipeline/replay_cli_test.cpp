@@ -52,8 +52,19 @@ TEST_F(ReplayCli, VoCacheReproducesTheFilterResultWithoutVo) {
   ASSERT_TRUE(fs::exists(cache));
   EXPECT_EQ(JsonField(first.out, "vo_from_cache"), " false");
   // The cached run reads no image: with every left image garbled it gives
-  // the same result.
-  for (const auto& e : fs::directory_iterator(drive_ / "image_00" / "data")) {
+  // the same result. The images are put back afterwards: the suite's tests
+  // share the drive (one process runs them all when not run by CTest).
+  const fs::path left = drive_ / "image_00" / "data", kept = root_ / "image_00_kept";
+  fs::copy(left, kept, fs::copy_options::recursive);
+  struct PutBack {
+    fs::path from, to;
+    ~PutBack() {
+      std::error_code ec;
+      fs::remove_all(to, ec);
+      fs::rename(from, to, ec);
+    }
+  } put_back{kept, left};
+  for (const auto& e : fs::directory_iterator(left)) {
     std::ofstream(e.path(), std::ios::binary | std::ios::trunc) << "not a PNG any more";
   }
   const auto second = RunCommand(Replay("--vo-cache " + cache.string()));
