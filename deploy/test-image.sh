@@ -1,20 +1,26 @@
 #!/usr/bin/env bash
-# Builds the locaid container image with podman and proves it works:
+# Builds the locaid container image with podman or docker and proves it works:
 # start the server from the image, check health, start a session, stream
 # poses with the CLI, stop with SIGTERM and check the clean exit.
 #
 #   deploy/test-image.sh [--tag IMAGE] [--base IMAGE] [--no-cache] [--skip-build]
 #                        [--run auto|podman|chroot] [--port N] [--keep]
+#                        [--engine podman|docker]
 #
-# Run as root on Debian 12 (installs podman, runc and debootstrap if missing).
+# Run as root on Debian 12. --engine (env LOCAID_CONTAINER_ENGINE; default
+# podman) picks the tool: podman (installed with runc and debootstrap if
+# missing) or docker (a running Docker engine: `docker info` must answer;
+# debootstrap is installed if a base image has to be made).
 # Paths it can take, printed as it goes:
 #   base  : --base IMAGE | local localhost/debian:12 | registry debian:12 |
 #           debootstrap of the apt mirror in /etc/apt/sources.list* (imported
 #           as localhost/debian:12) when no registry is reachable
 #   build : podman build --isolation chroot (works without a container runtime)
+#           | docker build
 #   run   : podman run (default runtime) | podman run --runtime runc with
 #           lowered rlimits (hosts without CAP_SYS_RESOURCE / hybrid cgroups) |
-#           chroot into a podman-mounted container filesystem as uid 10001
+#           chroot into a podman-mounted container filesystem as uid 10001 |
+#           docker run
 # Everything generated lives in $LOCAID_DEPLOY_DIR (default /var/tmp/locaid-deploy).
 set -euo pipefail
 
@@ -28,6 +34,7 @@ RUN_MODE=auto
 PORT=50751
 KEEP=0
 MAX_IMAGE_MB=350
+ENGINE=${LOCAID_CONTAINER_ENGINE:-podman}
 while (($#)); do
   case "$1" in
     --tag) TAG=$2; shift 2 ;;
@@ -37,7 +44,8 @@ while (($#)); do
     --run) RUN_MODE=$2; shift 2 ;;
     --port) PORT=$2; shift 2 ;;
     --keep) KEEP=1; shift ;;
-    -h | --help) sed -n '2,19p' "$0"; exit 0 ;;
+    --engine) ENGINE=$2; shift 2 ;;
+    -h | --help) sed -n '2,24p' "$0"; exit 0 ;;
     *) echo "test-image: unknown argument '$1'" >&2; exit 2 ;;
   esac
 done
@@ -47,13 +55,30 @@ fail() { echo "test-image: FAIL: $*" >&2; exit 1; }
 summary=()
 note() { summary+=("$*"); say "$*"; }
 
-[[ $(id -u) -eq 0 ]] || fail "run as root (podman build/mount and chroot need it)"
+[[ $ENGINE == podman || $ENGINE == docker ]] || { echo "test-image: --engine must be podman or docker, got '$ENGINE'" >&2; exit 2; }
+[[ $ENGINE == docker && $RUN_MODE == chroot ]] && { echo "test-image: --run chroot needs --engine podman" >&2; exit 2; }
+[[ $(id -u) -eq 0 ]] || fail "run as root ($ENGINE build/mount and chroot need it)"
 mkdir -p "$STATE"
+
+# The few commands whose spelling differs between the two engines.
+image_exists() { if [[ $ENGINE == podman ]]; then podman image exists "$1"; else docker image inspect "$1" >/dev/null 2>&1; fi; }
+# Copies an image's filesystem into a fresh folder; prints the folder.
+image_files() {
+  local dir cid
+  dir=$(mktemp -d "$STATE/files.XXXXXX")
+  cid=$(docker create "$1") && docker export "$cid" | tar -C "$dir" -x && docker rm "$cid" >/dev/null
+  echo "$dir"
+}
 
 # ------------------------------------------------------------ tools ----
 need=()
-command -v podman >/dev/null || need+=(podman)
-command -v runc >/dev/null || need+=(runc)
+if [[ $ENGINE == podman ]]; then
+  command -v podman >/dev/null || need+=(podman)
+  command -v runc >/dev/null || need+=(runc)
+else
+  command -v docker >/dev/null || fail "--engine docker: no docker command"
+  docker info >/dev/null 2>&1 || fail "--engine docker: the Docker engine does not answer (docker info); start dockerd"
+fi
 command -v debootstrap >/dev/null || need+=(debootstrap)
 if ((${#need[@]})); then
   say "installing ${need[*]} with apt-get"
@@ -61,7 +86,11 @@ if ((${#need[@]})); then
   apt-get update -qq
   apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
 fi
-note "podman $(podman --version | awk '{print $3}'), storage $(podman info --format '{{.Store.GraphDriverName}}')"
+if [[ $ENGINE == podman ]]; then
+  note "podman $(podman --version | awk '{print $3}'), storage $(podman info --format '{{.Store.GraphDriverName}}')"
+else
+  note "docker engine $(docker version --format '{{.Server.Version}}'), storage $(docker info --format '{{.Driver}}')"
+fi
 
 # ------------------------------------------------------------- base ----
 apt_mirror() {  # first Debian (non-security) URI of the host's apt sources
@@ -77,10 +106,10 @@ apt_mirror() {  # first Debian (non-security) URI of the host's apt sources
 
 if [[ -n $BASE ]]; then
   note "base: $BASE (given)"
-elif podman image exists localhost/debian:12; then
+elif image_exists localhost/debian:12; then
   BASE=localhost/debian:12
   note "base: localhost/debian:12 (already imported)"
-elif timeout 90 podman pull -q docker.io/library/debian:12 >/dev/null 2>&1; then
+elif timeout 90 "$ENGINE" pull -q docker.io/library/debian:12 >/dev/null 2>&1; then
   BASE=docker.io/library/debian:12
   note "base: docker.io/library/debian:12 (pulled from the registry)"
 else
@@ -94,7 +123,7 @@ else
   sec="${mirror%/debian}/debian-security"
   printf 'deb %s bookworm main\ndeb %s bookworm-updates main\ndeb %s bookworm-security main\n' \
     "$mirror" "$mirror" "$sec" >"$rootfs/etc/apt/sources.list"
-  tar -C "$rootfs" -c . | podman import -q - localhost/debian:12 >/dev/null
+  tar -C "$rootfs" -c . | "$ENGINE" import - localhost/debian:12 >/dev/null
   BASE=localhost/debian:12
   note "base: localhost/debian:12 made with debootstrap from $mirror (no registry reachable)"
 fi
@@ -111,36 +140,41 @@ if ((SKIP_BUILD == 0)); then
       cp -n /var/cache/apt/archives/*.deb "$cache_dir/"
   fi
   cache=(-v "$cache_dir:/var/cache/apt/archives")
-  say "building $TAG (podman build --isolation chroot, base $BASE, apt cache $cache_dir: $(ls "$cache_dir" | grep -c '\.deb$') packages)"
+  if [[ $ENGINE == podman ]]; then
+    how=(podman build --isolation chroot --format docker "${cache[@]}")
+    say "building $TAG (${how[*]:0:4}, base $BASE, apt cache $cache_dir: $(ls "$cache_dir" | grep -c '\.deb$') packages)"
+  else
+    how=(docker build)  # no bind mounts while building: apt downloads afresh
+    say "building $TAG (docker build, base $BASE)"
+  fi
   t0=$(date +%s)
-  podman build --isolation chroot --format docker "${NO_CACHE[@]}" "${cache[@]}" \
-    --build-arg BASE_IMAGE="$BASE" --build-arg BUILD_JOBS="$(nproc)" \
+  "${how[@]}" "${NO_CACHE[@]}" --build-arg BASE_IMAGE="$BASE" --build-arg BUILD_JOBS="$(nproc)" \
     -f "$ROOT/deploy/Containerfile" -t "$TAG" "$ROOT" >"$STATE/build.log" 2>&1 ||
-    { tail -n 40 "$STATE/build.log" >&2; fail "podman build failed, full log $STATE/build.log"; }
+    { tail -n 40 "$STATE/build.log" >&2; fail "$ENGINE build failed, full log $STATE/build.log"; }
   t1=$(date +%s)
-  note "build: podman build --isolation chroot ${NO_CACHE[*]} took $((t1 - t0)) s on $(nproc) cores (log $STATE/build.log)"
+  note "build: ${how[*]:0:3} ${NO_CACHE[*]} took $((t1 - t0)) s on $(nproc) cores (log $STATE/build.log)"
 fi
-podman image exists "$TAG" || fail "image $TAG does not exist"
+image_exists "$TAG" || fail "image $TAG does not exist"
 
 # ----------------------------------------------------- image checks ----
-size=$(podman image inspect --format '{{.Size}}' "$TAG")
+size=$("$ENGINE" image inspect --format '{{.Size}}' "$TAG")
 size_mb=$((size / 1000000))
 ((size_mb <= MAX_IMAGE_MB)) || fail "image is $size_mb MB > $MAX_IMAGE_MB MB"
 note "image size: $size_mb MB (limit $MAX_IMAGE_MB MB)"
-user=$(podman image inspect --format '{{.Config.User}}' "$TAG")
+user=$("$ENGINE" image inspect --format '{{.Config.User}}' "$TAG")
 [[ -n $user && ${user%%:*} != 0 && ${user%%:*} != root ]] || fail "image runs as root (User='$user')"
-ports=$(podman image inspect --format '{{range $p, $v := .Config.ExposedPorts}}{{$p}} {{end}}' "$TAG")
+ports=$("$ENGINE" image inspect --format '{{range $p, $v := .Config.ExposedPorts}}{{$p}} {{end}}' "$TAG")
 [[ $ports == *50051/tcp* ]] || fail "port 50051 not exposed (ExposedPorts: $ports)"
-hc=$(podman image inspect --format '{{if .Config.Healthcheck}}{{join .Config.Healthcheck.Test " "}}{{end}}' "$TAG" 2>/dev/null || true)
+hc=$("$ENGINE" image inspect --format '{{if .Config.Healthcheck}}{{join .Config.Healthcheck.Test " "}}{{end}}' "$TAG" 2>/dev/null || true)
 [[ $hc == *health* ]] || fail "no HEALTHCHECK using 'locaid health' (got '$hc')"
-mnt=$(podman image mount "$TAG")
+if [[ $ENGINE == podman ]]; then mnt=$(podman image mount "$TAG"); else mnt=$(image_files "$TAG"); fi
 bad=$(ls "$mnt"/usr/bin/{gcc,g++,cc,c++,cmake,ld} 2>/dev/null || true)
 [[ -z $bad ]] || fail "toolchain in the runtime image: $bad"
 devpk=$(awk '/^Package: /{p=$2} /^Status: install ok installed/{print p}' "$mnt/var/lib/dpkg/status" |
   grep -E -- '-dev$|^libgtk|^libqt|^libgl1-mesa-dri$|^libllvm' || true)
 [[ -z $devpk ]] || fail "unwanted packages in the runtime image: $devpk"
 npk=$(grep -c '^Status: install ok installed' "$mnt/var/lib/dpkg/status")
-podman image unmount "$TAG" >/dev/null
+if [[ $ENGINE == podman ]]; then podman image unmount "$TAG" >/dev/null; else rm -rf "$mnt"; fi
 note "image config: user $user, exposes $ports, healthcheck '$hc'; $npk packages, no compiler/-dev/GUI toolkit/Mesa"
 
 # -------------------------------------------------------------- run ----
@@ -148,7 +182,10 @@ NAME=locaid-test-$$
 WORK=/var/lib/locaid
 mode=""
 rt=()
-if [[ $RUN_MODE == auto || $RUN_MODE == podman ]]; then
+if [[ $ENGINE == docker ]]; then
+  out=$(timeout 60 docker run --rm --no-healthcheck "$TAG" true 2>&1) || fail "docker run refused: ${out//$'\n'/ }"
+  mode=docker
+elif [[ $RUN_MODE == auto || $RUN_MODE == podman ]]; then
   if out=$(timeout 60 podman run --rm --no-healthcheck "$TAG" true 2>&1); then
     mode=podman
   else
@@ -170,7 +207,7 @@ cleanup() {
     [[ -n ${srv_pid:-} ]] && kill -TERM "$srv_pid" 2>/dev/null
     [[ -n ${cmnt:-} ]] && { umount "$cmnt/proc" "$cmnt/dev" 2>/dev/null; }
   fi
-  if ((KEEP == 0)); then podman rm -f "$NAME" >/dev/null 2>&1; fi
+  if ((KEEP == 0)); then "$ENGINE" rm -f "$NAME" >/dev/null 2>&1; fi
 }
 trap cleanup EXIT
 
@@ -189,14 +226,14 @@ if [[ $mode == chroot ]]; then
   in_image() { chroot --userspec=10001:10001 "$cmnt" "${envs[@]}" "$@"; }
   outside() { in_image "$@"; }  # same network namespace as the host
 else
-  note "run: podman run ($mode${rt:+: ${rt[*]}}), port 127.0.0.1:$PORT -> 50051"
+  note "run: $ENGINE run ($mode${rt:+: ${rt[*]}}), port 127.0.0.1:$PORT -> 50051"
   # (Without systemd, podman logs that it cannot add health-check timers;
   # `podman healthcheck run` below still runs the check.)
-  podman "${rt[@]:0:2}" run -d --name "$NAME" "${rt[@]:2}" -p "127.0.0.1:$PORT:50051" "$TAG" \
-    >/dev/null 2>"$STATE/podman-run.err" || { cat "$STATE/podman-run.err" >&2; fail "podman run -d"; }
-  in_image() { podman exec "$NAME" "$@"; }
+  "$ENGINE" "${rt[@]:0:2}" run -d --name "$NAME" "${rt[@]:2}" -p "127.0.0.1:$PORT:50051" "$TAG" \
+    >/dev/null 2>"$STATE/run.err" || { cat "$STATE/run.err" >&2; fail "$ENGINE run -d"; }
+  in_image() { "$ENGINE" exec "$NAME" "$@"; }
   # A second container on the host network talks to the published port.
-  outside() { podman "${rt[@]:0:2}" run --rm --no-healthcheck "${rt[@]:2}" --network host "$TAG" "$@"; }
+  outside() { "$ENGINE" "${rt[@]:0:2}" run --rm --no-healthcheck "${rt[@]:2}" --network host "$TAG" "$@"; }
 fi
 cli=(locaid --server 127.0.0.1:50051)
 [[ $mode == chroot ]] && cli=(locaid --server 127.0.0.1:$PORT)
@@ -207,8 +244,8 @@ server_log_now() {
   if [[ $mode == chroot ]]; then
     cat "$STATE/server.log" 2>/dev/null
   else
-    echo "container $NAME: $(podman inspect --format '{{.State.Status}} exit={{.State.ExitCode}}' "$NAME" 2>&1)"
-    podman logs "$NAME" 2>&1 | tail -n 40
+    echo "container $NAME: $("$ENGINE" inspect --format '{{.State.Status}} exit={{.State.ExitCode}}' "$NAME" 2>&1)"
+    "$ENGINE" logs "$NAME" 2>&1 | tail -n 40
   fi
 }
 
@@ -221,10 +258,19 @@ done
 note "health: SERVING after $(($(date +%s) - t0)) s (locaid health)"
 if [[ $mode != chroot ]]; then
   h=$(outside locaid --server "127.0.0.1:$PORT" health) || fail "published port: $h"
-  hc_out=$(podman healthcheck run "$NAME" 2>/dev/null) && hc_rc=0 || hc_rc=$?
-  ((hc_rc == 0)) || fail "podman healthcheck run: rc=$hc_rc $hc_out"
-  hs=$(podman inspect --format '{{.State.Health.Status}}' "$NAME" 2>/dev/null || true)
-  note "published port 127.0.0.1:$PORT from the host network: $h; podman healthcheck run: exit 0, status $hs"
+  if [[ $ENGINE == podman ]]; then
+    hc_out=$(podman healthcheck run "$NAME" 2>/dev/null) && hc_rc=0 || hc_rc=$?
+    ((hc_rc == 0)) || fail "podman healthcheck run: rc=$hc_rc $hc_out"
+    hs=$(podman inspect --format '{{.State.Health.Status}}' "$NAME" 2>/dev/null || true)
+    note "published port 127.0.0.1:$PORT from the host network: $h; podman healthcheck run: exit 0, status $hs"
+  else  # the engine runs the image's HEALTHCHECK on its own schedule
+    t1=$(date +%s)
+    until hs=$(docker inspect --format '{{.State.Health.Status}}' "$NAME") && [[ $hs == healthy ]]; do
+      (($(date +%s) - t1 < 120)) || fail "docker health status '$hs' after 120 s"
+      sleep 2
+    done
+    note "published port 127.0.0.1:$PORT from the host network: $h; docker health status: $hs"
+  fi
 fi
 
 # 2. the default demo session (renders a synthetic drive first)
@@ -274,9 +320,9 @@ if [[ $mode == chroot ]]; then
   srv_pid=""
   log=$(cat "$STATE/server.log")
 else
-  podman stop -t 30 "$NAME" >/dev/null
-  rc=$(podman inspect --format '{{.State.ExitCode}}' "$NAME")
-  log=$(podman logs "$NAME" 2>&1)
+  "$ENGINE" stop -t 30 "$NAME" >/dev/null
+  rc=$("$ENGINE" inspect --format '{{.State.ExitCode}}' "$NAME")
+  log=$("$ENGINE" logs "$NAME" 2>&1)
   printf '%s\n' "$log" >"$STATE/server.log"
 fi
 ms=$((($(date +%s%N) - t0) / 1000000))

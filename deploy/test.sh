@@ -8,11 +8,13 @@
 # its test when CI is set (.ci/run sets it); deploy/install-deps.sh installs
 # them all.
 #
-# Then the container image test (deploy/test-image.sh) when podman is
-# installed: LOCAID_IMAGE_TEST=auto (default: run it if `podman` is on PATH),
-# 1 (always; test-image.sh installs podman), 0 (never). It adds about 10-25
-# minutes on 2 cores; a fresh Debian 12 machine has no podman, so there it is
-# skipped with a message unless LOCAID_IMAGE_TEST=1.
+# Then the container image test (deploy/test-image.sh) with whichever engine
+# the machine has, said before it runs: LOCAID_IMAGE_TEST=auto (default: with
+# podman when it is on PATH, else with docker when a Docker engine answers
+# `docker info`, else skipped with a message), 1 (always; podman unless
+# LOCAID_CONTAINER_ENGINE=docker; test-image.sh installs podman), 0 (never).
+# It adds about 10-25 minutes on 2 cores; a fresh Debian 12 machine has
+# neither engine, so there it is skipped unless LOCAID_IMAGE_TEST=1.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash deploy/install-deps.sh
@@ -27,13 +29,17 @@ fi
 
 case "${LOCAID_IMAGE_TEST:-auto}" in
   0) echo "test.sh: container image test skipped (LOCAID_IMAGE_TEST=0)" ;;
-  1) bash deploy/test-image.sh ;;
+  1) bash deploy/test-image.sh --engine "${LOCAID_CONTAINER_ENGINE:-podman}" ;;
   auto)
     if command -v podman >/dev/null 2>&1; then
-      bash deploy/test-image.sh
+      echo "test.sh: container image test with podman"
+      bash deploy/test-image.sh --engine podman
+    elif command -v docker >/dev/null 2>&1 && docker info >/dev/null 2>&1; then
+      echo "test.sh: container image test with docker (podman is not installed)"
+      bash deploy/test-image.sh --engine docker
     else
-      echo "test.sh: container image test skipped: podman is not installed" \
-           "(LOCAID_IMAGE_TEST=1 makes deploy/test-image.sh install it and run)"
+      echo "test.sh: container image test skipped: neither podman nor a running Docker engine" \
+           "(LOCAID_IMAGE_TEST=1 makes deploy/test-image.sh install podman and run)"
     fi ;;
   *) echo "test.sh: LOCAID_IMAGE_TEST must be auto, 0 or 1, got '${LOCAID_IMAGE_TEST}'" >&2; exit 2 ;;
 esac
