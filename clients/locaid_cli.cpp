@@ -290,6 +290,8 @@ int StartSession(const Common& c, v1::Localization::Stub& stub, const StartOptio
 // --max poses, or SIGINT/SIGTERM. MCAP: the Foxglove bridge's channels in
 // one indexed file, closed (summary and footer written) also on a signal.
 int Subscribe(const Common& c, v1::Localization::Stub& stub, const SubscribeOptions& o) {
+  // Usage first: it needs no server.
+  if (o.format == "mcap" && o.out_path.empty()) throw std::runtime_error("--out is required for --format mcap");
   {  // An unknown id fails here, before a record file exists.
     grpc::ClientContext ctx;
     Prepare(c, &ctx, c.timeout_s);
@@ -301,7 +303,6 @@ int Subscribe(const Common& c, v1::Localization::Stub& stub, const SubscribeOpti
   std::optional<Recorder> recorder;
   std::unique_ptr<locaid::foxglove::McapRecording> mcap;
   if (o.format == "mcap") {
-    if (o.out_path.empty()) throw std::runtime_error("--out is required for --format mcap");
     mcap = std::make_unique<locaid::foxglove::McapRecording>(o.out_path);
   } else {
     recorder.emplace(o.format, o.out_path);
