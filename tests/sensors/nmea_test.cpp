@@ -98,7 +98,10 @@ TEST(NmeaGpsd, GpsdParsesTheReplayedDriveAndSeesTheOutage) {
   // gpsd as a user runs it: gpsfake feeds the file to a real gpsd on a
   // loopback port and prints what gpsd reports (-p).
   const int port = 30000 + getpid() % 20000;
-  const test::CommandResult gpsd = Shell("timeout 120 gpsfake -1 -p -q -c 0.005 -P " + std::to_string(port) + " " +
+  // TMPDIR: gpsfake's control socket goes into the test's folder (it stays
+  // behind even after a normal exit).
+  const test::CommandResult gpsd = Shell("TMPDIR='" + dir.path().string() + "' timeout 120 gpsfake -1 -p -q -c 0.005 -P " +
+                                         std::to_string(port) + " " +
                          (dir / "d.nmea").string() + " 2>/dev/null");
   const int fixed = Count(gpsd.out, "\"class\":\"TPV\",\"device\":") - Count(gpsd.out, "\"mode\":1");
   std::printf("[nmea] %d sentences; gpsd TPV with a 3-D fix %d, without a fix %d\n", sentences,

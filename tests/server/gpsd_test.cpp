@@ -151,12 +151,22 @@ TEST(GpsdSession, FusesARealGpsdThroughAGapAndAGpsdRestart) {
   ServerProcess server(dir / "server");
   ASSERT_GT(server.port(), 0) << server.log();
   const std::string gpsd_port = std::to_string(FreePort());
+  // gpsfake runs gpsd as its child and puts their control socket in $TMPDIR:
+  // the test's folder here. SIGTERM, not ChildProcess's SIGKILL, ends it, so
+  // it stops its gpsd (a killed gpsfake left gpsd running).
   const auto play = [&](const fs::path& nmea, const char* tag) {
     return std::make_unique<ChildProcess>(
-        std::vector<std::string>{gpsfake, "-1", "-q", "-c", "0.3333", "-P", gpsd_port, nmea.string()},
+        std::vector<std::string>{"/usr/bin/env", "TMPDIR=" + dir.path().string(), gpsfake, "-1", "-q", "-c",
+                                 "0.3333", "-P", gpsd_port, nmea.string()},
         ChildProcess::Options{dir / (std::string(tag) + ".out"), dir / (std::string(tag) + ".err"), 0});
   };
   auto player = play(dir / "all.nmea", "gpsfake1");
+  struct TerminateGpsfake {
+    std::unique_ptr<ChildProcess>& player;
+    ~TerminateGpsfake() {
+      if (player && player->running() && player->Signal(SIGTERM)) player->Wait(30);
+    }
+  } terminate_gpsfake{player};
   const fs::path csv = dir / "live.csv";
   ChildProcess push({bin + "/locaid-push", "--server", "127.0.0.1:" + std::to_string(server.port()), "--drive",
                      drive.string(), "--gps", "gpsd", "--gpsd", "127.0.0.1:" + gpsd_port, "--start-utc",
