@@ -21,84 +21,99 @@ Mat6 Ekf::VoNoise(const Mat6& reported, const Eigen::Isometry3d& motion) const {
 // ------------------------------------------------------------------ IMU
 
 void Ekf::PropagateImu(const ImuSample& sample) {
-  if (!model_->AddImu(s_, sample)) ++imu_rejected_;
+  if (!model_->AddImu(s_, sample)) ++stats_.imu_rejected;
 }
 
 // ------------------------------------------------------------------ VO
 
-void Ekf::ProcessVo(const VoMeasurement& measured, bool vo_ok) {
+VoUpdate Ekf::ProcessVo(const VoMeasurement& measured, bool vo_ok) {
   // A non-finite motion or covariance is treated as VO lost (and counted);
   // only then is a cleaned copy made.
+  VoUpdate out;
   const bool finite = measured.T_prev_curr.matrix().allFinite() && measured.covariance.allFinite();
   VoMeasurement cleaned;  // identity motion and covariance
   if (!finite) {
-    if (vo_ok) ++vo_rejected_;
+    out.rejected = vo_ok;
+    if (vo_ok) ++stats_.vo_rejected;
     vo_ok = false;
     cleaned.t_prev_ns = measured.t_prev_ns;
     cleaned.t_ns = measured.t_ns;
   }
   const VoMeasurement& m = finite ? measured : cleaned;
+  const VoPlan plan = PlanVo(m, vo_ok, out);
+  if (!s_.initialized) {
+    ChainStartup(m, plan);
+    TryInitialize(m.t_ns);
+    return out;
+  }
+  return ApplyVoUpdate(m, plan, out);
+}
+
+Ekf::VoPlan Ekf::PlanVo(const VoMeasurement& m, bool vo_ok, VoUpdate& out) {
   // The motion must start at the filter's VO anchor (the last frame VO measured
   // or restarted on). After missing frames it spans several frames; a motion
   // from anywhere else (VO restarted on a frame it reported as lost) cannot be
   // used: the anchor moves to this frame and the next motion starts there.
-  bool reanchor = vo_ok;
+  VoPlan plan;
+  plan.reanchor = vo_ok || !vo_anchor_ns_;
   if (vo_ok && vo_anchor_ns_ && m.t_prev_ns != *vo_anchor_ns_) {
-    ++vo_anchor_mismatches_;
+    ++stats_.vo_anchor_mismatches;
+    out.anchor_mismatch = true;
     vo_ok = false;
   }
-  const int64_t prev_frame_ns = last_frame_ns_.value_or(m.t_prev_ns);
-  const double frame_dt = std::max(1e-3, Seconds(m.t_ns, prev_frame_ns));
+  plan.vo_ok = vo_ok;
+  plan.prev_frame_ns = last_frame_ns_.value_or(m.t_prev_ns);
+  plan.frame_dt_s = std::max(1e-3, Seconds(m.t_ns, plan.prev_frame_ns));
   const double vo_dt = std::max(1e-3, Seconds(m.t_ns, m.t_prev_ns));
   last_frame_ns_ = m.t_ns;
-  if (!vo_anchor_ns_) reanchor = true;
-  Eigen::Isometry3d motion = m.T_prev_curr;  // from the anchor (vo_ok) or the last frame (coasting)
+  plan.motion = m.T_prev_curr;  // from the anchor (vo_ok) or the last frame (coasting)
   if (!vo_ok) {
     // Coast at the last VO velocity.
-    motion = Eigen::Isometry3d::Identity();
-    motion.translation() = last_vo_velocity_body_mps_ * frame_dt;
+    plan.motion = Eigen::Isometry3d::Identity();
+    plan.motion.translation() = last_vo_velocity_body_mps_ * plan.frame_dt_s;
   } else {
-    last_vo_velocity_body_mps_ = motion.translation() / vo_dt;
+    last_vo_velocity_body_mps_ = plan.motion.translation() / vo_dt;
   }
   // Motion to apply from the last frame: the VO motion minus what was coasted
   // since the anchor (no-IMU propagation and the initialisation chain).
-  const Eigen::Isometry3d step = vo_ok ? T_coast_.inverse() * motion : motion;
-  T_coast_ = vo_ok ? Eigen::Isometry3d::Identity() : T_coast_ * motion;
-  if (reanchor) {
-    vo_anchor_ns_ = m.t_ns;
-    T_coast_ = Eigen::Isometry3d::Identity();
-  }
-  const double dt = vo_ok ? vo_dt : frame_dt;
+  plan.step = vo_ok ? T_coast_.inverse() * plan.motion : plan.motion;
+  T_coast_ = vo_ok || plan.reanchor ? Eigen::Isometry3d::Identity() : T_coast_ * plan.motion;
+  if (plan.reanchor) vo_anchor_ns_ = m.t_ns;
+  plan.dt_s = vo_ok ? vo_dt : plan.frame_dt_s;
+  return plan;
+}
 
-  if (!s_.initialized) {
-    // Attach the buffered fixes of (t_prev, t] to the VO chain (interpolated).
-    const Eigen::Isometry3d T_prev = T_start_body_;
-    T_start_body_ = T_start_body_ * step;
-    for (auto& f : init_fixes_) {
-      if (!std::isnan(f.T_start_body.matrix()(0, 0))) continue;
-      const double a = std::clamp(Seconds(f.t_ns, prev_frame_ns) / frame_dt, 0.0, 1.0);
-      f.T_start_body = T_start_body_;
-      f.T_start_body.translation() = (1 - a) * T_prev.translation() + a * T_start_body_.translation();
-    }
-    model_->AddStartupFrame(m, T_start_body_, motion, dt, vo_ok);
-    s_.t_ns = m.t_ns;
-    TryInitialize(m.t_ns);
-    return;
+void Ekf::ChainStartup(const VoMeasurement& m, const VoPlan& plan) {
+  // Attach the buffered fixes of (t_prev, t] to the VO chain (interpolated).
+  const Eigen::Isometry3d T_prev = T_start_body_;
+  T_start_body_ = T_start_body_ * plan.step;
+  for (auto& f : init_fixes_) {
+    if (!std::isnan(f.T_start_body.matrix()(0, 0))) continue;
+    const double a = std::clamp(Seconds(f.t_ns, plan.prev_frame_ns) / plan.frame_dt_s, 0.0, 1.0);
+    f.T_start_body = T_start_body_;
+    f.T_start_body.translation() = (1 - a) * T_prev.translation() + a * T_start_body_.translation();
   }
+  model_->AddStartupFrame(m, T_start_body_, plan.motion, plan.dt_s, plan.vo_ok);
+  s_.t_ns = m.t_ns;
+}
 
+VoUpdate Ekf::ApplyVoUpdate(const VoMeasurement& m, const VoPlan& plan, VoUpdate out) {
   VoStep vo;
   vo.t_ns = m.t_ns;
-  vo.vo_ok = vo_ok;
-  vo.reanchor = reanchor;
-  vo.motion = motion;
-  vo.step = step;
-  vo.R_vo = model_->VoNoise(m.covariance, motion);
-  vo.dt_s = dt;
+  vo.vo_ok = plan.vo_ok;
+  vo.reanchor = plan.reanchor;
+  vo.motion = plan.motion;
+  vo.step = plan.step;
+  vo.R_vo = model_->VoNoise(m.covariance, plan.motion);
+  vo.dt_s = plan.dt_s;
   vo.vo_velocity_body_mps = last_vo_velocity_body_mps_;
   if (const std::optional<VoGate> gate = model_->ApplyVo(s_, vo)) {
-    last_vo_nis_ = gate->nis;
-    if (gate->rejected) ++vo_rejected_;
+    stats_.last_vo_nis = out.nis = gate->nis;
+    out.rejected = gate->rejected;
+    if (gate->rejected) ++stats_.vo_rejected;
   }
+  out.used = plan.vo_ok && !out.rejected;
+  return out;
 }
 
 // ------------------------------------------------------------------ output
@@ -106,10 +121,10 @@ void Ekf::ProcessVo(const VoMeasurement& measured, bool vo_ok) {
 FusedPose Ekf::Output(int64_t t_ns, bool vo_ok) const {
   FusedPose out;
   out.t_ns = t_ns;
-  out.gps_used = gps_used_;
-  out.gps_rejected = gps_rejected_;
-  out.gps_resets = gps_resets_;
-  out.last_gps_nis = last_nis_;
+  out.gps_used = stats_.gps_used;
+  out.gps_rejected = stats_.gps_rejected;
+  out.gps_resets = stats_.gps_resets;
+  out.last_gps_nis = stats_.last_gps_nis;
   out.gps_gate = gate_h_;
   out.seconds_since_gps = last_gps_accepted_ns_ ? Seconds(t_ns, *last_gps_accepted_ns_)
                                                 : std::numeric_limits<double>::infinity();

@@ -128,6 +128,39 @@ struct EkfConfig {
   double vo_only_after_periods = 1.5; // VO_ONLY when no fix for this x GPS period
 };
 
+// What UpdateGps did with one fix.
+struct GpsUpdate {
+  bool used = false;               // horizontal part fused (also by a reset)
+  bool rejected = false;           // horizontal part refused: by the gate, or the fix is not usable
+  bool rejected_vertical = false;  // vertical part refused by its gate (the horizontal may be used)
+  bool buffered = false;           // kept for the start-up fit (filter not initialised yet)
+  bool reset = false;              // position reset to this fix after a run of rejections
+  double nis = 0, nis_vertical = 0;  // normalised innovations squared (2 dof, 1 dof); 0 when not gated
+  double gate = 0;                   // the horizontal gate (2 dof); 0 before the filter runs
+};
+
+// What ProcessVo did with one motion.
+struct VoUpdate {
+  bool used = false;             // fused (IMU) or propagated on (no IMU)
+  bool rejected = false;         // refused by the gate, or not finite
+  bool anchor_mismatch = false;  // did not start at the filter's anchor: skipped
+  double nis = 0;                // 0 when not gated
+};
+
+// The filter's running counts, one struct.
+struct EkfStats {
+  int gps_used = 0, gps_rejected = 0;  // a fix counts as used when its horizontal part is fused
+  int gps_rejected_vertical = 0;       // fixes whose vertical part the gate refused
+  int gps_resets = 0;                  // position resets to GPS after a run of rejections
+  int gps_velocity_used = 0, gps_velocity_rejected = 0;  // GPS velocities (3 dof, IMU mode only)
+  int vo_rejected = 0;                 // gated out, or non-finite
+  int imu_rejected = 0;                // non-finite samples refused
+  // VO motions that did not start at the filter's anchor (VO restarted on a
+  // frame it reported lost): skipped, the anchor moves on.
+  int vo_anchor_mismatches = 0;
+  double last_gps_nis = 0, last_gps_nis_vertical = 0, last_vo_nis = 0;
+};
+
 class Ekf {
  public:
   explicit Ekf(EkfConfig config = {});
@@ -140,81 +173,90 @@ class Ekf {
   Mat6 VoNoise(const Mat6& reported, const Eigen::Isometry3d& motion) const;
 
   void PropagateImu(const ImuSample& sample);
-  // Returns true if the fix was accepted: its horizontal part fused (false:
-  // horizontal part rejected by the gate, or buffered before initialisation).
-  // A fix older than the state (IMU mode) is compared with the antenna's
-  // position at the fix time; its velocity, when given, is fused too (IMU
-  // mode). Non-finite values or a covariance that is not positive definite:
-  // refused and counted as rejected.
-  bool UpdateGps(const GpsFix& fix);
+  // Fuses one fix (its horizontal and vertical parts gated apart) and says
+  // what it did. Before initialisation fixes are buffered. A fix older than
+  // the state (IMU mode) is compared with the antenna's position at the fix
+  // time; its velocity, when given, is fused too (IMU mode). Non-finite values
+  // or a covariance that is not positive definite: refused (rejected).
+  GpsUpdate UpdateGps(const GpsFix& fix);
   // body_motion: VO relative motion in body axes (CameraMotionToBody).
   // vo_ok false (VO lost): skip the update (IMU) or coast (no IMU).
-  void ProcessVo(const VoMeasurement& body_motion, bool vo_ok);
+  VoUpdate ProcessVo(const VoMeasurement& body_motion, bool vo_ok);
   FusedPose Output(int64_t t_ns, bool vo_ok) const;
 
   const EkfConfig& config() const { return config_; }
   bool initialized() const { return s_.initialized; }
   const EnuFrame& enu() const { return enu_; }
   const NominalState& state() const { return s_.x; }
+  const Eigen::MatrixXd& covariance() const { return s_.P; }
+  const EkfStats& stats() const { return stats_; }
   // Estimated VO calibration (IMU mode; identity / 0 otherwise).
   const Mat3& vo_boresight() const { return model_->vo_boresight(); }
   double vo_scale_error() const { return model_->vo_scale_error(); }
-  const Eigen::MatrixXd& covariance() const { return s_.P; }
-  double last_gps_nis() const { return last_nis_; }  // horizontal (2 dof)
-  double last_gps_nis_vertical() const { return last_nis_v_; }
-  double last_vo_nis() const { return last_vo_nis_; }
-  int vo_rejected() const { return vo_rejected_; }    // gated out, or non-finite
-  int imu_rejected() const { return imu_rejected_; }  // non-finite samples refused
-  // VO motions that did not start at the filter's anchor (VO restarted on a
-  // frame it reported lost): skipped, the anchor moves on.
-  int vo_anchor_mismatches() const { return vo_anchor_mismatches_; }
+  // adaptive_vo_rotation_noise: VO rotation variance scale per body axis (x, y, z).
+  const Vec3& vo_rotation_noise_scale() const { return model_->vo_rotation_noise_scale(); }
   double gps_period_s() const { return gps_period_s_; }
   double gps_gate() const { return gate_h_; }  // horizontal (2 dof)
   double gps_gate_vertical() const { return gate_v_; }
-  int gps_resets() const { return gps_resets_; }
-  // adaptive_vo_rotation_noise: VO rotation variance scale per body axis (x, y, z).
-  const Vec3& vo_rotation_noise_scale() const { return model_->vo_rotation_noise_scale(); }
-  // Fixes whose vertical part the gate refused (the horizontal part may have been used).
-  int gps_rejected_vertical() const { return gps_rejected_vertical_; }
-  int gps_used() const { return gps_used_; }
-  int gps_rejected() const { return gps_rejected_; }
-  // GPS velocities fused / refused by their gate (3 dof, IMU mode only).
-  int gps_velocity_used() const { return gps_velocity_used_; }
-  int gps_velocity_rejected() const { return gps_velocity_rejected_; }
 
  private:
-  void TryInitialize(int64_t t_ns);
-  Vec3 GpsEnu(const GpsFix& fix);
+  // GPS (ekf_gps.cpp).
+  struct GpsModel {   // the antenna's predicted position and the update's matrices
+    Vec3 predicted;
+    Mat3 R;
+    Eigen::MatrixXd H;
+    double late_s = 0;  // how much older than the state the fix is
+  };
   struct GpsGateResult {
     double nis_h = 0, nis_v = 0;
     bool h_ok = false, v_ok = false;
   };
   static bool GpsFixUsable(const GpsFix& fix);
+  GpsUpdate RefuseGps(const GpsFix& fix);
+  Vec3 GpsEnu(const GpsFix& fix);
+  void TrackGpsPeriod(int64_t t_ns);
+  void TrackGpsLag(int64_t t_ns);
+  GpsModel PredictGps(const GpsFix& fix) const;
   GpsGateResult GateGps(const Vec3& y, const Mat3& R, const Eigen::MatrixXd& H) const;
+  GpsUpdate GateAndFuse(const GpsFix& fix, const Vec3& y, const GpsModel& m);
+  GpsUpdate CountGpsOutcome(const GpsFix& fix, const GpsGateResult& gate, bool use_h, bool use_v, bool reset);
+  void FuseGpsVelocity(const GpsFix& fix, double late_s);
   void ResetPositionToGps(const Vec3& y, const Mat3& R, bool horizontal, bool vertical);
   void ApplyGpsUpdate(const Vec3& y, const Mat3& R, const Eigen::MatrixXd& H, bool horizontal, bool vertical);
+  // VO (ekf.cpp).
+  struct VoPlan {  // one motion, relative to the filter's anchor
+    bool vo_ok = false, reanchor = false;
+    Eigen::Isometry3d motion, step;  // from the anchor (or coasted), and from the last frame
+    double dt_s = 0, frame_dt_s = 0;
+    int64_t prev_frame_ns = 0;
+  };
+  VoPlan PlanVo(const VoMeasurement& m, bool vo_ok, VoUpdate& out);
+  void ChainStartup(const VoMeasurement& m, const VoPlan& plan);
+  VoUpdate ApplyVoUpdate(const VoMeasurement& m, const VoPlan& plan, VoUpdate out);
+  // Start-up (ekf_init.cpp).
+  struct InitFix { int64_t t_ns; Vec3 p_enu; double sigma_h; Eigen::Isometry3d T_start_body; };
+  struct HeadingFit { double psi = 0; Eigen::Vector2d p_mean, q_mean; double z_off = 0, spread2 = 0; int used = 0; };
+  void TryInitialize(int64_t t_ns);
+  std::vector<const InitFix*> ChainedInitFixes() const;
+  bool InitBaselineReached(const std::vector<const InitFix*>& fixes, double min_baseline) const;
+  static HeadingFit FitHeading(const std::vector<const InitFix*>& fixes, const Mat3& R_level_start, double sigma_h);
+  void InitializeState(const HeadingFit& fit, const Mat3& R_level_start, double tilt_var, double sigma_h);
 
   EkfConfig config_;
   std::unique_ptr<ProcessModel> model_;  // chosen once from config_.use_imu
   EnuFrame enu_;
   FilterState s_;
+  EkfStats stats_;
   Vec3 last_vo_velocity_body_mps_ = Vec3::Zero();
   // VO anchor: the frame the next VO motion starts from (the clone's time with
   // IMU), and the motion coasted since it while VO was lost.
   std::optional<int64_t> vo_anchor_ns_, last_frame_ns_;
   Eigen::Isometry3d T_coast_ = Eigen::Isometry3d::Identity();
-  int vo_anchor_mismatches_ = 0;
   // Initialisation buffers: VO-chained body poses and fixes.
-  struct InitFix { int64_t t_ns; Vec3 p_enu; double sigma_h; Eigen::Isometry3d T_start_body; };
   std::vector<InitFix> init_fixes_;
   Eigen::Isometry3d T_start_body_ = Eigen::Isometry3d::Identity();
-  // Bookkeeping.
+  // GPS bookkeeping.
   double gate_h_ = 0, gate_v_ = 0;
-  int gps_velocity_used_ = 0, gps_velocity_rejected_ = 0;
-  double last_nis_ = 0, last_nis_v_ = 0, last_vo_nis_ = 0;
-  int vo_rejected_ = 0;
-  int imu_rejected_ = 0;
-  int gps_used_ = 0, gps_rejected_ = 0, gps_rejected_vertical_ = 0, gps_resets_ = 0;
   int rejections_h_ = 0, rejections_v_ = 0;  // in a row, per component
   std::optional<int64_t> last_gps_accepted_ns_, last_gps_rejected_ns_, last_gps_received_ns_;
   double gps_period_s_ = 1.0;

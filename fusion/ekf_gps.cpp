@@ -22,59 +22,77 @@ Vec3 Ekf::GpsEnu(const GpsFix& fix) {
   return enu_.ToEnu(fix.lat_deg, fix.lon_deg, fix.alt_m);
 }
 
-bool Ekf::UpdateGps(const GpsFix& fix) {
+GpsUpdate Ekf::UpdateGps(const GpsFix& fix) {
   // Non-finite fixes or sigmas are refused before they can set the ENU origin
   // or reach the covariance.
-  if (!GpsFixUsable(fix)) {
-    ++gps_rejected_;
-    last_gps_rejected_ns_ = fix.t_ns;
-    return false;
-  }
+  if (!GpsFixUsable(fix)) return RefuseGps(fix);
   const Vec3 z = GpsEnu(fix);
+  TrackGpsPeriod(fix.t_ns);
+  if (!s_.initialized) {
+    // The start-up fit weighs fixes by their horizontal sigma; the fix joins
+    // the VO chain at the next frame (T_start_body NaN until then).
+    init_fixes_.push_back({fix.t_ns, z, fix.horizontal_sigma_m(), Eigen::Isometry3d::Identity()});
+    init_fixes_.back().T_start_body.matrix()(0, 0) = std::numeric_limits<double>::quiet_NaN();
+    return {.buffered = true};
+  }
+  model_->PropagateTo(s_, fix.t_ns);
+  TrackGpsLag(fix.t_ns);
+  const GpsModel m = PredictGps(fix);
+  GpsUpdate u = GateAndFuse(fix, z - m.predicted, m);
+  if (u.used) FuseGpsVelocity(fix, m.late_s);
+  return u;
+}
+
+GpsUpdate Ekf::RefuseGps(const GpsFix& fix) {
+  ++stats_.gps_rejected;
+  last_gps_rejected_ns_ = fix.t_ns;
+  return {.rejected = true, .gate = s_.initialized ? gate_h_ : 0.0};
+}
+
+void Ekf::TrackGpsPeriod(int64_t t_ns) {
   if (last_gps_received_ns_) {
-    const double interval = Seconds(fix.t_ns, *last_gps_received_ns_);
+    const double interval = Seconds(t_ns, *last_gps_received_ns_);
     if (interval > 0) {
-      if (gps_used_ + gps_rejected_ <= 1) gps_period_s_ = interval;
+      if (stats_.gps_used + stats_.gps_rejected <= 1) gps_period_s_ = interval;
       else if (interval < 3 * gps_period_s_) gps_period_s_ = 0.8 * gps_period_s_ + 0.2 * interval;
     }
   }
-  last_gps_received_ns_ = fix.t_ns;
-  if (!s_.initialized) {
-    // The start-up fit weighs fixes by their horizontal sigma.
-    init_fixes_.push_back({fix.t_ns, z, fix.horizontal_sigma_m(), Eigen::Isometry3d::Identity()});
-    init_fixes_.back().T_start_body.matrix()(0, 0) = std::numeric_limits<double>::quiet_NaN();
-    return false;
-  }
-  model_->PropagateTo(s_, fix.t_ns);
+  last_gps_received_ns_ = t_ns;
+}
+
+void Ekf::TrackGpsLag(int64_t t_ns) {
+  // How late fixes arrive after their frames: the recent worst, slowly
+  // forgotten (a receiver's latency jitters).
+  gps_lag_s_ = std::max(0.95 * gps_lag_s_, std::max(0.0, Seconds(last_frame_ns_.value_or(t_ns), t_ns)));
+}
+
+Ekf::GpsModel Ekf::PredictGps(const GpsFix& fix) const {
   // The antenna, latency before the state time (lever arm and latency; both
   // 0 by default). A fix older than the state (it arrived after later IMU
   // data, as live fixes do) is compared with where the antenna was then.
-  const double late_s = model_->GpsLateness(s_, fix.t_ns);
-  // How late fixes arrive after their frames: the recent worst, slowly
-  // forgotten (a receiver's latency jitters).
-  gps_lag_s_ = std::max(0.95 * gps_lag_s_, std::max(0.0, Seconds(last_frame_ns_.value_or(fix.t_ns), fix.t_ns)));
-  const double latency_s = config_.gps_latency_s + late_s;
-  Vec3 predicted =
+  GpsModel m;
+  m.late_s = model_->GpsLateness(s_, fix.t_ns);
+  const double latency_s = config_.gps_latency_s + m.late_s;
+  m.predicted =
       GpsAntennaPrediction(s_.x.p_enu_m, s_.x.v_enu_mps, s_.x.R_enu_body, config_.gps_lever_arm_body_m, latency_s);
-  Mat3 R = Mat3::Zero();
+  m.R = Mat3::Zero();
   if (fix.cov_enu_m2) {
-    R = *fix.cov_enu_m2;
+    m.R = *fix.cov_enu_m2;
   } else {
-    R.diagonal() << fix.sigma_h_m * fix.sigma_h_m, fix.sigma_h_m * fix.sigma_h_m,
-        fix.sigma_v_m * fix.sigma_v_m;
+    m.R.diagonal() << fix.sigma_h_m * fix.sigma_h_m, fix.sigma_h_m * fix.sigma_h_m, fix.sigma_v_m * fix.sigma_v_m;
   }
-  model_->ExtrapolateGps(s_, fix.t_ns, predicted, R);
-  const Vec3 y = z - predicted;
-  const Eigen::MatrixXd H =
-      model_->GpsJacobian(s_, GpsAntennaJacobian(s_.x.R_enu_body, config_.gps_lever_arm_body_m, latency_s));
+  model_->ExtrapolateGps(s_, fix.t_ns, m.predicted, m.R);
+  m.H = model_->GpsJacobian(s_, GpsAntennaJacobian(s_.x.R_enu_body, config_.gps_lever_arm_body_m, latency_s));
+  return m;
+}
+
+GpsUpdate Ekf::GateAndFuse(const GpsFix& fix, const Vec3& y, const GpsModel& m) {
   // Horizontal (E, N) and vertical (U) are gated on their own, so that a
-  // vertical disagreement does not throw away the horizontal information.
-  const GpsGateResult gate = GateGps(y, R, H);
-  last_nis_ = gate.nis_h;
-  last_nis_v_ = gate.nis_v;
-  // A 2-D fix has no altitude to fuse (not a rejection either).
+  // vertical disagreement does not throw away the horizontal information. A
+  // 2-D fix has no altitude to fuse (not a rejection either).
+  const GpsGateResult gate = GateGps(y, m.R, m.H);
   const bool fuse_v = fix.has_altitude;
-  bool use_h = gate.h_ok, use_v = gate.v_ok && fuse_v;
+  const bool use_h = gate.h_ok, use_v = gate.v_ok && fuse_v;
   // A run of rejections means the filter, not the GPS, is off (an open-sky
   // receiver does not fail 3 times in a row at the 0.1 % gate): reset the
   // rejected component's position covariance to cover the innovation, so the
@@ -84,30 +102,38 @@ bool Ekf::UpdateGps(const GpsFix& fix) {
   const bool reset_v = fuse_v && !use_v && std::isfinite(gate.nis_v) && ++rejections_v_ > reset_after;
   // The reset uses the fix for its component(s); a passing other component
   // gets the normal update (its innovation is unchanged by the reset).
-  if (reset_h || reset_v) ResetPositionToGps(y, R, reset_h, reset_v);
-  if ((use_h && !reset_h) || (use_v && !reset_v)) ApplyGpsUpdate(y, R, H, use_h && !reset_h, use_v && !reset_v);
-  use_h = use_h || reset_h;
-  use_v = use_v || reset_v;
+  if (reset_h || reset_v) ResetPositionToGps(y, m.R, reset_h, reset_v);
+  if ((use_h && !reset_h) || (use_v && !reset_v)) ApplyGpsUpdate(y, m.R, m.H, use_h && !reset_h, use_v && !reset_v);
+  return CountGpsOutcome(fix, gate, use_h || reset_h, fuse_v ? use_v || reset_v : true, reset_h || reset_v);
+}
+
+GpsUpdate Ekf::CountGpsOutcome(const GpsFix& fix, const GpsGateResult& gate, bool use_h, bool use_v, bool reset) {
+  // use_v is true for a 2-D fix: nothing vertical to refuse. A fix counts as
+  // used when its horizontal part is fused (a vertical-only update is
+  // reported as a rejection); vertical rejections are counted apart.
+  stats_.last_gps_nis = gate.nis_h;
+  stats_.last_gps_nis_vertical = gate.nis_v;
   if (use_h) rejections_h_ = 0;
-  if (use_v) rejections_v_ = 0;
-  // A fix counts as used when its horizontal part is fused (a vertical-only
-  // update is reported as a rejection); vertical rejections are counted apart.
-  if (fuse_v && !use_v) ++gps_rejected_vertical_;
-  if (!use_h || (fuse_v && !use_v)) last_gps_rejected_ns_ = fix.t_ns;  // GPS_DEGRADED for a while
-  if (!use_h) {
-    ++gps_rejected_;
-    return false;
+  if (use_v && fix.has_altitude) rejections_v_ = 0;
+  if (!use_v) ++stats_.gps_rejected_vertical;
+  if (!use_h || !use_v) last_gps_rejected_ns_ = fix.t_ns;  // GPS_DEGRADED for a while
+  if (use_h) {
+    ++stats_.gps_used;
+    last_gps_accepted_ns_ = fix.t_ns;
+  } else {
+    ++stats_.gps_rejected;
   }
-  ++gps_used_;
-  last_gps_accepted_ns_ = fix.t_ns;
+  return {.used = use_h, .rejected = !use_h, .rejected_vertical = !use_v, .reset = reset,
+          .nis = gate.nis_h, .nis_vertical = gate.nis_v, .gate = gate_h_};
+}
+
+void Ekf::FuseGpsVelocity(const GpsFix& fix, double late_s) {
   // The fix's velocity, where velocity is a state (IMU model).
-  if (fix.v_enu_mps) {
-    if (const std::optional<bool> used = model_->FuseGpsVelocity(s_, fix, late_s)) {
-      if (*used) ++gps_velocity_used_;
-      else ++gps_velocity_rejected_;
-    }
+  if (!fix.v_enu_mps) return;
+  if (const std::optional<bool> used = model_->FuseGpsVelocity(s_, fix, late_s)) {
+    if (*used) ++stats_.gps_velocity_used;
+    else ++stats_.gps_velocity_rejected;
   }
-  return true;
 }
 
 bool Ekf::GpsFixUsable(const GpsFix& fix) {
@@ -157,7 +183,7 @@ void Ekf::ResetPositionToGps(const Vec3& y, const Mat3& R, bool horizontal, bool
   }
   model_->ResetPosition(s_, jump, mask, R, gap_s);
   Symmetrize(P);
-  ++gps_resets_;
+  ++stats_.gps_resets;
 }
 
 void Ekf::ApplyGpsUpdate(const Vec3& y, const Mat3& R, const Eigen::MatrixXd& H3, bool horizontal, bool vertical) {

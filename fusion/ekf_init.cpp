@@ -16,97 +16,109 @@ using namespace detail;
 // ------------------------------------------------------------------ init
 
 void Ekf::TryInitialize(int64_t t_ns) {
-  // Fixes already attached to the VO chain.
-  std::vector<const InitFix*> fixes;
-  for (const auto& f : init_fixes_)
-    if (!std::isnan(f.T_start_body.matrix()(0, 0))) fixes.push_back(&f);
-  if (static_cast<int>(fixes.size()) < std::max(2, config_.init_min_fixes)) return;
+  const std::vector<const InitFix*> fixes = ChainedInitFixes();
+  const int min_fixes = std::max(2, config_.init_min_fixes);
+  if (static_cast<int>(fixes.size()) < min_fixes) return;
   const double sigma_h = fixes.back()->sigma_h;
-  const double min_baseline =
-      std::max(config_.init_min_baseline_m, config_.init_min_baseline_sigmas * sigma_h);
-  double gps_span = 0, vo_span = 0;
-  for (const auto* f : fixes) {
-    gps_span = std::max(gps_span, (f->p_enu.head<2>() - fixes.front()->p_enu.head<2>()).norm());
-    vo_span = std::max(vo_span, (f->T_start_body.translation() -
-                                 fixes.front()->T_start_body.translation()).norm());
-  }
-  if (gps_span < min_baseline || vo_span < 0.5 * min_baseline) return;
-
+  const double min_baseline = std::max(config_.init_min_baseline_m, config_.init_min_baseline_sigmas * sigma_h);
+  if (!InitBaselineReached(fixes, min_baseline)) return;
   // Roll / pitch of the start frame from gravity (IMU), else level.
   Mat3 R_level_start = Mat3::Identity();
   double tilt_var = std::pow(config_.init_roll_pitch_sigma_rad, 2);
   model_->LevelStart(R_level_start, tilt_var);
-  // 2D Procrustes: p_i ~= Rz(psi) q_i + t, robust (drop > 3 sigma, twice).
+  const HeadingFit fit = FitHeading(fixes, R_level_start, sigma_h);
+  if (fit.used < min_fixes || fit.spread2 < min_baseline * min_baseline / 4) return;
+  InitializeState(fit, R_level_start, tilt_var, sigma_h);
+  s_.t_ns = t_ns;
+  s_.initialized = true;
+  stats_.gps_used += fit.used;
+  stats_.gps_rejected += static_cast<int>(fixes.size()) - fit.used;
+  last_gps_accepted_ns_ = fixes.back()->t_ns;
+  init_fixes_.clear();
+}
+
+std::vector<const Ekf::InitFix*> Ekf::ChainedInitFixes() const {
+  // Fixes already attached to the VO chain.
+  std::vector<const InitFix*> fixes;
+  for (const auto& f : init_fixes_)
+    if (!std::isnan(f.T_start_body.matrix()(0, 0))) fixes.push_back(&f);
+  return fixes;
+}
+
+bool Ekf::InitBaselineReached(const std::vector<const InitFix*>& fixes, double min_baseline) const {
+  double gps_span = 0, vo_span = 0;
+  for (const auto* f : fixes) {
+    gps_span = std::max(gps_span, (f->p_enu.head<2>() - fixes.front()->p_enu.head<2>()).norm());
+    vo_span = std::max(vo_span, (f->T_start_body.translation() - fixes.front()->T_start_body.translation()).norm());
+  }
+  return gps_span >= min_baseline && vo_span >= 0.5 * min_baseline;
+}
+
+Ekf::HeadingFit Ekf::FitHeading(const std::vector<const InitFix*>& fixes, const Mat3& R_level_start,
+                                double sigma_h) {
+  // 2D Procrustes: p_i ~= Rz(psi) q_i + t, robust (drop > 3.5 sigma, twice).
   std::vector<char> use(fixes.size(), 1);
-  double psi = 0;
-  Eigen::Vector2d p_mean, q_mean;
-  double z_off = 0, spread2 = 0;
-  int used = 0;
+  auto q_of = [&](size_t i) -> Vec3 { return R_level_start * fixes[i]->T_start_body.translation(); };
+  HeadingFit fit;
   for (int iter = 0; iter < 3; ++iter) {
-    p_mean.setZero(); q_mean.setZero(); z_off = 0; used = 0;
+    fit.p_mean.setZero(); fit.q_mean.setZero(); fit.z_off = 0; fit.used = 0;
     for (size_t i = 0; i < fixes.size(); ++i) {
       if (!use[i]) continue;
-      const Vec3 q = R_level_start * fixes[i]->T_start_body.translation();
-      p_mean += fixes[i]->p_enu.head<2>(); q_mean += q.head<2>();
-      z_off += fixes[i]->p_enu.z() - q.z();
-      ++used;
+      const Vec3 q = q_of(i);
+      fit.p_mean += fixes[i]->p_enu.head<2>(); fit.q_mean += q.head<2>();
+      fit.z_off += fixes[i]->p_enu.z() - q.z();
+      ++fit.used;
     }
-    if (used < 2) return;
-    p_mean /= used; q_mean /= used; z_off /= used;
+    if (fit.used < 2) return fit;
+    fit.p_mean /= fit.used; fit.q_mean /= fit.used; fit.z_off /= fit.used;
     double sxx = 0, sxy = 0;
-    spread2 = 0;
+    fit.spread2 = 0;
     for (size_t i = 0; i < fixes.size(); ++i) {
       if (!use[i]) continue;
-      const Eigen::Vector2d q = (R_level_start * fixes[i]->T_start_body.translation()).head<2>() - q_mean;
-      const Eigen::Vector2d p = fixes[i]->p_enu.head<2>() - p_mean;
+      const Eigen::Vector2d q = q_of(i).head<2>() - fit.q_mean;
+      const Eigen::Vector2d p = fixes[i]->p_enu.head<2>() - fit.p_mean;
       sxx += q.dot(p);
       sxy += q.x() * p.y() - q.y() * p.x();
-      spread2 += q.squaredNorm();
+      fit.spread2 += q.squaredNorm();
     }
-    psi = std::atan2(sxy, sxx);
-    const Eigen::Rotation2Dd Rz(psi);
+    fit.psi = std::atan2(sxy, sxx);
+    const Eigen::Rotation2Dd Rz(fit.psi);
     bool changed = false;
     for (size_t i = 0; i < fixes.size(); ++i) {
-      const Eigen::Vector2d q = (R_level_start * fixes[i]->T_start_body.translation()).head<2>();
-      const double res = (fixes[i]->p_enu.head<2>() - (Rz * (q - q_mean) + p_mean)).norm();
+      const double res = (fixes[i]->p_enu.head<2>() - (Rz * (q_of(i).head<2>() - fit.q_mean) + fit.p_mean)).norm();
       const char keep = res < 3.5 * sigma_h + 1.0;
       if (keep != use[i]) { use[i] = keep; changed = true; }
     }
     if (!changed) break;
   }
-  if (used < std::max(2, config_.init_min_fixes) || spread2 < min_baseline * min_baseline / 4) return;
+  return fit;
+}
 
-  const Mat3 R_enu_start = Eigen::AngleAxisd(psi, Vec3::UnitZ()).toRotationMatrix() * R_level_start;
+void Ekf::InitializeState(const HeadingFit& fit, const Mat3& R_level_start, double tilt_var, double sigma_h) {
+  const Mat3 R_enu_start = Eigen::AngleAxisd(fit.psi, Vec3::UnitZ()).toRotationMatrix() * R_level_start;
   const Vec3 q_now = R_level_start * T_start_body_.translation();
-  const Eigen::Vector2d p_now_xy = Eigen::Rotation2Dd(psi) * (q_now.head<2>() - q_mean) + p_mean;
+  const Eigen::Vector2d p_now_xy = Eigen::Rotation2Dd(fit.psi) * (q_now.head<2>() - fit.q_mean) + fit.p_mean;
   s_.x = NominalState{};
-  s_.x.p_enu_m = Vec3(p_now_xy.x(), p_now_xy.y(), q_now.z() + z_off);
+  s_.x.p_enu_m = Vec3(p_now_xy.x(), p_now_xy.y(), q_now.z() + fit.z_off);
   s_.x.R_enu_body = R_enu_start * T_start_body_.linear();
   s_.x.v_enu_mps = s_.x.R_enu_body * last_vo_velocity_body_mps_;
-
   // Covariance: centroid noise + yaw lever arm.
   const double k = std::max(1.0, config_.init_cov_inflation);
-  const double var_c = k * sigma_h * sigma_h / used;
-  const double sigma_psi = std::sqrt(k) * sigma_h / std::sqrt(spread2);
-  const Vec3 lever(p_now_xy.x() - p_mean.x(), p_now_xy.y() - p_mean.y(), 0);
+  const double var_c = k * sigma_h * sigma_h / fit.used;
+  const double sigma_psi = std::sqrt(k) * sigma_h / std::sqrt(fit.spread2);
+  const Vec3 lever(p_now_xy.x() - fit.p_mean.x(), p_now_xy.y() - fit.p_mean.y(), 0);
   const Vec3 J_psi = Vec3::UnitZ().cross(lever);
   const int n = model_->StateSize();
   const int th = model_->AttitudeIndex();
   Eigen::MatrixXd& P = s_.P;
   P = Eigen::MatrixXd::Zero(n, n);
   const double sigma_v = std::max(3.0, 1.5 * sigma_h);
-  P.block<3, 3>(0, 0).diagonal() << var_c, var_c, sigma_v * sigma_v / used;
+  P.block<3, 3>(0, 0).diagonal() << var_c, var_c, sigma_v * sigma_v / fit.used;
   P.block<3, 3>(0, 0) += J_psi * J_psi.transpose() * sigma_psi * sigma_psi;
   P.block<3, 3>(th, th).diagonal() << tilt_var, tilt_var, sigma_psi * sigma_psi;
   P.block<3, 1>(0, th + 2) = J_psi * sigma_psi * sigma_psi;
   P.block<1, 3>(th + 2, 0) = (J_psi * sigma_psi * sigma_psi).transpose();
   model_->Initialize(s_);
-  s_.t_ns = t_ns;
-  s_.initialized = true;
-  gps_used_ += used;
-  gps_rejected_ += static_cast<int>(fixes.size()) - used;
-  last_gps_accepted_ns_ = fixes.back()->t_ns;
-  init_fixes_.clear();
 }
 
 }  // namespace locaid::fusion

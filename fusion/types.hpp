@@ -43,6 +43,15 @@ struct ImuSample {
   double gyro_noise_radps_sqrt_hz = 0;
 };
 
+// Where a reference unit (a recorded drive's OXTS RT3003: ground truth) says
+// the body was. Never fused: the scenario (fusion/scenario.hpp) makes the
+// receiver fixes the filter sees from it, and evaluation compares with it.
+struct ReferencePose {
+  int64_t t_ns = 0;
+  double lat_deg = 0, lon_deg = 0, alt_m = 0;
+  Eigen::Matrix3d R_enu_body = Eigen::Matrix3d::Identity();  // attitude (places an antenna)
+};
+
 // Relative motion of the body between two VO frames: p_prev = T_prev_curr * p_curr,
 // covariance of the right perturbation [dt, dtheta] in body (curr) axes.
 struct VoMeasurement {

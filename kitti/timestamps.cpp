@@ -6,6 +6,8 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <string>
+#include <string_view>
 #include <vector>
 
 namespace locaid::kitti {
@@ -56,6 +58,30 @@ bool Digits(std::string_view s, size_t pos, size_t n, int64_t& out) {
     out = out * 10 + (s[i] - '0');
   }
   return true;
+}
+
+// Calls parse(line, "path:N") for each line of a file whose line k belongs
+// to frame k (trimmed; trailing blank lines allowed, a blank line before a
+// non-blank one is an error: it would shift every later frame).
+template <typename Parse>
+void ForEachFrameLine(const std::filesystem::path& path, const char* what, Parse parse) {
+  std::ifstream in(path);
+  if (!in) throw Error(path.string() + ": cannot open " + what + " file");
+  std::string line;
+  int line_no = 0, first_blank = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    const std::string_view tok = Trim(line);
+    if (tok.empty()) {
+      if (first_blank == 0) first_blank = line_no;
+      continue;
+    }
+    if (first_blank != 0) {
+      throw Error(path.string() + ":" + std::to_string(first_blank) + ": blank line inside a " + what +
+                  " file (line k must be frame k)");
+    }
+    parse(tok, path.string() + ":" + std::to_string(line_no));
+  }
 }
 
 }  // namespace
@@ -118,23 +144,10 @@ std::string FormatTimestamp(int64_t t_ns) {
 }
 
 std::vector<int64_t> ReadTimestampsFile(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  if (!in) throw Error(path.string() + ": cannot open timestamps file");
   std::vector<int64_t> out;
-  std::string line;
-  int line_no = 0, first_blank = 0;
-  while (std::getline(in, line)) {
-    ++line_no;
-    if (Trim(line).empty()) {
-      if (first_blank == 0) first_blank = line_no;
-      continue;
-    }
-    if (first_blank != 0) {
-      throw Error(path.string() + ":" + std::to_string(first_blank) +
-                  ": blank line inside a timestamps file (line k must be frame k)");
-    }
-    out.push_back(ParseTimestamp(line, path.string() + ":" + std::to_string(line_no)));
-  }
+  ForEachFrameLine(path, "timestamps", [&](std::string_view line, const std::string& where) {
+    out.push_back(ParseTimestamp(std::string(line), where));
+  });
   return out;
 }
 
@@ -146,28 +159,12 @@ void WriteTimestampsFile(const std::filesystem::path& path, const std::vector<in
 }
 
 std::vector<double> ReadOdometryTimes(const std::filesystem::path& path) {
-  std::ifstream in(path);
-  if (!in) throw Error(path.string() + ": cannot open times file");
   std::vector<double> out;
-  std::string line;
-  int line_no = 0, first_blank = 0;
-  while (std::getline(in, line)) {
-    ++line_no;
-    const std::string_view tok = Trim(line);
-    const std::string at = path.string() + ":" + std::to_string(line_no) + ": ";
-    if (tok.empty()) {
-      if (first_blank == 0) first_blank = line_no;
-      continue;
-    }
-    if (first_blank != 0) {
-      throw Error(path.string() + ":" + std::to_string(first_blank) +
-                  ": blank line inside a times file (line k must be frame k)");
-    }
+  ForEachFrameLine(path, "times", [&](std::string_view tok, const std::string& where) {
+    const std::string at = where + ": ";
     double v = 0;
     std::string why;
-    if (!ParseFiniteDouble(tok, v, why)) {
-      throw Error(at + "time " + why + ": '" + std::string(tok) + "'");
-    }
+    if (!ParseFiniteDouble(tok, v, why)) throw Error(at + "time " + why + ": '" + std::string(tok) + "'");
     if (v < 0) throw Error(at + "negative time " + std::string(tok));
     constexpr double kMaxTimeS = 1e9;  // keeps llround(t * 1e9) inside int64
     if (v > kMaxTimeS) throw Error(at + "time " + std::string(tok) + " s exceeds 1e9 s");
@@ -175,7 +172,7 @@ std::vector<double> ReadOdometryTimes(const std::filesystem::path& path) {
       throw Error(at + "time " + std::string(tok) + " s goes back (previous line " +
                   std::to_string(out.back()) + " s)");
     out.push_back(v);
-  }
+  });
   return out;
 }
 

@@ -1,7 +1,9 @@
-// The one frame loop: a FrameSource (KITTI drive, synthetic drive, frames a
-// client pushes) feeding an Estimator (the Localizer: VO -> scenario -> EKF),
-// one StepResult per Step(). Every session of the gRPC server runs one, and so
-// does locaid-replay.
+// The one frame loop: source -> scenario stage -> estimator, one StepResult
+// per Step(). A FrameSource (KITTI drive, synthetic drive, frames and sensors
+// a client pushes) yields frames and typed sensor data; the ScenarioStage
+// (scenario_stage.hpp) makes the measurements and owns GPS availability; the
+// Estimator (the Localizer: VO + EKF) fuses them. Every session of the gRPC
+// server runs one, and so does locaid-replay.
 //
 // Threading: Step() and Release() are called from one thread (the session's
 // or the replay's); Cancel() and Wake() from any thread; the GPS controls
@@ -12,6 +14,7 @@
 #include "fusion/types.hpp"
 #include "pipeline/frame_source.hpp"
 #include "pipeline/localizer.hpp"
+#include "pipeline/scenario_stage.hpp"
 
 #include <Eigen/Geometry>
 
@@ -44,8 +47,8 @@ struct StepResult {
   Kind kind = Kind::kIdle;
   int64_t frame_index = -1;
   int64_t t_ns = 0;  // sensor time of the frame (also for skipped frames)
-  // kPose: the estimator's result. frame.gps_feeds lists every fix fed since
-  // the previous pose (typed fixes fused between frames first).
+  // kPose: the estimator's result. frame.gps_feeds lists every fix fused
+  // since the previous pose.
   FrameResult frame;
   std::optional<TruthPose> truth;
   int oxts_bad_lines = 0;  // bad OXTS records met while producing this result
@@ -90,12 +93,12 @@ class Pipeline {
 
 class FrameLoop final : public Pipeline {
  public:
-  FrameLoop(std::unique_ptr<FrameSource> source, std::unique_ptr<Estimator> estimator)
-      : source_(std::move(source)), estimator_(std::move(estimator)) {}
+  FrameLoop(std::unique_ptr<FrameSource> source, ScenarioStage scenario, std::unique_ptr<Estimator> estimator)
+      : source_(std::move(source)), scenario_(std::move(scenario)), estimator_(std::move(estimator)) {}
 
-  // Reads the next item and runs it through the estimator: typed sensor data
-  // first (a fix reaches the filter before VO runs on the frame), then the
-  // frame. OXTS samples of skipped frames go with the next good frame.
+  // Reads the next item: its sensor data goes through the scenario stage to
+  // the estimator (so a fix reaches the filter before VO runs on the frame),
+  // then a frame is processed.
   StepResult Step() override;
   // A message for the user (e.g. OutageCoverageWarning) that the first pose's
   // result carries in `error` when it has no input error of its own.
@@ -103,34 +106,29 @@ class FrameLoop final : public Pipeline {
   void Cancel() override { source_->Cancel(); }
   void Wake() override { source_->Wake(); }
   int64_t total_frames() const override { return source_->total_frames(); }
-  void StartOutageNow(double duration_s) override;
-  void StopOutage() override { estimator_->StopOutage(); }
-  void AddOutageWindow(double start_s, double duration_s) override;
-  void SetScenario(const fusion::Scenario& scenario) override { estimator_->SetScenario(scenario); }
+  void StartOutageNow(double duration_s) override { scenario_.StartOutageNow(duration_s); }
+  void StopOutage() override { scenario_.StopOutage(); }
+  void AddOutageWindow(double start_s, double duration_s) override { scenario_.AddOutageWindow(start_s, duration_s); }
+  void SetScenario(const fusion::Scenario& scenario) override { scenario_.SetScenario(scenario); }
   bool origin(double* lat_deg, double* lon_deg, double* alt_m) const override;
   // The source's counters plus the arrival-to-use latency of received fixes.
   LiveInputStats input_stats() const override;
 
  private:
-  // Fuses typed data, then records each fix's time from arrival to use.
-  void FuseTyped(const SourceItem& item);
+  // Records each received fix's time from arrival to use.
+  void RecordFixLatency(const SensorBatch& sensors);
   // The truth pose in the filter's ENU frame (no T_enu_body before it has an origin).
-  TruthPose Truth(const kitti::OxtsRecord& oxts) const;
+  TruthPose Truth(const fusion::ReferencePose& reference) const;
 
   std::unique_ptr<FrameSource> source_;
+  ScenarioStage scenario_;
   std::unique_ptr<Estimator> estimator_;
   // Arrival-to-use times of the last kLatencyWindow received fixes, ms.
   static constexpr size_t kLatencyWindow = 256;
   mutable std::mutex latency_mu_;
   std::deque<double> fix_latency_ms_;
-  std::optional<int64_t> first_t_ns_;
-  int64_t last_t_ns_ = 0;
+  bool had_frame_ = false;
   std::string notice_;
-  std::vector<std::pair<double, double>> early_windows_;  // before the first frame
-  // OXTS samples that came with skipped / corrupt items: given to the
-  // estimator with the next good frame instead of being lost.
-  std::vector<kitti::OxtsSample> carried_oxts_;
-  std::vector<GpsFeed> typed_feeds_;  // typed fixes fused since the last pose
 };
 
 }  // namespace locaid::pipeline

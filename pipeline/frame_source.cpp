@@ -1,6 +1,7 @@
 #include "pipeline/frame_source.hpp"
 
 #include "kitti/oxts.hpp"
+#include "pipeline/oxts_adapter.hpp"
 
 #include <algorithm>
 #include <cstdint>
@@ -49,21 +50,9 @@ SourceItem DatasetFrameSource::Next() {
   }
   item.t_ns = dataset_->time_ns(i);
   const auto& oxts = dataset_->oxts();
-  while (next_oxts_ < oxts.size() && oxts[next_oxts_].t_ns <= item.t_ns) {
-    item.oxts.push_back(oxts[next_oxts_++]);
-  }
+  while (next_oxts_ < oxts.size() && oxts[next_oxts_].t_ns <= item.t_ns) AppendOxts(oxts[next_oxts_++], item.sensors);
   // Ground truth at the frame time: OXTS is the reference (design.md).
-  if (next_oxts_ > 0) {
-    const auto& a = oxts[next_oxts_ - 1];
-    const auto& b = oxts[std::min(next_oxts_, oxts.size() - 1)];
-    const double w =
-        b.t_ns > a.t_ns ? static_cast<double>(item.t_ns - a.t_ns) / static_cast<double>(b.t_ns - a.t_ns) : 0.0;
-    kitti::OxtsRecord truth = w < 0.5 ? a.record : b.record;  // attitude of the nearer record
-    truth.lat_deg = a.record.lat_deg + w * (b.record.lat_deg - a.record.lat_deg);
-    truth.lon_deg = a.record.lon_deg + w * (b.record.lon_deg - a.record.lon_deg);
-    truth.alt_m = a.record.alt_m + w * (b.record.alt_m - a.record.alt_m);
-    item.truth = truth;
-  }
+  if (next_oxts_ > 0) item.truth = OxtsTruthAt(item.t_ns, oxts[next_oxts_ - 1], oxts[std::min(next_oxts_, oxts.size() - 1)]);
   if (!dataset_->has_stereo(i)) {
     item.kind = SourceItem::Kind::kSkipped;
     item.error = "frame " + std::to_string(i) + ": left or right image missing";

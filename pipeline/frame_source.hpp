@@ -1,7 +1,8 @@
 // What the frame loop (frame_loop.hpp) reads: stereo frames with the sensor
 // data that arrived since the previous frame. DatasetFrameSource plays a KITTI
-// dataset (real or synthetic) from disk; LiveFrameSource
-// (live_frame_source.hpp) is fed by a client pushing frames and sensor data.
+// dataset (real or synthetic) from disk, its OXTS as reference samples
+// (oxts_adapter.hpp); LiveFrameSource (live_frame_source.hpp) is fed by a
+// client pushing frames and sensor data.
 // Both turn bad input into counted, skipped items instead of errors.
 #pragma once
 
@@ -9,6 +10,7 @@
 #include "fusion/types.hpp"
 #include "kitti/dataset.hpp"
 #include "kitti/types.hpp"
+#include "pipeline/sensors.hpp"
 
 #include <opencv2/core.hpp>
 
@@ -34,13 +36,6 @@ struct LiveInputStats {
   double fix_latency_median_ms = 0, fix_latency_max_ms = 0;
 };
 
-// A GPS fix of a live session, with the steady-clock time it reached the
-// server (for the latency from arrival to use).
-struct ArrivedFix {
-  fusion::GpsFix fix;
-  int64_t arrival_steady_ns = 0;  // 0: pushed (no arrival-to-use latency recorded)
-};
-
 struct SourceItem {
   // kSensors: typed IMU / GPS data between frames, to fuse now (live input).
   enum class Kind { kFrame, kSkipped, kCorrupt, kIdle, kEnd, kSensors };
@@ -48,11 +43,9 @@ struct SourceItem {
   int64_t index = -1;
   int64_t t_ns = 0;
   cv::Mat left, right;                         // kFrame: CV_8UC1, camera size
-  std::vector<kitti::OxtsSample> oxts;         // t_prev_frame < t <= t_ns
-  std::vector<fusion::ImuSample> imu;          // typed IMU, time order, t <= t_ns for frames
-  std::vector<ArrivedFix> gps;                 // typed / gpsd fixes, time order, t <= sensor time
-  std::optional<bool> receiver_has_fix;        // the receiver's newest no-fix / fix state
-  std::optional<kitti::OxtsRecord> truth;      // dataset sources: OXTS at the frame time (interpolated)
+  // Sensor data since the previous item, typed (t <= t_ns for frames).
+  SensorBatch sensors;
+  std::optional<fusion::ReferencePose> truth;  // recorded drives: the reference at the frame time
   int oxts_bad_lines = 0;
   std::string error;                           // why skipped/corrupt, last bad OXTS line
 };
@@ -72,8 +65,8 @@ class FrameSource {
 };
 
 // Frames [first, last] of a dataset (last < 0: to the end), each with the
-// OXTS samples after the previous frame up to its time (samples before the
-// first frame are not fed). A frame whose time is not after the previous
+// OXTS samples after the previous frame up to its time as reference samples
+// (samples before the first frame are not fed). A frame whose time is not after the previous
 // delivered frame's is kCorrupt (as for pushed frames); a frame without both
 // images is kSkipped and its OXTS samples go with the next frame.
 class DatasetFrameSource : public FrameSource {

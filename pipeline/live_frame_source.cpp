@@ -1,6 +1,7 @@
 #include "pipeline/live_frame_source.hpp"
 
 #include "kitti/oxts.hpp"
+#include "pipeline/oxts_adapter.hpp"
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -159,13 +160,13 @@ bool LiveFrameSource::HasReleasable() const {
 
 void LiveFrameSource::Release(int64_t t_ns, SourceItem& out) {
   auto imu_end = std::find_if(imu_.begin(), imu_.end(), [&](const fusion::ImuSample& s) { return s.t_ns > t_ns; });
-  out.imu.assign(imu_.begin(), imu_end);
+  out.sensors.imu.assign(imu_.begin(), imu_end);
   imu_.erase(imu_.begin(), imu_end);
   while (!held_gps_.empty() && held_gps_.front().fix.t_ns <= t_ns) {
-    out.gps.push_back(held_gps_.front());
+    out.sensors.gps.push_back(held_gps_.front());
     held_gps_.pop_front();
   }
-  out.receiver_has_fix = std::exchange(receiver_has_fix_, std::nullopt);
+  out.sensors.receiver_has_fix = std::exchange(receiver_has_fix_, std::nullopt);
 }
 
 void LiveFrameSource::CloseInput() {
@@ -260,7 +261,7 @@ SourceItem LiveFrameSource::Next() {
                                       std::to_string(*last_oxts_t_ns_) + ")");
         }
         last_oxts_t_ns_ = s.t_ns;
-        oxts_.push_back(s);
+        AppendOxts(s, reference_);
       } catch (const std::exception& e) {
         ++bad_lines_;
         last_error_ = e.what();
@@ -272,11 +273,8 @@ SourceItem LiveFrameSource::Next() {
     out.t_ns = item.t_ns;
     out.oxts_bad_lines = std::exchange(bad_lines_, 0);
     if (out.oxts_bad_lines > 0) out.error = last_error_;
-    // Hand over the samples up to the frame time; later ones wait.
-    auto split = std::find_if(oxts_.begin(), oxts_.end(),
-                              [&](const kitti::OxtsSample& s) { return s.t_ns > item.t_ns; });
-    out.oxts.assign(oxts_.begin(), split);
-    oxts_.erase(oxts_.begin(), split);
+    // Hand over the reference samples up to the frame time; later ones wait.
+    reference_.MoveUpTo(item.t_ns, out.sensors);
     if (item.t_ns > last_frame_ns_) sensor_time_ns_ = std::max(sensor_time_ns_, item.t_ns);
     Release(item.t_ns, out);
     if (item.t_ns <= last_frame_ns_) {

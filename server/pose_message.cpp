@@ -73,10 +73,10 @@ void FillPoseUpdate(const pipeline::StepResult& r, double latency_ms, locaid::v1
     g->set_altitude_m(f.fix.alt_m);
     g->set_sigma_horizontal_m(f.fix.horizontal_sigma_m());
     g->set_sigma_vertical_m(f.fix.vertical_sigma_m());
-    g->set_used(f.accepted);
-    g->set_rejected_vertical(f.rejected_vertical);
-    g->set_nis(f.nis);
-    g->set_gate(f.gate);
+    g->set_used(f.update.used);
+    g->set_rejected_vertical(f.update.rejected_vertical);
+    g->set_nis(f.update.nis);
+    g->set_gate(f.update.gate);
   }
   if (r.truth && r.truth->T_enu_body) {
     const Eigen::Isometry3d& T = *r.truth->T_enu_body;

@@ -114,7 +114,8 @@ std::unique_ptr<pipeline::FrameLoop> MakeFrameLoop(const EstimatorFactory& make,
   setup.T_cam0_imu = source->T_cam0_imu();
   const double duration_s = source->duration_s();
   if (duration_s > 0) setup.scenario = fusion::PlaceOutagesForDrive(setup.scenario, duration_s);
-  auto loop = std::make_unique<pipeline::FrameLoop>(std::move(source), make(setup));
+  auto loop = std::make_unique<pipeline::FrameLoop>(std::move(source), pipeline::ScenarioStage(setup.scenario),
+                                                    make(setup));
   loop->set_notice(fusion::OutageCoverageWarning(setup.scenario, duration_s));
   return loop;
 }
@@ -125,7 +126,8 @@ std::unique_ptr<pipeline::Estimator> MakeLocalizer(const EstimatorSetup& setup) 
   pipeline::LocalizerOptions options;
   options.vo_method = setup.vo_method;
   options.ekf.gps_lever_arm_body_m = setup.gps_antenna_body_m;
-  return std::make_unique<pipeline::Localizer>(setup.camera, setup.T_cam0_imu, setup.scenario, options);
+  options.ekf = pipeline::EkfConfigForScenario(options.ekf, setup.scenario);
+  return std::make_unique<pipeline::Localizer>(setup.camera, setup.T_cam0_imu, options);
 }
 
 Status LocalizationService::ResolveScenario(const v1::Scenario& s, fusion::Scenario* out, std::string* name) const {

@@ -43,8 +43,8 @@ namespace {
 
 class ConstantEstimator : public locaid::pipeline::Estimator {
  public:
-  locaid::pipeline::FrameResult Process(const locaid::vo::StereoFrame& frame,
-                                        std::span<const locaid::kitti::OxtsSample>) override {
+  void Fuse(const locaid::pipeline::Measurements&) override {}
+  locaid::pipeline::FrameResult Process(const locaid::vo::StereoFrame& frame) override {
     locaid::pipeline::FrameResult e;
     e.pose.t_ns = frame.t_ns;
     e.pose.T_enu_body.translation() = Eigen::Vector3d(static_cast<double>(n_++), 0, 0);
@@ -52,11 +52,6 @@ class ConstantEstimator : public locaid::pipeline::Estimator {
     e.vo.status = locaid::vo::Status::kOk;
     return e;
   }
-  locaid::pipeline::FrameResult FuseSensors(const locaid::pipeline::SensorBatch&) override { return {}; }
-  void ScheduleOutage(int64_t, int64_t) override {}
-  void StartOutageNow() override {}
-  void StopOutage() override {}
-  void SetScenario(locaid::fusion::Scenario) override {}
   const locaid::fusion::EnuFrame& enu() const override { return enu_; }
 
  private:

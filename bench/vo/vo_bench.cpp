@@ -281,10 +281,8 @@ int main(int argc, char** argv) {
       j["drive"] = drive;
       j["reference"] = reference;
       if (oxts_pos_accuracy_m) j["oxts_pos_accuracy_median_m"] = *oxts_pos_accuracy_m;
-      j["frames"] = s.frames;
+      vo::AddRunSummaryJson(j, s, flags);
       j["missing_frames"] = s.missing_frames;
-      j["failed_frames"] = s.lost_frames;
-      j["degraded_frames"] = s.degraded_frames;
       const SplitError split = SplitSegmentErrors(gt, est, r.segments);
       j["split"]["t_rel_horizontal_pct"] = split.horizontal * 100;
       j["split"]["t_rel_vertical_pct"] = split.vertical * 100;
@@ -305,12 +303,6 @@ int main(int argc, char** argv) {
                                 {"t_rel_pct", b->t_rel_pct},
                                 {"r_rel_deg_per_100m", b->r_rel_deg_per_100m}};
       }
-      j["ms_per_frame_median"] = s.ms_per_frame_median;
-      j["ms_per_frame_p95"] = s.ms_per_frame_p95;
-      j["cpu_ms_per_frame_median"] = s.cpu_ms_per_frame_median;
-      j["cpu_ms_per_frame_p95"] = s.cpu_ms_per_frame_p95;
-      j["stage_median_ms"] = s.stage_median_ms;
-      j["stage_clock"] = vo::StageClockName(flags);
       std::fprintf(stderr, "%s: t_rel %.3f %%, final %.3f %%, %.2f ms median (cpu %.2f)\n",
                    m.c_str(), r.t_err ? *r.t_err * 100 : -1.0, j["final_error_pct"].get<double>(),
                    s.ms_per_frame_median, s.cpu_ms_per_frame_median);

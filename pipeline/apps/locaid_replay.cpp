@@ -128,19 +128,20 @@ int main(int argc, char** argv) {
     options.vo_method = vo_method;
     options.ekf.use_imu = !no_imu;
     for (const auto& setting : ekf_settings) ApplyEkfSetting(options.ekf, setting);
+    options.ekf = pipeline::EkfConfigForScenario(options.ekf, scenario);
     const std::string cache_header =
         pipeline::VoCacheHeader(std::filesystem::weakly_canonical(drive_dir).string(), vo_method, n_frames);
     std::optional<pipeline::VoResults> vo_cache;
     if (!vo_cache_path.empty()) vo_cache = pipeline::ReadVoCache(vo_cache_path, cache_header);
     auto localizer = vo_cache ? std::make_unique<pipeline::Localizer>(
-                                    dataset.T_cam0_imu(), scenario, options,
+                                    dataset.T_cam0_imu(), options,
                                     std::make_unique<pipeline::RecordedOdometry>(*vo_cache))
-                              : std::make_unique<pipeline::Localizer>(dataset.camera(), dataset.T_cam0_imu(),
-                                                                      scenario, options);
+                              : std::make_unique<pipeline::Localizer>(dataset.camera(), dataset.T_cam0_imu(), options);
     pipeline::ReplayRun run(dataset, *localizer, scenario);
     auto frames = std::make_unique<pipeline::DatasetFrameSource>(std::move(dataset_owned), 0,
                                                                  static_cast<int64_t>(n_frames) - 1, !vo_cache);
-    pipeline::FrameLoop loop(std::make_unique<pipeline::PrefetchSource>(std::move(frames), 4), std::move(localizer));
+    pipeline::FrameLoop loop(std::make_unique<pipeline::PrefetchSource>(std::move(frames), 4),
+                             pipeline::ScenarioStage(scenario), std::move(localizer));
 
     std::optional<pipeline::ReplayMcap> mcap;
     if (!out_mcap.empty()) mcap.emplace(out_mcap);

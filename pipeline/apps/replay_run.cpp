@@ -48,10 +48,10 @@ void ReplayRun::Add(const StepResult& step) {
   PlotExtras extra;
   for (const auto& f : r.gps_feeds) {
     extra.p_enu_gps_m = f.p_enu_m;
-    extra.gps_rejected = extra.gps_rejected || f.rejected;
-    if (!f.accepted && !f.rejected) continue;  // buffered before initialisation
-    rejection_run_ = f.rejected ? rejection_run_ + 1 : 0;
-    rejection_run_v_ = f.rejected_vertical ? rejection_run_v_ + 1 : 0;
+    extra.gps_rejected = extra.gps_rejected || f.update.rejected;
+    if (f.update.buffered) continue;  // before initialisation
+    rejection_run_ = f.update.rejected ? rejection_run_ + 1 : 0;
+    rejection_run_v_ = f.update.rejected_vertical ? rejection_run_v_ + 1 : 0;
     max_rejection_run_ = std::max(max_rejection_run_, rejection_run_);
     max_rejection_run_v_ = std::max(max_rejection_run_v_, rejection_run_v_);
   }
@@ -106,10 +106,10 @@ nlohmann::json ReplayRun::Summary(const ReplayMetrics& metrics, double wall_s) c
   j["frames_per_s"] = frames / wall_s;
   j["vo_ms_mean"] = vo_ms_total_ / std::max(1.0, frames);
   j["vo_lost_frames"] = lost_frames_;
-  j["vo_rejected_by_gate"] = ekf.vo_rejected();
+  j["vo_rejected_by_gate"] = ekf.stats().vo_rejected;
   j["gps_used"] = last_.pose.gps_used;
   j["gps_rejected"] = last_.pose.gps_rejected;
-  j["gps_rejected_vertical"] = ekf.gps_rejected_vertical();
+  j["gps_rejected_vertical"] = ekf.stats().gps_rejected_vertical;
   j["gps_resets"] = last_.pose.gps_resets;
   const Eigen::Vector3d& rot_scale = ekf.vo_rotation_noise_scale();
   j["vo_rotation_noise_scale"] = {rot_scale.x(), rot_scale.y(), rot_scale.z()};

@@ -129,9 +129,9 @@ TEST(EkfGate, InjectedJumpIsRejectedAndDoesNotPullThePose) {
         GpsFix bad = e.gps;
         geo.ToGeodetic(Vec3(kJumpM * 0.6, kJumpM * 0.8, 0), bad.lat_deg, bad.lon_deg, bad.alt_m);
         const Vec3 before = ekf.state().p_enu_m;
-        const int rejected_before = ekf.gps_rejected();
-        EXPECT_FALSE(ekf.UpdateGps(bad));
-        EXPECT_EQ(ekf.gps_rejected(), rejected_before + 1);
+        const int rejected_before = ekf.stats().gps_rejected;
+        EXPECT_TRUE(ekf.UpdateGps(bad).rejected);
+        EXPECT_EQ(ekf.stats().gps_rejected, rejected_before + 1);
         EXPECT_LT((ekf.state().p_enu_m - before).norm(), kMaxPullM);
         EXPECT_EQ(ekf.Output(e.gps.t_ns, true).mode, Mode::kGpsDegraded);
         continue;
@@ -252,7 +252,7 @@ TEST_P(EkfMissingFrames, MotionSpanningMissingFramesIsAppliedOnce) {
         err = ekf.Output(e.vo.t_ns, good).T_enu_body.translation() - test::TruthInFilterEnu(ekf, e.truth.x.p_enu_m);
       }
     }
-    EXPECT_EQ(ekf.vo_anchor_mismatches(), 0);
+    EXPECT_EQ(ekf.stats().vo_anchor_mismatches, 0);
     return err.head<2>().norm();
   };
   const double reference_m = run(ev, nullptr);

@@ -55,18 +55,15 @@ StepRun RunWithStep(bool use_imu, const Vec3& offset_enu_m) {
         fix.lon_deg = lon;
         fix.alt_m = alt;
       }
-      const int rejected_before = ekf.gps_rejected(), rejected_v_before = ekf.gps_rejected_vertical();
-      const int resets_before = ekf.gps_resets();
-      const bool used = ekf.UpdateGps(fix);
-      const bool rejected = ekf.gps_rejected() > rejected_before || ekf.gps_rejected_vertical() > rejected_v_before;
-      run = rejected ? run + 1 : 0;
+      const GpsUpdate u = ekf.UpdateGps(fix);
+      run = u.rejected || u.rejected_vertical ? run + 1 : 0;
       if (!after) continue;
       ++out.fixes_after_step;
       out.longest_run = std::max(out.longest_run, run);
-      out.rejected_after_step += ekf.gps_rejected() - rejected_before;
-      out.rejected_v_after_step += ekf.gps_rejected_vertical() - rejected_v_before;
-      out.horizontal_used_after_step += used ? 1 : 0;
-      if (ekf.gps_resets() > resets_before && !out.mode_at_reset) out.mode_at_reset = ekf.Output(fix.t_ns, true).mode;
+      out.rejected_after_step += u.rejected ? 1 : 0;
+      out.rejected_v_after_step += u.rejected_vertical ? 1 : 0;
+      out.horizontal_used_after_step += u.used ? 1 : 0;
+      if (u.reset && !out.mode_at_reset) out.mode_at_reset = ekf.Output(fix.t_ns, true).mode;
     } else if (e.vo.t_ns > 0) {
       ekf.ProcessVo(e.vo, true);
       const FusedPose pose = ekf.Output(e.vo.t_ns, true);
@@ -76,7 +73,7 @@ StepRun RunWithStep(bool use_imu, const Vec3& offset_enu_m) {
             pose.T_enu_body.translation() - test::TruthInFilterEnu(ekf, e.truth.x.p_enu_m + offset_enu_m);
     }
   }
-  out.resets = ekf.gps_resets();
+  out.resets = ekf.stats().gps_resets;
   return out;
 }
 

@@ -65,8 +65,8 @@ Errors RunDrive(const test::SimConfig& c, double delay_s, const std::function<vo
   out.rmse_v_m = std::sqrt(sum_v / std::max(1, n));
   out.rmse_vel_mps = std::sqrt(sum_vel / std::max(1, n));
   out.max_v_m = max_v;
-  out.rejected = ekf.gps_rejected();
-  out.rejected_vertical = ekf.gps_rejected_vertical();
+  out.rejected = ekf.stats().gps_rejected;
+  out.rejected_vertical = ekf.stats().gps_rejected_vertical;
   return out;
 }
 
@@ -112,14 +112,14 @@ TEST(GpsTypedFix, ABadCovarianceOrVelocityIsRefusedBeforeItSetsAnything) {
   fix.lon_deg = 8;
   fix.cov_enu_m2 = Mat3::Identity();
   (*fix.cov_enu_m2)(0, 0) = -1;  // not positive definite
-  EXPECT_FALSE(ekf.UpdateGps(fix));
+  EXPECT_TRUE(ekf.UpdateGps(fix).rejected);
   fix.cov_enu_m2 = Mat3::Identity();
   (*fix.cov_enu_m2)(0, 1) = 0.5;  // not symmetric
-  EXPECT_FALSE(ekf.UpdateGps(fix));
+  EXPECT_TRUE(ekf.UpdateGps(fix).rejected);
   fix.cov_enu_m2.reset();
   fix.v_enu_mps = Vec3(1, NAN, 0);
-  EXPECT_FALSE(ekf.UpdateGps(fix));
-  EXPECT_EQ(ekf.gps_rejected(), 3);
+  EXPECT_TRUE(ekf.UpdateGps(fix).rejected);
+  EXPECT_EQ(ekf.stats().gps_rejected, 3);
   EXPECT_FALSE(ekf.enu().has_origin());
 }
 

@@ -274,13 +274,13 @@ TEST_P(EkfNumericalHealth, CovarianceStaysSymmetricPositiveDefiniteAndOutputsFin
     const RunResult r = Drive(ekf, events, c.torture, health, c.sim.seed);
     health.Report();
     std::printf("[health] %-34s fixes fed %d (jumped %d): used %d, rejected %d; frames %d (VO lost %d)\n", c.name,
-                r.gps_fed, r.jump_fixes, ekf.gps_used(), ekf.gps_rejected(), r.frames, r.vo_lost_frames);
+                r.gps_fed, r.jump_fixes, ekf.stats().gps_used, ekf.stats().gps_rejected, r.frames, r.vo_lost_frames);
     ASSERT_TRUE(r.initialized);
     EXPECT_TRUE(health.ok()) << health.first_failure();
     EXPECT_GT(health.checks(), r.frames);
     if (c.torture.jump_burst_fixes > 0) {
       EXPECT_GT(r.jump_fixes, 0);
-      EXPECT_GT(ekf.gps_rejected(), 0) << "jump bursts were never rejected";
+      EXPECT_GT(ekf.stats().gps_rejected, 0) << "jump bursts were never rejected";
     }
     if (c.torture.vo_lost_s > 0) {
       EXPECT_GT(r.vo_lost_frames, 0);
@@ -413,14 +413,15 @@ TEST_P(EkfBadNumbers, NonFiniteGpsFixIsRejectedAndCountedNotAbsorbed) {
     b.spoil(fix);
     const Vec3 p_before = ekf.state().p_enu_m;
     const Eigen::MatrixXd P_before = ekf.covariance();
-    const int rejected_before = ekf.gps_rejected(), used_before = ekf.gps_used();
-    bool accepted = true;
-    const bool threw = FeedBad([&] { accepted = ekf.UpdateGps(fix); }, b.field);
+    const int rejected_before = ekf.stats().gps_rejected, used_before = ekf.stats().gps_used;
+    GpsUpdate update;
+    const bool threw = FeedBad([&] { update = ekf.UpdateGps(fix); }, b.field);
     if (!threw) {
-      EXPECT_FALSE(accepted);
-      EXPECT_EQ(ekf.gps_rejected(), rejected_before + 1) << "a refused fix must be counted";
+      EXPECT_FALSE(update.used);
+      EXPECT_TRUE(update.rejected);
+      EXPECT_EQ(ekf.stats().gps_rejected, rejected_before + 1) << "a refused fix must be counted";
     }
-    EXPECT_EQ(ekf.gps_used(), used_before);
+    EXPECT_EQ(ekf.stats().gps_used, used_before);
     EXPECT_TRUE(ekf.state().p_enu_m == p_before) << "position moved: " << ekf.state().p_enu_m.transpose();
     EXPECT_TRUE(ekf.covariance().allFinite()) << "NaN/Inf absorbed into the covariance";
     EXPECT_TRUE(ekf.covariance() == P_before) << "covariance changed by a refused fix";
@@ -439,9 +440,10 @@ TEST_P(EkfBadNumbers, NonFiniteFirstFixDoesNotPoisonTheEnuOrigin) {
   bad.lat_deg = kNaN;
   bad.lon_deg = 8.4;
   bad.alt_m = 110;
-  bool accepted = true;
-  FeedBad([&] { accepted = ekf.UpdateGps(bad); }, "lat_deg");
-  EXPECT_FALSE(accepted);
+  GpsUpdate update;
+  FeedBad([&] { update = ekf.UpdateGps(bad); }, "lat_deg");
+  EXPECT_FALSE(update.used);
+  EXPECT_TRUE(update.rejected);
   FinishHealthy(ekf, ev, 0, use_imu ? "imu/nan-first-fix" : "no-imu/nan-first-fix");
   EXPECT_TRUE(std::isfinite(ekf.enu().origin_lat_deg()));
   EXPECT_NEAR(ekf.enu().origin_lat_deg(), test::kLat0, 1e-3);
@@ -471,13 +473,13 @@ TEST_P(EkfBadNumbers, NonFiniteVoMeasurementIsNotAbsorbed) {
     ASSERT_LT(p.next, ev.size());
     VoMeasurement m = ev[p.next++].vo;
     b.spoil(m);
-    const int vo_rejected_before = ekf.vo_rejected();
+    const int vo_rejected_before = ekf.stats().vo_rejected;
     const bool threw = FeedBad([&] { ekf.ProcessVo(m, true); }, b.field);
     ExpectFiniteFilter(ekf);
     const FusedPose out = ekf.Output(m.t_ns, true);
     EXPECT_TRUE(out.T_enu_body.matrix().allFinite() && out.covariance.allFinite() && std::isfinite(out.lat_deg));
     if (use_imu && !threw) {
-      EXPECT_EQ(ekf.vo_rejected(), vo_rejected_before + 1) << "refused VO must be counted";
+      EXPECT_EQ(ekf.stats().vo_rejected, vo_rejected_before + 1) << "refused VO must be counted";
     }
     FinishHealthy(ekf, ev, p.next, std::string(use_imu ? "imu/" : "no-imu/") + b.name);
   }

@@ -1,7 +1,7 @@
 // The frame loop without a network: what reaches the estimator and when
 // (skipped frames, typed data between frames, outage controls on the drive
-// clock, ground truth), over scripted items, a rendered drive and a live
-// source.
+// clock through the scenario stage, ground truth), over scripted items, a
+// rendered drive and a live source.
 #include "cli_support.hpp"
 #include "temp_dir.hpp"
 
@@ -9,6 +9,7 @@
 #include "kitti/raw_drive.hpp"
 #include "pipeline/frame_loop.hpp"
 #include "pipeline/live_frame_source.hpp"
+#include "pipeline/oxts_adapter.hpp"
 
 #include <gtest/gtest.h>
 
@@ -27,50 +28,42 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Records what the loop asks of it. Process reports every OXTS sample it was
-// given as a fed (used) fix, so tests see which samples reached it.
+// Records what the loop asks of it: "fuse I G" (IMU samples, fixes) and
+// "process T". Each fix comes back as a used feed with the next pose.
 class RecordingEstimator : public Estimator {
  public:
   struct Log {
-    std::vector<std::string> calls;  // "process T", "sensors N", "schedule A B", "start", "stop", "scenario"
+    std::vector<std::string> calls;
     std::vector<int64_t> frame_t_ns;
-    size_t oxts_samples = 0;
+    size_t imu_samples = 0;
     fusion::EnuFrame enu;  // the test sets its origin
   };
   explicit RecordingEstimator(std::shared_ptr<Log> log) : log_(std::move(log)) {}
 
-  FrameResult Process(const vo::StereoFrame& frame, std::span<const kitti::OxtsSample> oxts) override {
+  void Fuse(const Measurements& m) override {
+    log_->calls.push_back("fuse " + std::to_string(m.imu.size()) + " " + std::to_string(m.gps.size()));
+    log_->imu_samples += m.imu.size();
+    for (const auto& f : m.gps) {
+      GpsFeed feed;
+      feed.fix = f;
+      feed.update.used = true;
+      feeds_.push_back(feed);
+    }
+  }
+  FrameResult Process(const vo::StereoFrame& frame) override {
     log_->calls.push_back("process " + std::to_string(frame.t_ns));
     log_->frame_t_ns.push_back(frame.t_ns);
-    log_->oxts_samples += oxts.size();
     FrameResult r;
     r.pose.t_ns = frame.t_ns;
     r.vo.status = vo::Status::kOk;
-    for (const auto& s : oxts) r.gps_feeds.push_back(Feed(s.t_ns));
+    r.gps_feeds = std::exchange(feeds_, {});
     return r;
   }
-  FrameResult FuseSensors(const SensorBatch& batch) override {
-    log_->calls.push_back("sensors " + std::to_string(batch.gps.size()));
-    FrameResult r;
-    for (const auto& f : batch.gps) r.gps_feeds.push_back(Feed(f.t_ns));
-    return r;
-  }
-  void ScheduleOutage(int64_t start_ns, int64_t end_ns) override {
-    log_->calls.push_back("schedule " + std::to_string(start_ns) + " " + std::to_string(end_ns));
-  }
-  void StartOutageNow() override { log_->calls.push_back("start"); }
-  void StopOutage() override { log_->calls.push_back("stop"); }
-  void SetScenario(fusion::Scenario) override { log_->calls.push_back("scenario"); }
   const fusion::EnuFrame& enu() const override { return log_->enu; }
 
  private:
-  static GpsFeed Feed(int64_t t_ns) {
-    GpsFeed f;
-    f.fix.t_ns = t_ns;
-    f.accepted = true;
-    return f;
-  }
   std::shared_ptr<Log> log_;
+  std::vector<GpsFeed> feeds_;
 };
 
 // Hands out the items it was given, then kEnd.
@@ -125,54 +118,74 @@ fs::path RenderDrive(const fs::path& dir) {
 constexpr int64_t kT0 = 1'000'000'000'000;  // first frame, ns
 constexpr int64_t kPeriod = 100'000'000;    // 10 Hz
 
-TEST(FrameLoop, OutageWindowsGivenBeforeTheFirstFrameCountFromIt) {
-  auto log = std::make_shared<RecordingEstimator::Log>();
-  FrameLoop loop(std::make_unique<ScriptedSource>(std::deque<SourceItem>{Frame(0, kT0), Frame(1, kT0 + kPeriod)}),
-                 std::make_unique<RecordingEstimator>(log));
-  loop.AddOutageWindow(0.5, 0.25);  // before any frame: relative to the first one
-  loop.StartOutageNow(2.0);         // likewise, from the first frame on
-  ASSERT_EQ(loop.Step().kind, StepResult::Kind::kPose);
-  ASSERT_EQ(loop.Step().kind, StepResult::Kind::kPose);
-  loop.StartOutageNow(1.5);  // from the newest frame
-  loop.AddOutageWindow(10, 1);
-  loop.StartOutageNow(0);  // until stopped
-  loop.StopOutage();
-  EXPECT_EQ(loop.Step().kind, StepResult::Kind::kEnd);
-  const std::vector<std::string> expected = {
-      "schedule " + std::to_string(kT0 + 500'000'000) + " " + std::to_string(kT0 + 750'000'000),
-      "schedule " + std::to_string(kT0) + " " + std::to_string(kT0 + 2'000'000'000),
-      "process " + std::to_string(kT0),
-      "process " + std::to_string(kT0 + kPeriod),
-      "schedule " + std::to_string(kT0 + kPeriod) + " " + std::to_string(kT0 + kPeriod + 1'500'000'000),
-      "schedule " + std::to_string(kT0 + 10'000'000'000) + " " + std::to_string(kT0 + 11'000'000'000),
-      "start",
-      "stop"};
-  EXPECT_EQ(log->calls, expected);
+// The loop with the real scenario stage: `scenario` with no noise worth
+// speaking of, so the fixes it makes are where the reference was.
+FrameLoop MakeLoop(std::deque<SourceItem> items, std::shared_ptr<RecordingEstimator::Log> log,
+                   fusion::Scenario scenario = {}) {
+  return FrameLoop(std::make_unique<ScriptedSource>(std::move(items)), ScenarioStage(std::move(scenario)),
+                   std::make_unique<RecordingEstimator>(std::move(log)));
 }
 
-TEST(FrameLoop, TypedFixesReachTheFilterBeforeTheFrameAndComeFirstWithItsPose) {
+// Frames at kT0 + i * kPeriod, each with a typed fix at its time.
+std::deque<SourceItem> FramesWithFixes(int n) {
+  std::deque<SourceItem> items;
+  for (int i = 0; i < n; ++i) {
+    SourceItem f = Frame(i, kT0 + i * kPeriod);
+    f.sensors.gps = {Fix(kT0 + i * kPeriod)};
+    items.push_back(std::move(f));
+  }
+  return items;
+}
+
+TEST(FrameLoop, OutageWindowsGivenBeforeTheFirstFrameCountFromIt) {
+  auto log = std::make_shared<RecordingEstimator::Log>();
+  FrameLoop loop = MakeLoop(FramesWithFixes(40), log);
+  loop.AddOutageWindow(0.5, 0.25);  // before any frame: relative to the first one, [0.5, 0.75) s
+  std::vector<bool> out;
+  size_t fixes = 0;
+  for (StepResult r = loop.Step(); r.kind != StepResult::Kind::kEnd; r = loop.Step()) {
+    ASSERT_EQ(r.kind, StepResult::Kind::kPose);
+    out.push_back(r.frame.in_outage);
+    fixes += r.frame.gps_feeds.size();
+    if (r.frame_index == 10) loop.StartOutageNow(1.0);  // from the newest frame (1.0 s) for 1 s: [1.0, 2.0)
+    if (r.frame_index == 25) loop.StartOutageNow(0);    // until stopped: from frame 26
+    if (r.frame_index == 30) loop.StopOutage();         // frames 31 on have GPS again
+  }
+  ASSERT_EQ(out.size(), 40u);
+  for (int i = 0; i < 40; ++i) {
+    const bool expected = (i >= 5 && i < 8) || (i >= 11 && i < 20) || (i >= 26 && i <= 30);
+    EXPECT_EQ(out[static_cast<size_t>(i)], expected) << "frame " << i;
+  }
+  EXPECT_EQ(fixes, 40u - 3 - 9 - 5) << "a fix inside an outage never reaches the filter";
+}
+
+TEST(FrameLoop, SensorDataReachesTheFilterBeforeItsFrameAndFixesComeWithThePose) {
   auto log = std::make_shared<RecordingEstimator::Log>();
   SourceItem between;  // sensor data between frames: fused, no pose
   between.kind = SourceItem::Kind::kSensors;
   between.t_ns = kT0 + 50'000'000;
-  between.gps = {Fix(kT0 + 40'000'000)};
+  between.sensors.gps = {Fix(kT0 + 40'000'000)};
   SourceItem frame = Frame(1, kT0 + kPeriod);
-  frame.gps = {Fix(kT0 + 90'000'000), Fix(kT0 + 95'000'000)};
-  kitti::OxtsSample oxts;
+  frame.sensors.gps = {Fix(kT0 + 90'000'000), Fix(kT0 + 95'000'000)};
+  kitti::OxtsSample oxts;  // a recorded drive's reference unit at the frame time
   oxts.t_ns = kT0 + kPeriod;
-  frame.oxts = {oxts};
-  FrameLoop loop(std::make_unique<ScriptedSource>(std::deque<SourceItem>{Frame(0, kT0), between, frame}),
-                 std::make_unique<RecordingEstimator>(log));
+  oxts.record.lat_deg = 49.0;
+  oxts.record.lon_deg = 8.4;
+  AppendOxts(oxts, frame.sensors);
+  FrameLoop loop = MakeLoop({Frame(0, kT0), between, frame}, log);
   EXPECT_EQ(loop.Step().kind, StepResult::Kind::kPose);
   const StepResult fused = loop.Step();
   EXPECT_EQ(fused.kind, StepResult::Kind::kFused);
   EXPECT_TRUE(fused.frame.gps_feeds.empty());  // reported with the next pose
   const StepResult pose = loop.Step();
   ASSERT_EQ(pose.kind, StepResult::Kind::kPose);
+  // The reference pose became the scenario's fix (10 Hz: one due at 0.1 s),
+  // its IMU one IMU sample; in time order, after the fix fused between frames.
   ASSERT_EQ(pose.frame.gps_feeds.size(), 4u);
   const std::vector<int64_t> order = {kT0 + 40'000'000, kT0 + 90'000'000, kT0 + 95'000'000, kT0 + kPeriod};
   for (size_t i = 0; i < order.size(); ++i) EXPECT_EQ(pose.frame.gps_feeds[i].fix.t_ns, order[i]) << i;
-  const std::vector<std::string> calls = {"process " + std::to_string(kT0), "sensors 1", "sensors 2",
+  EXPECT_NEAR(pose.frame.gps_feeds[3].fix.lat_deg, 49.0, 1e-3);  // degraded, not the reference itself
+  const std::vector<std::string> calls = {"process " + std::to_string(kT0), "fuse 0 1", "fuse 1 3",
                                           "process " + std::to_string(kT0 + kPeriod)};
   EXPECT_EQ(log->calls, calls);
 }
@@ -180,15 +193,14 @@ TEST(FrameLoop, TypedFixesReachTheFilterBeforeTheFrameAndComeFirstWithItsPose) {
 TEST(FrameLoop, TruthIsInTheFiltersEnuFrameOnceItHasOne) {
   auto log = std::make_shared<RecordingEstimator::Log>();
   SourceItem a = Frame(0, kT0), b = Frame(1, kT0 + kPeriod);
-  kitti::OxtsRecord truth;
+  fusion::ReferencePose truth;
   truth.lat_deg = 49.0;
   truth.lon_deg = 8.4;
   truth.alt_m = 100.0;
   a.truth = truth;
   truth.lat_deg = 49.0 + 10.0 / 111'200.0;  // ~10 m north
   b.truth = truth;
-  FrameLoop loop(std::make_unique<ScriptedSource>(std::deque<SourceItem>{a, b}),
-                 std::make_unique<RecordingEstimator>(log));
+  FrameLoop loop = MakeLoop({a, b}, log);
   const StepResult first = loop.Step();
   ASSERT_TRUE(first.truth.has_value());
   EXPECT_FALSE(first.truth->T_enu_body.has_value());  // no origin yet
@@ -201,9 +213,9 @@ TEST(FrameLoop, TruthIsInTheFiltersEnuFrameOnceItHasOne) {
 }
 
 // A rendered drive with two frames missing an image and one corrupt image:
-// the loop skips the three, and the OXTS samples that came with them reach
-// the estimator with the next good frame; none is lost.
-TEST(FrameLoop, OxtsOfSkippedFramesReachTheEstimatorWithTheNextFrame) {
+// the loop skips the three, and the OXTS samples that came with them still
+// reach the estimator (as IMU samples, one each); none is lost.
+TEST(FrameLoop, OxtsOfSkippedFramesStillReachTheEstimator) {
   const test_support::ScopedTempDir dir("frame_loop");
   const fs::path drive = RenderDrive(dir);
   ASSERT_FALSE(drive.empty());
@@ -222,7 +234,7 @@ TEST(FrameLoop, OxtsOfSkippedFramesReachTheEstimatorWithTheNextFrame) {
   ASSERT_GE(expected, 11u);
 
   auto log = std::make_shared<RecordingEstimator::Log>();
-  FrameLoop loop(std::make_unique<DatasetFrameSource>(kitti::OpenDataset(drive), 0, -1),
+  FrameLoop loop(std::make_unique<DatasetFrameSource>(kitti::OpenDataset(drive), 0, -1), ScenarioStage({}),
                  std::make_unique<RecordingEstimator>(log));
   std::vector<int64_t> skipped;
   for (StepResult r = loop.Step(); r.kind != StepResult::Kind::kEnd; r = loop.Step()) {
@@ -232,7 +244,7 @@ TEST(FrameLoop, OxtsOfSkippedFramesReachTheEstimatorWithTheNextFrame) {
   }
   EXPECT_EQ(skipped, (std::vector<int64_t>{3, 4, 7}));
   EXPECT_EQ(log->frame_t_ns.size(), 9u);
-  EXPECT_EQ(log->oxts_samples, expected);
+  EXPECT_EQ(log->imu_samples, expected);
 }
 
 // The server opens KITTI drives with skip_bad_oxts: the OXTS files the reader
@@ -263,7 +275,8 @@ TEST(DatasetFrameSource, CountsTheOxtsFilesTheReaderSkipped) {
   for (SourceItem item = source.Next(); item.kind != SourceItem::Kind::kEnd; item = source.Next()) {
     if (frames++ == 0) first_error = item.error;
     bad += item.oxts_bad_lines;
-    oxts += item.oxts.size();
+    oxts += item.sensors.reference_poses.size();
+    EXPECT_EQ(item.sensors.reference_imu.size(), item.sensors.reference_poses.size());
   }
   EXPECT_EQ(frames, 12);
   EXPECT_EQ(bad, 2);

@@ -29,12 +29,14 @@
 #include <fstream>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <thread>
 #include <unistd.h>
+#include <utility>
 #include <vector>
 
 namespace locaid::server::testing {
@@ -42,62 +44,52 @@ namespace locaid::server::testing {
 namespace v1 = locaid::v1;
 using locaid::test_support::ScopedTempDir;
 
-// Moves 1 m east per frame. Mode: VO_ONLY inside an outage (forced or a
-// scheduled window on the frame clock), else GPS_FUSED. Counts OXTS samples
-// it was given as "GPS used", so tests can see that OXTS reached it.
+// Moves 1 m east per frame. Mode: GPS_FUSED while a fix came within the
+// last second of sensor time, else VO_ONLY (the scenario stage, not the
+// estimator, decides whether GPS is out). Counts the fixes it was given as
+// "GPS used" (a recorded drive's OXTS reaches it as the scenario's fixes), so
+// tests can see that sensor data reached it; each fix rides on the next pose.
 class FakeEstimator : public pipeline::Estimator {
  public:
   // fail_at >= 0: Process() throws on that frame (0-based), so the session fails.
   explicit FakeEstimator(int fail_at = -1) : fail_at_(fail_at) {}
-  pipeline::FrameResult Process(const vo::StereoFrame& frame, std::span<const kitti::OxtsSample> oxts) override {
+  void Fuse(const pipeline::Measurements& m) override {
+    for (const auto& f : m.gps) {
+      ++gps_used_;
+      last_fix_ns_ = f.t_ns;
+      pipeline::GpsFeed feed;
+      feed.fix = f;
+      feed.update.used = true;
+      feed.update.nis = 1.0;
+      feed.update.gate = 9.21;
+      feeds_.push_back(feed);
+    }
+  }
+  pipeline::FrameResult Process(const vo::StereoFrame& frame) override {
     if (frames_ == fail_at_) throw std::runtime_error("fake estimator failed at frame " + std::to_string(frames_));
     pipeline::FrameResult e;
     e.pose.t_ns = frame.t_ns;
     e.pose.T_enu_body.translation() = Eigen::Vector3d(static_cast<double>(frames_++), 0, 0);
     e.pose.lat_deg = 49.0;
     e.pose.lon_deg = 8.4;
-    gps_used_ += static_cast<int>(oxts.size());
     e.pose.gps_used = gps_used_;
-    e.in_outage = forced_ || !receiver_has_fix_;
-    for (const auto& [a, b] : windows_) e.in_outage = e.in_outage || (frame.t_ns >= a && frame.t_ns < b);
-    e.pose.mode = e.in_outage ? fusion::Mode::kVoOnly : fusion::Mode::kGpsFused;
-    e.pose.seconds_since_gps = e.in_outage ? 1.0 : 0.0;
+    const bool recent = last_fix_ns_ && frame.t_ns - *last_fix_ns_ <= 1'000'000'000;
+    e.pose.mode = recent ? fusion::Mode::kGpsFused : fusion::Mode::kVoOnly;
+    e.pose.seconds_since_gps = recent ? 0.0 : 1.0;
     e.vo.inliers = 100;
     e.vo.status = vo::Status::kOk;
+    e.gps_feeds = std::exchange(feeds_, {});
     return e;
   }
-  // Typed fixes count as used GPS too; a no-fix report is an outage until
-  // the next fix.
-  pipeline::FrameResult FuseSensors(const pipeline::SensorBatch& batch) override {
-    gps_used_ += static_cast<int>(batch.gps.size());
-    if (batch.receiver_has_fix) receiver_has_fix_ = *batch.receiver_has_fix;
-    pipeline::FrameResult r;
-    for (const auto& f : batch.gps) {
-      pipeline::GpsFeed feed;
-      feed.fix = f;
-      feed.accepted = true;
-      feed.nis = 1.0;
-      feed.gate = 9.21;
-      r.gps_feeds.push_back(feed);
-    }
-    return r;
-  }
-  void ScheduleOutage(int64_t start_ns, int64_t end_ns) override { windows_.emplace_back(start_ns, end_ns); }
-  void StartOutageNow() override { forced_ = true; }
-  void StopOutage() override {
-    forced_ = false;
-    windows_.clear();
-  }
-  void SetScenario(fusion::Scenario) override {}
   const fusion::EnuFrame& enu() const override { return enu_; }  // never has an origin
 
  private:
   int fail_at_ = -1;
   int frames_ = 0;
   int gps_used_ = 0;
-  bool forced_ = false, receiver_has_fix_ = true;
+  std::optional<int64_t> last_fix_ns_;
+  std::vector<pipeline::GpsFeed> feeds_;
   fusion::EnuFrame enu_;
-  std::vector<std::pair<int64_t, int64_t>> windows_;
 };
 
 // VO method "fake-fail-at-3" gives an estimator that throws on frame 3.

@@ -73,20 +73,11 @@ int main(int argc, char** argv) {
       j["drive"] = drive;
       j["method"] = flags.method;
       j["frame_step"] = flags.frame_step;
-      j["frames"] = s.frames;
-      j["failed_frames"] = s.lost_frames;
-      j["degraded_frames"] = s.degraded_frames;
+      vo::AddRunSummaryJson(j, s, flags);
       nlohmann::json missing = nlohmann::json::array();
       for (const vo::FrameResult& f : run.frames)
         if (f.missing) missing.push_back(f.index);
       j["missing_frames"] = missing;
-      j["ms_per_frame_median"] = s.ms_per_frame_median;
-      j["ms_per_frame_p95"] = s.ms_per_frame_p95;
-      j["ms_per_frame_mean"] = s.ms_per_frame_mean;
-      j["cpu_ms_per_frame_median"] = s.cpu_ms_per_frame_median;
-      j["cpu_ms_per_frame_p95"] = s.cpu_ms_per_frame_p95;
-      j["stage_median_ms"] = s.stage_median_ms;
-      j["stage_clock"] = vo::StageClockName(flags);
       std::cout << j.dump(2) << std::endl;
     }
   } catch (const std::exception& e) {

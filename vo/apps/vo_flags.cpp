@@ -44,4 +44,17 @@ DriveRunConfig MakeDriveRunConfig(const VoFlags& flags, const std::string& metho
 
 const char* StageClockName(const VoFlags& flags) { return flags.cpu_time ? "thread_cpu" : "wall"; }
 
+void AddRunSummaryJson(nlohmann::json& j, const TimingSummary& s, const VoFlags& flags) {
+  j["frames"] = s.frames;
+  j["failed_frames"] = s.lost_frames;
+  j["degraded_frames"] = s.degraded_frames;
+  j["ms_per_frame_median"] = s.ms_per_frame_median;
+  j["ms_per_frame_p95"] = s.ms_per_frame_p95;
+  j["ms_per_frame_mean"] = s.ms_per_frame_mean;
+  j["cpu_ms_per_frame_median"] = s.cpu_ms_per_frame_median;
+  j["cpu_ms_per_frame_p95"] = s.cpu_ms_per_frame_p95;
+  j["stage_median_ms"] = s.stage_median_ms;
+  j["stage_clock"] = StageClockName(flags);
+}
+
 }  // namespace locaid::vo

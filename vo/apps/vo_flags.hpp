@@ -6,6 +6,7 @@
 #include "vo/drive_runner.hpp"
 
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include <cstddef>
 #include <string>
@@ -36,5 +37,10 @@ DriveRunConfig MakeDriveRunConfig(const VoFlags& flags, const std::string& metho
 
 // "thread_cpu" or "wall": the clock of the stage timings, as the JSON says it.
 const char* StageClockName(const VoFlags& flags);
+
+// The run's counts and timings as locaid-vo --json and vo_bench print them:
+// frames, failed_frames, degraded_frames, ms_per_frame_{median,p95,mean},
+// cpu_ms_per_frame_{median,p95}, stage_median_ms, stage_clock.
+void AddRunSummaryJson(nlohmann::json& j, const TimingSummary& s, const VoFlags& flags);
 
 }  // namespace locaid::vo

@@ -1,0 +1,56 @@
+// Typed sensor data, the only kind that crosses the pipeline: a source
+// (recorded drive, frames and sensors a client pushes, gpsd) yields a
+// SensorBatch with each frame or between frames; the scenario stage
+// (scenario_stage.hpp) turns it into the Measurements the estimator fuses.
+//
+// A recorded drive's reference unit (KITTI's OXTS: ground truth) is never
+// fused as such: its IMU and pose go into the reference lists, from which the
+// scenario makes the IMU and receiver the filter sees (oxts_adapter.hpp is the
+// one place OXTS becomes typed).
+#pragma once
+
+#include "fusion/types.hpp"
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+namespace locaid::pipeline {
+
+// A fix with the steady-clock time it reached the server (gpsd), for the
+// latency from arrival to use; 0 for pushed and recorded fixes.
+struct ArrivedFix {
+  fusion::GpsFix fix;
+  int64_t arrival_steady_ns = 0;
+};
+
+// What the estimator fuses: each list in time order.
+struct Measurements {
+  std::vector<fusion::ImuSample> imu;
+  std::vector<fusion::GpsFix> gps;
+  bool empty() const { return imu.empty() && gps.empty(); }
+};
+
+// What a source delivers with one item, each list in time order.
+struct SensorBatch {
+  std::vector<fusion::ImuSample> imu;  // measured IMU: fused as it is
+  std::vector<ArrivedFix> gps;         // measured fixes: scenario outages apply, its noise does not
+  // A reference unit's samples (recorded drives): the scenario degrades the
+  // IMU to its grade and makes the receiver's fixes from the poses.
+  std::vector<fusion::ImuSample> reference_imu;
+  std::vector<fusion::ReferencePose> reference_poses;
+  // The receiver's newest state when it reported one: false after a no-fix
+  // report (an outage until a fix comes), true after a fix.
+  std::optional<bool> receiver_has_fix;
+
+  bool empty() const {
+    return imu.empty() && gps.empty() && reference_imu.empty() && reference_poses.empty() && !receiver_has_fix;
+  }
+  bool has_measured() const { return !imu.empty() || !gps.empty() || receiver_has_fix.has_value(); }
+  // Appends `later` (data after this batch's, as a source delivers it).
+  void Append(SensorBatch&& later);
+  // Moves the samples with t_ns <= t_ns of every list into `out` (appended).
+  void MoveUpTo(int64_t t_ns, SensorBatch& out);
+};
+
+}  // namespace locaid::pipeline
