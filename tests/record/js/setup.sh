@@ -42,4 +42,11 @@ cd "$dest"
 if [[ -f node_modules/.package-lock.json && ! package-lock.json -nt node_modules/.package-lock.json ]]; then
   exit 0
 fi
-npm ci --no-audit --no-fund
+# npm's download cache and its debug log go to a folder of this run's own
+# (removed on exit), not ~/.npm: a test run leaves nothing outside its folders.
+tmp="$(mktemp -d "${TMPDIR:-/tmp}/locaid_npm_XXXXXX")"
+trap 'rm -rf "$tmp"' EXIT
+if ! npm ci --no-audit --no-fund --no-update-notifier --cache "$tmp/cache" --logs-dir "$tmp/logs"; then
+  tail -n 40 "$tmp"/logs/*.log >&2 2>/dev/null || true
+  exit 1
+fi
