@@ -14,7 +14,10 @@
 # Environment (defaults in brackets):
 #   LOCAID_CONFIG        server YAML [/etc/locaid/server.yaml, if present]
 #   LOCAID_LISTEN        listen address, overrides the YAML [0.0.0.0:50051]
-#   LOCAID_WORK_DIR      writable scratch (rendered drives) [/var/lib/locaid]
+#   LOCAID_WORK_DIR      writable scratch (rendered drives) [/var/lib/locaid]:
+#                        the demo drive goes here, and when the variable is
+#                        set the server's too (--work-dir, which overrides the
+#                        YAML's work_dir; unset, the YAML's work_dir holds)
 #   LOCAID_TOKEN_FILE    bearer token file, passed to server and demo client
 #   LOCAID_METRICS_LISTEN  host:port of the Prometheus /metrics endpoint
 #                        (--metrics-listen), e.g. 0.0.0.0:9464 [off]
@@ -42,6 +45,7 @@ client() {  # locaid CLI against the local server
 server_args() {
   local args=(--listen "$listen")
   if [[ -f "$config" ]]; then args+=(--config "$config"); fi
+  if [[ -n "${LOCAID_WORK_DIR:-}" ]]; then args+=(--work-dir "$LOCAID_WORK_DIR"); fi
   if [[ -n "${LOCAID_TOKEN_FILE:-}" ]]; then args+=(--token-file "$LOCAID_TOKEN_FILE"); fi
   if [[ -n "${LOCAID_METRICS_LISTEN:-}" ]]; then args+=(--metrics-listen "$LOCAID_METRICS_LISTEN"); fi
   printf '%s\0' "${args[@]}"

@@ -18,13 +18,14 @@ void WriteFile(const fs::path& p, const std::string& text) { std::ofstream(p) <<
 
 // The container's deploy/entrypoint.sh `server` with the container's
 // variables `env` (NAME=value) and `server_args`, as a child process (killed
-// when it goes out of scope). Its scratch is in `dir`: LOCAID_WORK_DIR, and a
-// LOCAID_CONFIG naming the same folder as the server's work_dir.
+// when it goes out of scope). Its scratch is in `dir`: LOCAID_WORK_DIR is
+// dir/work, and LOCAID_CONFIG names another folder there, dir/yaml_work, as
+// the YAML's work_dir (which LOCAID_WORK_DIR overrides).
 std::unique_ptr<ChildProcess> StartEntrypoint(const fs::path& dir, const std::vector<std::string>& env,
                                               const std::vector<std::string>& server_args) {
   fs::create_directories(dir);
   const fs::path work = dir / "work";
-  WriteFile(dir / "entry.yaml", "work_dir: " + work.string() + "\n");
+  WriteFile(dir / "entry.yaml", "work_dir: " + (dir / "yaml_work").string() + "\n");
   const char* path = std::getenv("PATH");
   std::vector<std::string> argv = {"/usr/bin/env",
                                    "PATH=" + std::string(LOCAID_BIN_DIR) + ":" + (path ? path : "/usr/bin:/bin"),
@@ -34,6 +35,18 @@ std::unique_ptr<ChildProcess> StartEntrypoint(const fs::path& dir, const std::ve
   argv.insert(argv.end(), {"bash", std::string(LOCAID_SOURCE_DIR) + "/deploy/entrypoint.sh", "server"});
   argv.insert(argv.end(), server_args.begin(), server_args.end());
   return std::make_unique<ChildProcess>(argv, ChildProcess::Options{dir / "entry.out", dir / "entry.err", 0});
+}
+
+// The port the entrypoint's server wrote to `port_file` (its --port-file),
+// once it is there; 0 when the entrypoint ended first (or after 60 s).
+int EntrypointPort(ChildProcess& entry, const fs::path& port_file) {
+  int port = 0;
+  for (int i = 0; i < 6000 && port == 0 && entry.running(); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    std::ifstream(port_file) >> port;
+    entry.Wait(0);
+  }
+  return port;
 }
 
 // Defect 1: the documented ways to keep the token out of argv.
@@ -65,13 +78,28 @@ TEST(Contract, TokenFileWorksAsFlagConfigKeyAndContainerVariable) {
   const fs::path entry_dir = dir / "entry", port_file = dir / "entry.port";
   const auto entry = StartEntrypoint(entry_dir, {"LOCAID_TOKEN_FILE=" + (dir / "token").string()},
                                      {"--port-file", port_file.string()});
-  int port = 0;
-  for (int i = 0; i < 1000 && port == 0 && entry->running(); ++i) {  // at most 10 s
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    std::ifstream(port_file) >> port;
-    entry->Wait(0);
-  }
-  check(port, "LOCAID_TOKEN_FILE\n" + Slurp(entry_dir / "entry.err"));
+  check(EntrypointPort(*entry, port_file), "LOCAID_TOKEN_FILE\n" + Slurp(entry_dir / "entry.err"));
+  EXPECT_TRUE(entry->Signal(SIGTERM));
+  EXPECT_TRUE(entry->Wait(30)) << "the entrypoint's server did not exit after SIGTERM";
+}
+
+// The container's LOCAID_WORK_DIR is the server's work_dir (--work-dir, over
+// the YAML's): the drive a killed server left in LOCAID_WORK_DIR/synthetic is
+// removed when the entrypoint's server starts, and the YAML's folder is not
+// touched.
+TEST(Contract, EntrypointPassesLocaidWorkDirToTheServer) {
+  const ScopedTempDir dir("contract_workdir");
+  const fs::path entry_dir = dir / "entry", port_file = dir / "entry.port";
+  const fs::path stale = entry_dir / "work" / "synthetic" / "left-by-a-killed-server";
+  const fs::path yaml_drive = entry_dir / "yaml_work" / "synthetic" / "not-this-servers";
+  fs::create_directories(stale);
+  fs::create_directories(yaml_drive);
+  const auto entry = StartEntrypoint(entry_dir, {}, {"--port-file", port_file.string()});
+  auto entry_log = [&] { return Slurp(entry_dir / "entry.out") + Slurp(entry_dir / "entry.err"); };
+  ASSERT_GT(EntrypointPort(*entry, port_file), 0) << entry_log();
+  EXPECT_FALSE(fs::exists(stale)) << "the server did not take LOCAID_WORK_DIR as its work_dir\n" << entry_log();
+  EXPECT_NE(entry_log().find("in " + (entry_dir / "work" / "synthetic").string()), std::string::npos) << entry_log();
+  EXPECT_TRUE(fs::exists(yaml_drive)) << "LOCAID_WORK_DIR overrides the YAML's work_dir\n" << entry_log();
   EXPECT_TRUE(entry->Signal(SIGTERM));
   EXPECT_TRUE(entry->Wait(30)) << "the entrypoint's server did not exit after SIGTERM";
 }
