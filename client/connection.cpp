@@ -1,4 +1,4 @@
-#include "clients/connection.hpp"
+#include "client/connection.hpp"
 
 #include <cctype>
 #include <chrono>
@@ -6,7 +6,7 @@
 #include <sstream>
 #include <stdexcept>
 
-namespace locaid::clients {
+namespace locaid::client {
 namespace {
 
 std::string ReadFile(const std::string& path, const char* what) {
@@ -52,4 +52,4 @@ void Prepare(const Connection& c, grpc::ClientContext* ctx, double timeout_s) {
   if (!c.token.empty()) ctx->AddMetadata("authorization", "Bearer " + c.token);
 }
 
-}  // namespace locaid::clients
+}  // namespace locaid::client

@@ -7,7 +7,7 @@
 #include <memory>
 #include <string>
 
-namespace locaid::clients {
+namespace locaid::client {
 
 struct Connection {
   std::string server = "127.0.0.1:50051";
@@ -23,4 +23,4 @@ std::shared_ptr<grpc::Channel> MakeChannel(const Connection& c);
 // Deadline (0 = none) and the token on a call.
 void Prepare(const Connection& c, grpc::ClientContext* ctx, double timeout_s);
 
-}  // namespace locaid::clients
+}  // namespace locaid::client

@@ -8,9 +8,9 @@
 //   locaid scenario ID (--name NAME | --file YAML)
 //   locaid stats ID
 // Every call carries a deadline (--timeout-s; subscribe: --stream-timeout-s).
-#include "clients/connection.hpp"
+#include "client/connection.hpp"
 #include "clients/recorder.hpp"
-#include "foxglove/mcap_recording.hpp"
+#include "output/mcap_recording.hpp"
 #include "locaid/v1/localization.grpc.pb.h"
 
 #include <CLI/CLI.hpp>
@@ -46,7 +46,7 @@ using locaid::clients::Recorder;
 
 namespace {
 
-struct Common : locaid::clients::Connection {
+struct Common : locaid::client::Connection {
   double timeout_s = 10;
 };
 
@@ -92,7 +92,7 @@ std::string CheckServerAddress(const std::string& a) {
 }
 
 void Prepare(const Common& c, grpc::ClientContext* ctx, double timeout_s) {
-  locaid::clients::Prepare(c, ctx, timeout_s);
+  locaid::client::Prepare(c, ctx, timeout_s);
 }
 
 const char* CodeName(grpc::StatusCode code) {
@@ -301,9 +301,9 @@ int Subscribe(const Common& c, v1::Localization::Stub& stub, const SubscribeOpti
     if (const grpc::Status s = stub.GetSession(&ctx, get, &session); !s.ok()) return Fail(s);
   }
   std::optional<Recorder> recorder;
-  std::unique_ptr<locaid::foxglove::McapRecording> mcap;
+  std::unique_ptr<locaid::output::McapRecording> mcap;
   if (o.format == "mcap") {
-    mcap = std::make_unique<locaid::foxglove::McapRecording>(o.out_path);
+    mcap = std::make_unique<locaid::output::McapRecording>(o.out_path);
   } else {
     recorder.emplace(o.format, o.out_path);
   }
@@ -466,8 +466,8 @@ int main(int argc, char** argv) {
   so.synthetic = o_synth->count() > 0;
 
   try {
-    locaid::clients::ResolveToken(c);
-    auto channel = locaid::clients::MakeChannel(c);
+    locaid::client::ResolveToken(c);
+    auto channel = locaid::client::MakeChannel(c);
     auto stub = v1::Localization::NewStub(channel);
     auto with_id = [&session_id](auto req) {
       req.set_session_id(session_id);

@@ -3,7 +3,7 @@
 // failed write leaves the file valid up to the last complete pose.
 #pragma once
 
-#include "foxglove/mcap_recording.hpp"
+#include "output/mcap_recording.hpp"
 #include "locaid/v1/localization.pb.h"
 
 #include <Eigen/Geometry>

@@ -33,7 +33,7 @@
 // bridge adds, as docs/benchmarks.md measures it.
 #pragma once
 
-#include "foxglove/channels.hpp"
+#include "output/channels.hpp"
 
 #include <atomic>
 #include <chrono>
@@ -46,6 +46,11 @@
 #include <vector>
 
 namespace locaid::foxglove {
+
+// The channel table and the messages published on it are output/'s (shared
+// with MCAP recording).
+using output::ChannelSpec;
+using output::OutMessage;
 
 class Connection;
 

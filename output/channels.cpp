@@ -1,7 +1,7 @@
-#include "foxglove/channels.hpp"
+#include "output/channels.hpp"
 
-#include "foxglove/json_schemas.hpp"
-#include "foxglove/static_transforms.hpp"
+#include "output/json_schemas.hpp"
+#include "output/static_transforms.hpp"
 
 #include <google/protobuf/descriptor.h>
 #include <google/protobuf/descriptor.pb.h>
@@ -13,7 +13,7 @@
 #include <string_view>
 #include <utility>
 
-namespace locaid::foxglove {
+namespace locaid::output {
 namespace {
 
 using nlohmann::json;
@@ -343,4 +343,4 @@ std::string PoseConverter::PathText(int64_t t_ns) const {
   return text;
 }
 
-}  // namespace locaid::foxglove
+}  // namespace locaid::output

@@ -22,7 +22,7 @@
 #include <string>
 #include <vector>
 
-namespace locaid::foxglove {
+namespace locaid::output {
 
 namespace v1 = locaid::v1;
 
@@ -121,4 +121,4 @@ class PoseConverter {
   int64_t last_path_sent_ns_ = 0;
 };
 
-}  // namespace locaid::foxglove
+}  // namespace locaid::output

@@ -1,4 +1,4 @@
-#include "foxglove/json_schemas.hpp"
+#include "output/json_schemas.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-namespace locaid::foxglove::schemas {
+namespace locaid::output::schemas {
 namespace {
 
 using nlohmann::json;
@@ -142,4 +142,4 @@ std::string Status() {
   return Finish(std::move(schema));
 }
 
-}  // namespace locaid::foxglove::schemas
+}  // namespace locaid::output::schemas

@@ -9,7 +9,7 @@
 
 #include <string>
 
-namespace locaid::foxglove::schemas {
+namespace locaid::output::schemas {
 
 std::string PoseInFrame();      // foxglove.PoseInFrame
 std::string PosesInFrame();     // foxglove.PosesInFrame
@@ -17,4 +17,4 @@ std::string FrameTransforms();  // foxglove.FrameTransforms
 std::string LocationFix();      // foxglove.LocationFix (with color and metadata)
 std::string Status();           // locaid.Status
 
-}  // namespace locaid::foxglove::schemas
+}  // namespace locaid::output::schemas

@@ -1,9 +1,9 @@
-#include "foxglove/mcap_recording.hpp"
+#include "output/mcap_recording.hpp"
 
 #include <map>
 #include <string>
 
-namespace locaid::foxglove {
+namespace locaid::output {
 
 McapRecording::McapRecording(const std::filesystem::path& path, record::McapOptions options)
     : writer_(path, std::move(options)) {
@@ -29,4 +29,4 @@ void McapRecording::Add(const v1::PoseUpdate& pose) {
 
 void McapRecording::Close() { writer_.Close(); }
 
-}  // namespace locaid::foxglove
+}  // namespace locaid::output

@@ -1,5 +1,5 @@
 // An MCAP file of a session's poses with the same channels, schemas and
-// messages the Foxglove bridge publishes live (foxglove/channels.hpp), so a
+// messages the Foxglove bridge publishes live (output/channels.hpp), so a
 // recording opens in Foxglove/Lichtblick with the same layout.
 //
 // Every channel and schema is registered up front (a channel that never gets
@@ -8,14 +8,14 @@
 // Errors are McapWriter's (std::system_error naming the file).
 #pragma once
 
-#include "foxglove/channels.hpp"
+#include "output/channels.hpp"
 #include "record/mcap_writer.hpp"
 
 #include <array>
 #include <cstdint>
 #include <filesystem>
 
-namespace locaid::foxglove {
+namespace locaid::output {
 
 class McapRecording {
  public:
@@ -34,4 +34,4 @@ class McapRecording {
   uint64_t poses_ = 0;
 };
 
-}  // namespace locaid::foxglove
+}  // namespace locaid::output

@@ -1,11 +1,11 @@
-#include "server/pose_message.hpp"
+#include "output/pose_message.hpp"
 
 #include <Eigen/Geometry>
 
 #include <algorithm>
 #include <cmath>
 
-namespace locaid::server {
+namespace locaid::output {
 namespace {
 
 locaid::v1::Mode ToProtoMode(fusion::Mode m) {
@@ -98,4 +98,4 @@ void FillPoseUpdate(const pipeline::StepResult& r, double latency_ms, locaid::v1
   }
 }
 
-}  // namespace locaid::server
+}  // namespace locaid::output

@@ -6,8 +6,8 @@
 #include "locaid/v1/localization.pb.h"
 #include "pipeline/frame_loop.hpp"
 
-namespace locaid::server {
+namespace locaid::output {
 
 void FillPoseUpdate(const pipeline::StepResult& r, double latency_ms, locaid::v1::PoseUpdate* out);
 
-}  // namespace locaid::server
+}  // namespace locaid::output

@@ -1,6 +1,6 @@
-#include "foxglove/static_transforms.hpp"
+#include "output/static_transforms.hpp"
 
-namespace locaid::foxglove {
+namespace locaid::output {
 
 const StaticTransform& BaseLinkToCam0() {
   // The inverse of the server's KittiRigTcam0Imu() (server/synthetic_drive.cpp),
@@ -12,4 +12,4 @@ const StaticTransform& BaseLinkToCam0() {
   return transform;
 }
 
-}  // namespace locaid::foxglove
+}  // namespace locaid::output

@@ -3,7 +3,7 @@
 
 #include <array>
 
-namespace locaid::foxglove {
+namespace locaid::output {
 
 // Pose of a child frame in its parent frame (what foxglove.FrameTransform
 // carries): translation in metres, rotation as a unit quaternion x, y, z, w.
@@ -20,4 +20,4 @@ struct StaticTransform {
 // differ by centimetres to decimetres (the pose itself is unaffected).
 const StaticTransform& BaseLinkToCam0();
 
-}  // namespace locaid::foxglove
+}  // namespace locaid::output

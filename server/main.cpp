@@ -1,6 +1,6 @@
 // locaid-server: the gRPC localization service.
 #include "server/config.hpp"
-#include "server/service.hpp"
+#include "server/server.hpp"
 
 #include <CLI/CLI.hpp>
 #include <opencv2/core.hpp>

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <sstream>
+#include <utility>
 
 namespace locaid::server {
 namespace {
@@ -120,6 +121,33 @@ std::string GpsItemFromProto(const v1::GpsFix& in, pipeline::LiveItem* out) {
       return e;
   }
   return "";
+}
+
+FrameTranslation FrameItemFromProto(v1::StereoFrame* in, const StereoCamera& camera) {
+  FrameTranslation t;
+  if (in->encoding() != v1::IMAGE_ENCODING_PNG && in->encoding() != v1::IMAGE_ENCODING_GRAY8) {
+    t.rejected = "encoding: must be IMAGE_ENCODING_PNG or IMAGE_ENCODING_GRAY8";
+    return t;
+  }
+  t.item.kind = pipeline::LiveItem::Kind::kFrame;
+  t.item.t_ns = in->t_ns();
+  t.item.png = in->encoding() == v1::IMAGE_ENCODING_PNG;
+  if (t.item.png) {
+    t.fatal = pipeline::PngSizeMismatch(in->left(), camera, "left");
+    if (t.fatal.empty()) t.fatal = pipeline::PngSizeMismatch(in->right(), camera, "right");
+    if (!t.fatal.empty()) return t;
+  }
+  t.item.left = std::move(*in->mutable_left());
+  t.item.right = std::move(*in->mutable_right());
+  return t;
+}
+
+pipeline::LiveItem OxtsItemFromProto(const v1::OxtsRecord& in) {
+  pipeline::LiveItem item;
+  item.kind = pipeline::LiveItem::Kind::kOxts;
+  item.t_ns = in.t_ns();
+  item.oxts_line = in.line();
+  return item;
 }
 
 }  // namespace locaid::server

@@ -1,6 +1,6 @@
 // Building the gRPC server: listeners (TCP, Unix socket), TLS, health,
 // reflection, metrics, and the orderly shutdown.
-#include "server/service.hpp"
+#include "server/server.hpp"
 
 #include "server/status.hpp"
 

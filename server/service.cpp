@@ -6,6 +6,7 @@
 #include "server/service.hpp"
 
 #include "server/metrics.hpp"
+#include "server/outage_request.hpp"
 #include "server/status.hpp"
 #include "server/stream_reactors.hpp"
 #include "server/synthetic_drive.hpp"
@@ -179,30 +180,9 @@ grpc::ServerUnaryReactor* LocalizationService::InjectOutage(grpc::CallbackServer
   std::shared_ptr<Session> session;
   if (Status s = sessions_.Find(req->session_id(), &session); !s.ok()) return Reply(ctx, s);
   if (Status s = RequireActive(*session, "InjectOutage"); !s.ok()) return Reply(ctx, s);
-  const double start_s = req->start_s(), duration_s = req->duration_s();
-  // Seconds become int64 nanoseconds on the sensor clock: bounded so they
-  // cannot overflow (1e6 s is 11.6 days).
-  constexpr double kMaxOutageSeconds = 1e6;
-  if (!std::isfinite(start_s) || !std::isfinite(duration_s) || duration_s < 0 || duration_s > kMaxOutageSeconds ||
-      std::abs(start_s) > kMaxOutageSeconds) {
-    return Reply(ctx, Invalid("start_s/duration_s: must be finite, duration_s in [0, 1e6] s, |start_s| <= 1e6 s"));
-  }
-  switch (req->action()) {
-    case v1::InjectOutageRequest::START_NOW:
-      session->Post([duration_s](pipeline::Pipeline& p) { p.StartOutageNow(duration_s); });
-      break;
-    case v1::InjectOutageRequest::STOP_NOW:
-      session->Post([](pipeline::Pipeline& p) { p.StopOutage(); });
-      break;
-    case v1::InjectOutageRequest::WINDOW:
-      if (start_s < 0 || duration_s <= 0) {
-        return Reply(ctx, Invalid("WINDOW: start_s must be >= 0 and duration_s > 0"));
-      }
-      session->Post([start_s, duration_s](pipeline::Pipeline& p) { p.AddOutageWindow(start_s, duration_s); });
-      break;
-    default:
-      return Reply(ctx, Invalid("action: must be START_NOW, STOP_NOW or WINDOW"));
-  }
+  Session::Command command;
+  if (Status s = OutageCommandFromProto(*req, &command); !s.ok()) return Reply(ctx, s);
+  session->Post(std::move(command));
   *resp = session->ToProto();
   return Reply(ctx, Status::OK);
 }

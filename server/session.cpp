@@ -1,6 +1,6 @@
 #include "server/session.hpp"
 
-#include "server/pose_message.hpp"
+#include "output/pose_message.hpp"
 
 #include <Eigen/Geometry>
 
@@ -25,7 +25,8 @@ Session::Session(SessionOptions options, std::unique_ptr<pipeline::Pipeline> pip
       pipeline_(std::move(pipeline)),
       hub_(options_.history_size),
       created_unix_ns_(UnixNowNs()),
-      total_frames_(pipeline_->total_frames()) {}
+      total_frames_(pipeline_->total_frames()),
+      pacer_(options_.playback_rate) {}
 
 Session::~Session() {
   Stop();
@@ -89,91 +90,61 @@ void Session::RunCommands() {
 }
 
 bool Session::Pace(int64_t t_ns) {
-  if (options_.playback_rate <= 0) return !stop_;
-  if (!paced_) {
-    paced_ = true;
-    pace_t0_ns_ = t_ns;
-    pace_w0_ = Clock::now();
-    return !stop_;
+  if (const auto due = pacer_.Due(t_ns)) {
+    std::unique_lock lock(wait_mu_);
+    wait_cv_.wait_until(lock, *due, [this] { return stop_.load(); });
   }
-  const double dt_s = static_cast<double>(t_ns - pace_t0_ns_) * 1e-9 / options_.playback_rate;
-  const auto due = pace_w0_ + std::chrono::duration_cast<Clock::duration>(
-                                  std::chrono::duration<double>(std::max(0.0, dt_s)));
-  std::unique_lock lock(wait_mu_);
-  wait_cv_.wait_until(lock, due, [this] { return stop_.load(); });
   return !stop_;
 }
 
-void Session::Record(const pipeline::StepResult& r, double latency_ms) {
+void Session::NoteOrigin() {
   std::lock_guard lock(stats_mu_);
-  if (r.kind != pipeline::StepResult::Kind::kIdle && r.kind != pipeline::StepResult::Kind::kEnd && r.kind != pipeline::StepResult::Kind::kFused) {
-    stats_.set_frames_in(stats_.frames_in() + 1);
-  }
-  stats_.set_oxts_bad_lines(stats_.oxts_bad_lines() + static_cast<uint64_t>(std::max(0, r.oxts_bad_lines)));
-  if (!r.error.empty()) stats_.set_last_input_error(r.error);
-  if (r.kind == pipeline::StepResult::Kind::kSkipped) stats_.set_frames_skipped(stats_.frames_skipped() + 1);
-  if (r.kind == pipeline::StepResult::Kind::kCorrupt) stats_.set_frames_corrupt(stats_.frames_corrupt() + 1);
-  if (r.kind == pipeline::StepResult::Kind::kPose) {
-    stats_.set_frames_processed(stats_.frames_processed() + 1);
-    latency_sum_ms_ += latency_ms;
-    stats_.set_latency_mean_ms(latency_sum_ms_ / static_cast<double>(stats_.frames_processed()));
-    stats_.set_latency_max_ms(std::max(stats_.latency_max_ms(), latency_ms));
-    const auto now = Clock::now();
-    recent_.push_back(now);
-    while (!recent_.empty() && now - recent_.front() > std::chrono::seconds(2)) recent_.pop_front();
-    if (!has_origin_) {
-      has_origin_ = pipeline_->origin(&origin_[0], &origin_[1], &origin_[2]);
+  if (!has_origin_) has_origin_ = pipeline_->origin(&origin_[0], &origin_[1], &origin_[2]);
+}
+
+void Session::Publish(const pipeline::StepResult& r, double latency_ms) {
+  auto msg = std::make_shared<PoseMessage>();
+  output::FillPoseUpdate(r, latency_ms, msg.get());
+  msg->set_session_id(options_.id);
+  msg->set_sequence(sequence_++);
+  counters_.Record(r, latency_ms);
+  NoteOrigin();
+  msg->set_published_unix_ns(UnixNowNs());
+  hub_.Publish(std::move(msg));
+}
+
+bool Session::StepOnce() {
+  RunCommands();
+  const auto t0 = Clock::now();
+  pipeline::StepResult r = pipeline_->Step();
+  const double step_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  auto starting = locaid::v1::SESSION_STATE_STARTING;
+  if (pipeline_->ready()) state_.compare_exchange_strong(starting, locaid::v1::SESSION_STATE_RUNNING);
+  switch (r.kind) {
+    case pipeline::StepResult::Kind::kEnd: {
+      auto running = locaid::v1::SESSION_STATE_RUNNING;  // a Stop() meanwhile made it STOPPED
+      state_.compare_exchange_strong(running, locaid::v1::SESSION_STATE_FINISHED);
+      return false;
     }
-    const fusion::FusedPose& p = r.frame.pose;
-    last_.has_pose = true;
-    last_.mode = p.mode;
-    last_.seconds_since_gps = p.seconds_since_gps;
-    last_.last_gps_nis = p.last_gps_nis;
-    last_.gps_gate = p.gps_gate;
-    last_.position_sigma_h_m = std::sqrt(std::max(0.0, p.covariance(0, 0) + p.covariance(1, 1)));
-    last_.vo_inliers = r.frame.vo.inliers;
-    last_.gps_used = p.gps_used;
-    last_.gps_rejected = p.gps_rejected;
-    const double latency_s = latency_ms / 1000.0;
-    for (size_t b = 0; b < kLatencyBucketsS.size(); ++b) last_.latency_le[b] += latency_s <= kLatencyBucketsS[b] ? 1 : 0;
-    ++last_.latency_count;
-    last_.latency_sum_s += latency_s;
+    case pipeline::StepResult::Kind::kIdle:
+    case pipeline::StepResult::Kind::kFused:
+      if (r.oxts_bad_lines > 0) counters_.Record(r, 0);
+      return true;
+    case pipeline::StepResult::Kind::kPose: {
+      const double latency_ms = r.processing_ms >= 0 ? r.processing_ms : step_ms;
+      if (!Pace(r.t_ns)) return false;
+      Publish(r, latency_ms);
+      return true;
+    }
+    default:  // skipped or corrupt input: counted
+      counters_.Record(r, r.processing_ms >= 0 ? r.processing_ms : step_ms);
+      return true;
   }
 }
 
 void Session::Run() {
   try {
-    while (!stop_) {
-      RunCommands();
-      const auto t0 = Clock::now();
-      pipeline::StepResult r = pipeline_->Step();
-      const auto t1 = Clock::now();
-      auto starting = locaid::v1::SESSION_STATE_STARTING;
-      if (pipeline_->ready()) state_.compare_exchange_strong(starting, locaid::v1::SESSION_STATE_RUNNING);
-      if (r.kind == pipeline::StepResult::Kind::kEnd) {
-        auto running = locaid::v1::SESSION_STATE_RUNNING;  // a Stop() meanwhile made it STOPPED
-        state_.compare_exchange_strong(running, locaid::v1::SESSION_STATE_FINISHED);
-        break;
-      }
-      if (r.kind == pipeline::StepResult::Kind::kIdle || r.kind == pipeline::StepResult::Kind::kFused) {
-        if (r.oxts_bad_lines > 0) Record(r, 0);
-        continue;
-      }
-      double latency_ms = r.processing_ms >= 0
-                              ? r.processing_ms
-                              : std::chrono::duration<double, std::milli>(t1 - t0).count();
-      if (r.kind != pipeline::StepResult::Kind::kPose) {
-        Record(r, latency_ms);
-        continue;
-      }
-      if (!Pace(r.t_ns)) break;
-      auto msg = std::make_shared<PoseMessage>();
-      FillPoseUpdate(r, latency_ms, msg.get());
-      msg->set_session_id(options_.id);
-      msg->set_sequence(sequence_++);
-      Record(r, latency_ms);
-      msg->set_published_unix_ns(UnixNowNs());
-      hub_.Publish(std::move(msg));
+    while (!stop_ && StepOnce()) {
     }
   } catch (const std::exception& e) {
     // Stopping cancels input preparation (a render throws): that is a stop,
@@ -194,29 +165,14 @@ void Session::Run() {
 }
 
 Session::MetricsSnapshot Session::Metrics() const {
-  MetricsSnapshot m;
-  {
-    std::lock_guard lock(stats_mu_);
-    m = last_;
-  }
+  MetricsSnapshot m = counters_.Metrics();
   m.stats = Stats();
   m.state = state_.load();
   return m;
 }
 
 locaid::v1::SessionStats Session::Stats() const {
-  locaid::v1::SessionStats s;
-  {
-    std::lock_guard lock(stats_mu_);
-    s = stats_;
-    const auto now = Clock::now();
-    size_t n = 0;
-    for (const auto& t : recent_) n += (now - t <= std::chrono::seconds(2)) ? 1 : 0;
-    if (n >= 2) {
-      const double span_s = std::chrono::duration<double>(recent_.back() - recent_[recent_.size() - n]).count();
-      s.set_fps(span_s > 0 ? static_cast<double>(n - 1) / span_s : 0.0);
-    }
-  }
+  locaid::v1::SessionStats s = counters_.Stats();
   const pipeline::LiveInputStats in = pipeline_->input_stats();
   s.set_imu_samples(in.imu_samples);
   s.set_gps_fixes_in(in.gps_fixes_in);
@@ -265,7 +221,7 @@ locaid::v1::Session Session::ToProto() const {
   {
     std::lock_guard lock(stats_mu_);
     out.set_scenario(options_.scenario);
-    out.set_error(error_.empty() ? stats_.last_input_error() : error_);
+    out.set_error(error_.empty() ? counters_.Stats().last_input_error() : error_);
     out.set_has_origin(has_origin_);
     out.set_origin_latitude_deg(origin_[0]);
     out.set_origin_longitude_deg(origin_[1]);

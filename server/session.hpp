@@ -5,9 +5,9 @@
 
 #include "locaid/v1/localization.pb.h"
 #include "server/pose_hub.hpp"
+#include "server/session_stats.hpp"
 #include "pipeline/frame_loop.hpp"
 
-#include <array>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -67,18 +67,8 @@ class Session {
 
   // What an operator scrapes (server/metrics.cpp): the newest pose's filter
   // figures and a histogram of the per-frame processing latency.
-  static constexpr std::array<double, 8> kLatencyBucketsS = {0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0};
-  struct MetricsSnapshot {
-    locaid::v1::SessionStats stats;
-    locaid::v1::SessionState state = locaid::v1::SESSION_STATE_UNSPECIFIED;
-    bool has_pose = false;
-    fusion::Mode mode = fusion::Mode::kLost;
-    double seconds_since_gps = 0, last_gps_nis = 0, gps_gate = 0, position_sigma_h_m = 0;
-    int vo_inliers = 0, gps_used = 0, gps_rejected = 0;
-    std::array<uint64_t, kLatencyBucketsS.size()> latency_le{};  // cumulative counts per bucket
-    uint64_t latency_count = 0;
-    double latency_sum_s = 0;
-  };
+  using MetricsSnapshot = SessionMetricsSnapshot;
+  static constexpr auto kLatencyBucketsS = SessionMetricsSnapshot::kLatencyBucketsS;
   MetricsSnapshot Metrics() const;
   locaid::v1::SessionState state() const { return state_.load(); }
   // Still preparing its input (rendering) on its thread, even if already
@@ -90,10 +80,13 @@ class Session {
  private:
   void Run();
   void RunCommands();
+  // One step of the pipeline: false when the session is done.
+  bool StepOnce();
   // Sleeps until the wall time at which sensor time t_ns is due; false if
   // stopped meanwhile.
   bool Pace(int64_t t_ns);
-  void Record(const pipeline::StepResult& r, double latency_ms);
+  void Publish(const pipeline::StepResult& r, double latency_ms);
+  void NoteOrigin();
 
   SessionOptions options_;
   std::unique_ptr<pipeline::Pipeline> pipeline_;
@@ -104,7 +97,6 @@ class Session {
   std::atomic<bool> retired_{false};
   const int64_t created_unix_ns_;
   std::atomic<int64_t> ended_unix_ns_{0};  // when Run() returned; 0 while it runs
-  MetricsSnapshot last_;  // pose figures and latency histogram (stats_mu_)
   const int64_t total_frames_;
 
   std::atomic<locaid::v1::SessionState> state_{locaid::v1::SESSION_STATE_STARTING};
@@ -115,20 +107,15 @@ class Session {
   std::mutex commands_mu_;
   std::deque<Command> commands_;
 
+  SessionCounters counters_;
+  Pacer pacer_;  // session thread only
+  uint64_t sequence_ = 0;
+
   // Guarded by stats_mu_.
   mutable std::mutex stats_mu_;
-  locaid::v1::SessionStats stats_;
-  std::deque<std::chrono::steady_clock::time_point> recent_;  // publish times, last 2 s
-  double latency_sum_ms_ = 0;
   bool has_origin_ = false;
   double origin_[3] = {0, 0, 0};
   std::string error_;
-
-  // Pacing state (session thread only).
-  bool paced_ = false;
-  int64_t pace_t0_ns_ = 0;
-  std::chrono::steady_clock::time_point pace_w0_;
-  uint64_t sequence_ = 0;
 };
 
 

@@ -120,6 +120,71 @@ std::unique_ptr<pipeline::FrameLoop> MakeFrameLoop(const EstimatorFactory& make,
   return loop;
 }
 
+// A KITTI drive on the server: opened and checked (frames in range, at least
+// one stereo pair), or the status that says why not.
+Status OpenKittiSource(const v1::KittiSource& k, std::unique_ptr<pipeline::FrameSource>* out, std::string* name) {
+  if (k.path().empty()) return Invalid("kitti.path: required");
+  if (k.path().size() > PATH_MAX) {
+    return Invalid("kitti.path: " + std::to_string(k.path().size()) + " bytes, longer than PATH_MAX (" +
+                   std::to_string(PATH_MAX) + ")");
+  }
+  std::error_code ec;
+  if (!std::filesystem::exists(k.path(), ec)) {
+    // A relative path is the server's, not the client's: say from where.
+    const std::string from = std::filesystem::path(k.path()).is_relative()
+                                 ? " (a relative path is resolved from the server's working directory " +
+                                       Quoted(std::filesystem::current_path(ec).string()) + ")"
+                                 : "";
+    return Invalid("kitti.path " + Quoted(k.path()) + ": does not exist on the server" + from);
+  }
+  if (!std::filesystem::is_directory(k.path(), ec)) {
+    return Invalid("kitti.path " + Quoted(k.path()) + ": not a directory");
+  }
+  if (k.first_frame() < 0) return Invalid("kitti.first_frame: must be >= 0");
+  if (k.last_frame() > 0 && k.last_frame() < k.first_frame()) {
+    return Invalid("kitti.last_frame " + std::to_string(k.last_frame()) + ": before first_frame " +
+                   std::to_string(k.first_frame()) + " (last_frame <= 0 plays to the end)");
+  }
+  // A bad OXTS file mid-drive is skipped and counted (pipeline::DatasetFrameSource
+  // reports it as bad OXTS lines), not a refused drive.
+  kitti::RawDriveOptions open_options;
+  open_options.skip_bad_oxts = true;
+  auto dataset = kitti::OpenDataset(k.path(), open_options);
+  if (dataset->size() == 0) return {StatusCode::FAILED_PRECONDITION, "kitti.path " + Quoted(k.path()) + ": no frames"};
+  if (static_cast<size_t>(k.first_frame()) >= dataset->size()) {
+    return Invalid("kitti.first_frame " + std::to_string(k.first_frame()) + ": the drive has " +
+                   std::to_string(dataset->size()) + " frames");
+  }
+  // A drive without stereo pairs (no image_01/, say) would "finish"
+  // with no poses: refuse it now.
+  const size_t last = k.last_frame() <= 0 ? dataset->size() - 1
+                                          : std::min(dataset->size() - 1, static_cast<size_t>(k.last_frame()));
+  bool any_stereo = false;
+  for (size_t i = static_cast<size_t>(k.first_frame()); i <= last && !any_stereo; ++i)
+    any_stereo = dataset->has_stereo(i);
+  if (!any_stereo) {
+    return {StatusCode::FAILED_PRECONDITION, "kitti.path " + Quoted(k.path()) + ": no frame in [" +
+                                                 std::to_string(k.first_frame()) + ", " + std::to_string(last) +
+                                                 "] has both a left and a right image (image_00/, image_01/)"};
+  }
+  *name = "kitti:" + k.path();
+  *out = std::make_unique<pipeline::DatasetFrameSource>(std::move(dataset), k.first_frame(),
+                                                k.last_frame() <= 0 ? -1 : k.last_frame());
+  return Status::OK;
+}
+
+// A live source: camera, antenna lever arm and an optional gpsd receiver.
+Status OpenLiveSource(const v1::LiveSource& l, EstimatorSetup* setup, std::unique_ptr<pipeline::LiveFrameSource>* out,
+                      std::optional<GpsdEndpoint>* gpsd, std::string* name) {
+  pipeline::LiveCameraSetup cam;
+  if (Status st = ParseLiveSource(l, &cam); !st.ok()) return st;
+  if (Status st = ParseLeverArm(l, &setup->gps_antenna_body_m); !st.ok()) return st;
+  if (Status st = ParseGpsdSource(l, gpsd); !st.ok()) return st;
+  *out = std::make_unique<pipeline::LiveFrameSource>(cam);
+  *name = *gpsd ? "live+gpsd:" + (*gpsd)->host + ":" + std::to_string((*gpsd)->port) : "live";
+  return Status::OK;
+}
+
 }  // namespace
 
 std::unique_ptr<pipeline::Estimator> MakeLocalizer(const EstimatorSetup& setup) {
@@ -154,7 +219,9 @@ Status LocalizationService::ResolveScenario(const v1::Scenario& s, fusion::Scena
   return Status::OK;
 }
 
-Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::string* id) {
+// The options every source shares: pacing, VO method, history, scenario.
+Status LocalizationService::SessionOptionsFromRequest(const v1::StartSessionRequest& req, SessionOptions* options,
+                                                      EstimatorSetup* setup) const {
   // Pacing divides the sensor time by the rate: outside [1e-3, 1e3] it
   // overflows or is meaningless (1e-300 played at full speed).
   const double rate = req.playback_rate();
@@ -163,122 +230,32 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
     got << rate;
     return Invalid("playback_rate: must be 0 (as fast as possible) or in [0.001, 1000], got " + got.str());
   }
-  SessionOptions options;
-  options.playback_rate = req.playback_rate();
-  options.vo_method = req.vo_method().empty() ? config_.default_vo_method : req.vo_method();
-  options.history_size = req.history_size() == 0 ? config_.history_size
-                                                  : std::min<size_t>(req.history_size(), config_.max_history_size);
-  EstimatorSetup setup;
-  setup.vo_method = options.vo_method;
-  if (Status s = ResolveScenario(req.scenario(), &setup.scenario, &options.scenario); !s.ok()) return s;
+  options->playback_rate = req.playback_rate();
+  options->vo_method = req.vo_method().empty() ? config_.default_vo_method : req.vo_method();
+  options->history_size = req.history_size() == 0 ? config_.history_size
+                                                   : std::min<size_t>(req.history_size(), config_.max_history_size);
+  setup->vo_method = options->vo_method;
+  return ResolveScenario(req.scenario(), &setup->scenario, &options->scenario);
+}
 
+Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::string* id) {
+  SessionOptions options;
+  EstimatorSetup setup;
+  if (Status s = SessionOptionsFromRequest(req, &options, &setup); !s.ok()) return s;
   std::unique_ptr<pipeline::FrameSource> source;
   pipeline::LiveFrameSource* live = nullptr;
   std::optional<GpsdEndpoint> gpsd;
   try {
     switch (req.source_case()) {
-      case v1::StartSessionRequest::kKitti: {
-        const auto& k = req.kitti();
-        if (k.path().empty()) return Invalid("kitti.path: required");
-        if (k.path().size() > PATH_MAX) {
-          return Invalid("kitti.path: " + std::to_string(k.path().size()) + " bytes, longer than PATH_MAX (" +
-                         std::to_string(PATH_MAX) + ")");
-        }
-        std::error_code ec;
-        if (!std::filesystem::exists(k.path(), ec)) {
-          // A relative path is the server's, not the client's: say from where.
-          const std::string from = std::filesystem::path(k.path()).is_relative()
-                                       ? " (a relative path is resolved from the server's working directory " +
-                                             Quoted(std::filesystem::current_path(ec).string()) + ")"
-                                       : "";
-          return Invalid("kitti.path " + Quoted(k.path()) + ": does not exist on the server" + from);
-        }
-        if (!std::filesystem::is_directory(k.path(), ec)) {
-          return Invalid("kitti.path " + Quoted(k.path()) + ": not a directory");
-        }
-        if (k.first_frame() < 0) return Invalid("kitti.first_frame: must be >= 0");
-        if (k.last_frame() > 0 && k.last_frame() < k.first_frame()) {
-          return Invalid("kitti.last_frame " + std::to_string(k.last_frame()) + ": before first_frame " +
-                         std::to_string(k.first_frame()) + " (last_frame <= 0 plays to the end)");
-        }
-        // A bad OXTS file mid-drive is skipped and counted (pipeline::DatasetFrameSource
-        // reports it as bad OXTS lines), not a refused drive.
-        kitti::RawDriveOptions open_options;
-        open_options.skip_bad_oxts = true;
-        auto dataset = kitti::OpenDataset(k.path(), open_options);
-        if (dataset->size() == 0) return {StatusCode::FAILED_PRECONDITION, "kitti.path " + Quoted(k.path()) + ": no frames"};
-        if (static_cast<size_t>(k.first_frame()) >= dataset->size()) {
-          return Invalid("kitti.first_frame " + std::to_string(k.first_frame()) + ": the drive has " +
-                         std::to_string(dataset->size()) + " frames");
-        }
-        // A drive without stereo pairs (no image_01/, say) would "finish"
-        // with no poses: refuse it now.
-        const size_t last = k.last_frame() <= 0 ? dataset->size() - 1
-                                                : std::min(dataset->size() - 1, static_cast<size_t>(k.last_frame()));
-        bool any_stereo = false;
-        for (size_t i = static_cast<size_t>(k.first_frame()); i <= last && !any_stereo; ++i)
-          any_stereo = dataset->has_stereo(i);
-        if (!any_stereo) {
-          return {StatusCode::FAILED_PRECONDITION, "kitti.path " + Quoted(k.path()) + ": no frame in [" +
-                                                       std::to_string(k.first_frame()) + ", " + std::to_string(last) +
-                                                       "] has both a left and a right image (image_00/, image_01/)"};
-        }
-        options.source = "kitti:" + k.path();
-        source = std::make_unique<pipeline::DatasetFrameSource>(std::move(dataset), k.first_frame(),
-                                                      k.last_frame() <= 0 ? -1 : k.last_frame());
+      case v1::StartSessionRequest::kKitti:
+        if (Status s = OpenKittiSource(req.kitti(), &source, &options.source); !s.ok()) return s;
         break;
-      }
-      case v1::StartSessionRequest::kSynthetic: {
-        const auto& s = req.synthetic();
-        const size_t frames = s.frames() == 0 ? config_.synthetic_default_frames : s.frames();
-        if (frames < 2 || frames > config_.max_synthetic_frames) {
-          return Invalid("synthetic.frames: must be in [2, max_synthetic_frames=" +
-                         std::to_string(config_.max_synthetic_frames) + "], got " + std::to_string(frames));
-        }
-        SyntheticRig rig;
-        try {
-          rig = ValidateSyntheticRequest(s.seed(), frames, s.options_yaml(), config_.max_synthetic_frames);
-        } catch (const SyntheticError& e) {
-          return Invalid(e.what());
-        }
-        // The estimator is built after the render; building one now with the
-        // drive's rig checks vo_method and the scenario before the RPC answers.
-        setup.camera = rig.camera;
-        setup.T_cam0_imu = rig.T_cam0_imu;
-        try {
-          estimator_factory_(setup);
-        } catch (const std::exception& e) {
-          return Invalid(std::string("vo_method/scenario: ") + e.what());
-        }
-        options.source = "synthetic:seed=" + std::to_string(s.seed()) + ",frames=" + std::to_string(frames);
-        // Rendered on the session thread (can take seconds); failures fail the session.
-        // Each session renders its own folder and deletes it when its
-        // pipeline ends, so rendered drives never outlive their sessions.
-        const std::filesystem::path drive_dir = SyntheticRoot(config_.work_dir) / RandomSessionId();
-        auto factory = [drive_dir, seed = s.seed(), frames, yaml = s.options_yaml(), setup,
-                        make = estimator_factory_](const std::atomic<bool>& cancel) mutable
-            -> std::unique_ptr<pipeline::Pipeline> {
-          auto src = std::make_unique<pipeline::DatasetFrameSource>(
-              MakeSyntheticDrive(drive_dir, seed, frames, yaml, &cancel), 0, -1);
-          return MakeFrameLoop(make, setup, std::move(src));
-        };
-        auto remove_drive = [drive_dir] {
-          std::error_code ec;
-          std::filesystem::remove_all(drive_dir, ec);
-        };
-        return sessions_.Add(std::move(options),
-                             std::make_unique<DeferredPipeline>(std::move(factory), static_cast<int64_t>(frames),
-                                                                std::move(remove_drive)),
-                             nullptr, id);
-      }
+      case v1::StartSessionRequest::kSynthetic:
+        return StartSynthetic(req.synthetic(), std::move(options), std::move(setup), id);
       case v1::StartSessionRequest::kLive: {
-        pipeline::LiveCameraSetup cam;
-        if (Status st = ParseLiveSource(req.live(), &cam); !st.ok()) return st;
-        if (Status st = ParseLeverArm(req.live(), &setup.gps_antenna_body_m); !st.ok()) return st;
-        if (Status st = ParseGpsdSource(req.live(), &gpsd); !st.ok()) return st;
-        auto src = std::make_unique<pipeline::LiveFrameSource>(cam);
+        std::unique_ptr<pipeline::LiveFrameSource> src;
+        if (Status s = OpenLiveSource(req.live(), &setup, &src, &gpsd, &options.source); !s.ok()) return s;
         live = src.get();
-        options.source = gpsd ? "live+gpsd:" + gpsd->host + ":" + std::to_string(gpsd->port) : "live";
         source = std::move(src);
         break;
       }
@@ -300,6 +277,50 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
   }
   if (gpsd) live->AttachFeeder(std::make_unique<GpsdReceiver>(*gpsd, live));
   return sessions_.Add(std::move(options), std::move(loop), live, id);
+}
+
+Status LocalizationService::StartSynthetic(const v1::SyntheticSource& s, SessionOptions options,
+                                          EstimatorSetup setup, std::string* id) {
+  const size_t frames = s.frames() == 0 ? config_.synthetic_default_frames : s.frames();
+  if (frames < 2 || frames > config_.max_synthetic_frames) {
+    return Invalid("synthetic.frames: must be in [2, max_synthetic_frames=" +
+                   std::to_string(config_.max_synthetic_frames) + "], got " + std::to_string(frames));
+  }
+  SyntheticRig rig;
+  try {
+    rig = ValidateSyntheticRequest(s.seed(), frames, s.options_yaml(), config_.max_synthetic_frames);
+  } catch (const SyntheticError& e) {
+    return Invalid(e.what());
+  }
+  // The estimator is built after the render; building one now with the
+  // drive's rig checks vo_method and the scenario before the RPC answers.
+  setup.camera = rig.camera;
+  setup.T_cam0_imu = rig.T_cam0_imu;
+  try {
+    estimator_factory_(setup);
+  } catch (const std::exception& e) {
+    return Invalid(std::string("vo_method/scenario: ") + e.what());
+  }
+  options.source = "synthetic:seed=" + std::to_string(s.seed()) + ",frames=" + std::to_string(frames);
+  // Rendered on the session thread (can take seconds); failures fail the session.
+  // Each session renders its own folder and deletes it when its
+  // pipeline ends, so rendered drives never outlive their sessions.
+  const std::filesystem::path drive_dir = SyntheticRoot(config_.work_dir) / RandomSessionId();
+  auto factory = [drive_dir, seed = s.seed(), frames, yaml = s.options_yaml(), setup,
+                  make = estimator_factory_](const std::atomic<bool>& cancel) mutable
+      -> std::unique_ptr<pipeline::Pipeline> {
+    auto src = std::make_unique<pipeline::DatasetFrameSource>(
+        MakeSyntheticDrive(drive_dir, seed, frames, yaml, &cancel), 0, -1);
+    return MakeFrameLoop(make, setup, std::move(src));
+  };
+  auto remove_drive = [drive_dir] {
+    std::error_code ec;
+    std::filesystem::remove_all(drive_dir, ec);
+  };
+  return sessions_.Add(std::move(options),
+                       std::make_unique<DeferredPipeline>(std::move(factory), static_cast<int64_t>(frames),
+                                                          std::move(remove_drive)),
+                       nullptr, id);
 }
 
 Status LocalizationService::StartLive(const v1::PushStart& start, std::shared_ptr<Session>* session,

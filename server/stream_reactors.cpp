@@ -214,47 +214,29 @@ class PushReactor final : public HubStream<grpc::ServerBidiReactor<v1::PushReque
     }
     switch (req_.item_case()) {
       case v1::PushRequest::kFrame: {
-        const v1::StereoFrame& f = req_.frame();
         const int64_t index = frames_++;
-        if (f.encoding() != v1::IMAGE_ENCODING_PNG && f.encoding() != v1::IMAGE_ENCODING_GRAY8) {
-          Reject("frame", index, "encoding: must be IMAGE_ENCODING_PNG or IMAGE_ENCODING_GRAY8");
+        FrameTranslation frame = FrameItemFromProto(req_.mutable_frame(), live_->camera());
+        if (!frame.rejected.empty()) {
+          Reject("frame", index, frame.rejected);
           break;
         }
-        pipeline::LiveItem item;
-        item.kind = pipeline::LiveItem::Kind::kFrame;
-        item.t_ns = f.t_ns();
-        item.png = f.encoding() == v1::IMAGE_ENCODING_PNG;
-        if (item.png) {
-          // A PNG declaring another size than the session camera is never
-          // decoded (a small file can declare 30000x30000 px): the stream
-          // ends with INVALID_ARGUMENT naming both sizes.
-          std::string mismatch = pipeline::PngSizeMismatch(f.left(), live_->camera(), "left");
-          if (mismatch.empty()) mismatch = pipeline::PngSizeMismatch(f.right(), live_->camera(), "right");
-          if (!mismatch.empty()) {
-            // Nothing more is read; the frames before this one are still in
-            // the pipeline: their poses are delivered first, then the stream
-            // ends with this status instead of OK.
-            std::lock_guard lock(mu_);
-            end_status_ = Invalid("frame " + std::to_string(index) + ": " + mismatch);
-            reads_done_ = true;
-            live_->CloseInput();
-            return;
-          }
+        if (!frame.fatal.empty()) {
+          // Nothing more is read; the frames before this one are still in
+          // the pipeline: their poses are delivered first, then the stream
+          // ends with this status instead of OK.
+          std::lock_guard lock(mu_);
+          end_status_ = Invalid("frame " + std::to_string(index) + ": " + frame.fatal);
+          reads_done_ = true;
+          live_->CloseInput();
+          return;
         }
-        item.left = std::move(*req_.mutable_frame()->mutable_left());
-        item.right = std::move(*req_.mutable_frame()->mutable_right());
-        PushToSession(std::move(item));
+        PushToSession(std::move(frame.item));
         return;
       }
-      case v1::PushRequest::kOxts: {
-        pipeline::LiveItem item;
-        item.kind = pipeline::LiveItem::Kind::kOxts;
-        item.t_ns = req_.oxts().t_ns();
-        item.oxts_line = req_.oxts().line();
+      case v1::PushRequest::kOxts:
         ++oxts_;
-        PushToSession(std::move(item));
+        PushToSession(OxtsItemFromProto(req_.oxts()));
         return;
-      }
       case v1::PushRequest::kImu:
       case v1::PushRequest::kGps: {
         const bool imu = req_.item_case() == v1::PushRequest::kImu;

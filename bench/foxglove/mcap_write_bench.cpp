@@ -4,7 +4,7 @@
 // and uncompressed. Prints JSON (docs/benchmarks.md, "MCAP recording").
 //
 //   build/bin/mcap_write_bench [--poses 20000] [--zstd-level 3] [--out-dir /tmp]
-#include "foxglove/mcap_recording.hpp"
+#include "output/mcap_recording.hpp"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -64,7 +64,7 @@ nlohmann::json Run(const std::vector<v1::PoseUpdate>& poses, const std::filesyst
   options.zstd = zstd;
   options.zstd_level = zstd_level;
   const auto t0 = std::chrono::steady_clock::now();
-  locaid::foxglove::McapRecording recording(file, options);
+  locaid::output::McapRecording recording(file, options);
   for (const auto& p : poses) recording.Add(p);
   recording.Close();
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

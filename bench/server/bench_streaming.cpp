@@ -19,7 +19,7 @@
 // per published pose.
 #include "bench/server/spawn_self.hpp"
 #include "bench/server/subscriber.hpp"
-#include "server/service.hpp"
+#include "server/server.hpp"
 
 #include <CLI/CLI.hpp>
 

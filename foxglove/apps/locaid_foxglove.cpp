@@ -9,9 +9,9 @@
 // thread, the session follower (gRPC) on its own thread, and main, which
 // waits for SIGTERM/SIGINT and then stops both. Exit status: 0 after a
 // signal, 1 when the WebSocket port cannot be opened, 2 for bad flags.
-#include "clients/connection.hpp"
+#include "client/connection.hpp"
 #include "foxglove/apps/session_follower.hpp"
-#include "foxglove/channels.hpp"
+#include "output/channels.hpp"
 #include "foxglove/ws_server.hpp"
 
 #include <CLI/CLI.hpp>
@@ -101,13 +101,13 @@ int main(int argc, char** argv) {
   }
   fx::FollowerOptions follow;
   try {
-    locaid::clients::Connection connection;
+    locaid::client::Connection connection;
     connection.server = server;
     connection.token_file = token_file;
     connection.tls_ca = tls_ca;
-    locaid::clients::ResolveToken(connection);
+    locaid::client::ResolveToken(connection);
     follow.token = connection.token;
-    follow.channel = locaid::clients::MakeChannel(connection);
+    follow.channel = locaid::client::MakeChannel(connection);
   } catch (const std::exception& e) {
     std::cerr << e.what() << "\n";
     return 2;
@@ -131,7 +131,7 @@ int main(int argc, char** argv) {
     ws_options.max_queued_messages = queue;
     ws_options.socket_send_buffer_bytes = send_buffer;
     ws_options.log = Log;
-    ws = std::make_unique<fx::WsServer>(ws_options, fx::Channels());
+    ws = std::make_unique<fx::WsServer>(ws_options, locaid::output::Channels());
   } catch (const std::exception& e) {
     Log(e.what());
     return 1;
@@ -139,7 +139,7 @@ int main(int argc, char** argv) {
   Log("listening on ws://" + address.host + ":" + std::to_string(ws->port()) + " (foxglove.websocket.v1), server " +
       server + (session.empty() ? ", following the newest session" : ", session " + session));
 
-  fx::PoseConverter converter;  // follower thread only
+  locaid::output::PoseConverter converter;  // follower thread only
   fx::SessionFollower follower(
       follow,
       [&](const std::string& id) {

@@ -1,9 +1,9 @@
 // locaid-replay --out-mcap: the replayed poses as the MCAP recording a live
 // session gives (`locaid subscribe --format mcap`): same channels, schemas and
-// PoseUpdate contents (server/pose_message.hpp), ground truth included.
+// PoseUpdate contents (output/pose_message.hpp), ground truth included.
 #pragma once
 
-#include "foxglove/mcap_recording.hpp"
+#include "output/mcap_recording.hpp"
 #include "pipeline/frame_loop.hpp"
 
 #include <filesystem>
@@ -19,7 +19,7 @@ class ReplayMcap {
   uint64_t poses() const { return recording_.poses(); }
 
  private:
-  foxglove::McapRecording recording_;
+  output::McapRecording recording_;
   uint64_t sequence_ = 0;
 };
 

@@ -1,8 +1,8 @@
 // The channel table and the PoseUpdate -> foxglove message conversion:
 // topics and schema names, field names, covariance layout, timestamps,
 // which channels a pose feeds, and the bounded /locaid/path.
-#include "foxglove/channels.hpp"
-#include "foxglove/static_transforms.hpp"
+#include "output/channels.hpp"
+#include "output/static_transforms.hpp"
 #include "foxglove/ws_server.hpp"
 #include "server/synthetic_drive.hpp"
 
@@ -12,7 +12,7 @@
 #include <cmath>
 #include <map>
 
-namespace fx = locaid::foxglove;
+namespace fx = locaid::output;  // the channels are output/'s
 namespace v1 = locaid::v1;
 using nlohmann::json;
 
@@ -337,11 +337,11 @@ TEST(FoxgloveChannels, PathGrowsAtItsSpacingAndStaysBounded) {
 }
 
 TEST(FoxgloveChannels, Base64MatchesRfc4648Vectors) {
-  EXPECT_EQ(fx::Base64(""), "");
-  EXPECT_EQ(fx::Base64("f"), "Zg==");
-  EXPECT_EQ(fx::Base64("fo"), "Zm8=");
-  EXPECT_EQ(fx::Base64("foo"), "Zm9v");
-  EXPECT_EQ(fx::Base64("foob"), "Zm9vYg==");
-  EXPECT_EQ(fx::Base64("foobar"), "Zm9vYmFy");
-  EXPECT_EQ(fx::Base64(std::string("\xff\x00\x80", 3)), "/wCA");
+  EXPECT_EQ(locaid::foxglove::Base64(""), "");
+  EXPECT_EQ(locaid::foxglove::Base64("f"), "Zg==");
+  EXPECT_EQ(locaid::foxglove::Base64("fo"), "Zm8=");
+  EXPECT_EQ(locaid::foxglove::Base64("foo"), "Zm9v");
+  EXPECT_EQ(locaid::foxglove::Base64("foob"), "Zm9vYg==");
+  EXPECT_EQ(locaid::foxglove::Base64("foobar"), "Zm9vYmFy");
+  EXPECT_EQ(locaid::foxglove::Base64(std::string("\xff\x00\x80", 3)), "/wCA");
 }

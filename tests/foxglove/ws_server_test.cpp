@@ -83,7 +83,7 @@ class WsServerTest : public ::testing::Test {
   void Publish(size_t channel, uint64_t timestamp_ns, std::string data,
                std::chrono::steady_clock::time_point since = std::chrono::steady_clock::now()) {
     std::vector<fx::OutMessage> one;
-    one.push_back({static_cast<fx::Topic>(channel), timestamp_ns, std::move(data)});
+    one.push_back({static_cast<locaid::output::Topic>(channel), timestamp_ns, std::move(data)});
     server_->Publish(std::move(one), since);
   }
   // Publishes on channel 1 until the client's subscription shows (the

@@ -7,7 +7,7 @@
 #pragma once
 
 #include "locaid/v1/localization.grpc.pb.h"
-#include "server/service.hpp"
+#include "server/server.hpp"
 #include "temp_dir.hpp"
 
 #include <grpcpp/grpcpp.h>
