@@ -22,5 +22,7 @@ void ResolveToken(Connection& c);
 std::shared_ptr<grpc::Channel> MakeChannel(const Connection& c);
 // Deadline (0 = none) and the token on a call.
 void Prepare(const Connection& c, grpc::ClientContext* ctx, double timeout_s);
+// The status code's name as gRPC spells it ("NOT_FOUND"), "?" for others.
+const char* StatusCodeName(grpc::StatusCode code);
 
 }  // namespace locaid::client

@@ -9,6 +9,7 @@
 //   locaid stats ID
 // Every call carries a deadline (--timeout-s; subscribe: --stream-timeout-s).
 #include "client/connection.hpp"
+#include "clients/cli_print.hpp"
 #include "clients/recorder.hpp"
 #include "output/mcap_recording.hpp"
 #include "locaid/v1/localization.grpc.pb.h"
@@ -41,6 +42,8 @@
 
 namespace v1 = locaid::v1;
 using locaid::clients::ModeName;
+using locaid::clients::PrintSession;
+using locaid::clients::PrintStats;
 using locaid::clients::RecordError;
 using locaid::clients::Recorder;
 
@@ -95,82 +98,13 @@ void Prepare(const Common& c, grpc::ClientContext* ctx, double timeout_s) {
   locaid::client::Prepare(c, ctx, timeout_s);
 }
 
-const char* CodeName(grpc::StatusCode code) {
-  switch (code) {
-    case grpc::OK: return "OK";
-    case grpc::CANCELLED: return "CANCELLED";
-    case grpc::UNKNOWN: return "UNKNOWN";
-    case grpc::INVALID_ARGUMENT: return "INVALID_ARGUMENT";
-    case grpc::DEADLINE_EXCEEDED: return "DEADLINE_EXCEEDED";
-    case grpc::NOT_FOUND: return "NOT_FOUND";
-    case grpc::ALREADY_EXISTS: return "ALREADY_EXISTS";
-    case grpc::PERMISSION_DENIED: return "PERMISSION_DENIED";
-    case grpc::UNAUTHENTICATED: return "UNAUTHENTICATED";
-    case grpc::RESOURCE_EXHAUSTED: return "RESOURCE_EXHAUSTED";
-    case grpc::FAILED_PRECONDITION: return "FAILED_PRECONDITION";
-    case grpc::ABORTED: return "ABORTED";
-    case grpc::OUT_OF_RANGE: return "OUT_OF_RANGE";
-    case grpc::UNIMPLEMENTED: return "UNIMPLEMENTED";
-    case grpc::INTERNAL: return "INTERNAL";
-    case grpc::UNAVAILABLE: return "UNAVAILABLE";
-    case grpc::DATA_LOSS: return "DATA_LOSS";
-    default: return "?";
-  }
-}
-
 // Exit codes: 0 OK, 1 RPC error (status printed), 2 usage error, 3 health
 // NOT_SERVING / UNKNOWN, 4 the record file could not be written (subscribe:
 // disk full, file size limit, I/O error; the file is kept valid up to the
 // last complete pose and the message says how many poses it holds).
 int Fail(const grpc::Status& s) {
-  std::cerr << "error: " << CodeName(s.error_code()) << ": " << s.error_message() << "\n";
+  std::cerr << "error: " << locaid::client::StatusCodeName(s.error_code()) << ": " << s.error_message() << "\n";
   return 1;
-}
-
-const char* StateName(v1::SessionState s) {
-  switch (s) {
-    case v1::SESSION_STATE_STARTING: return "STARTING";
-    case v1::SESSION_STATE_RUNNING: return "RUNNING";
-    case v1::SESSION_STATE_FINISHED: return "FINISHED";
-    case v1::SESSION_STATE_STOPPED: return "STOPPED";
-    case v1::SESSION_STATE_FAILED: return "FAILED";
-    default: return "UNSPECIFIED";
-  }
-}
-
-void PrintSession(const v1::Session& s) {
-  std::cout << s.id() << " " << StateName(s.state()) << " source=" << s.source() << " vo=" << s.vo_method()
-            << " scenario=" << s.scenario() << " rate=" << s.playback_rate()
-            << " frames=" << s.stats().frames_processed() << "/" << s.total_frames()
-            << " subscribers=" << s.stats().subscribers();
-  if (!s.error().empty()) std::cout << " error=\"" << s.error() << "\"";
-  std::cout << "\n";
-}
-
-void PrintStats(const v1::SessionStats& s) {
-  std::cout << "frames_in " << s.frames_in() << "\nframes_processed " << s.frames_processed()
-            << "\nframes_skipped " << s.frames_skipped() << "\nframes_corrupt " << s.frames_corrupt()
-            << "\noxts_bad_lines " << s.oxts_bad_lines() << "\nfps " << s.fps() << "\nlatency_mean_ms "
-            << s.latency_mean_ms() << "\nlatency_max_ms " << s.latency_max_ms() << "\nposes_published "
-            << s.poses_published() << "\nsubscribers " << s.subscribers() << "\ndropped_total "
-            << s.dropped_total() << "\n";
-  if (!s.last_input_error().empty()) std::cout << "last_input_error " << s.last_input_error() << "\n";
-  if (s.imu_samples() + s.gps_fixes_in() + s.sensor_items_rejected() > 0) {
-    std::cout << "imu_samples " << s.imu_samples() << "\ngps_fixes_in " << s.gps_fixes_in() << "\ngps_fixes_late "
-              << s.gps_fixes_late() << "\ngps_no_fix " << s.gps_no_fix() << "\nsensor_items_rejected "
-              << s.sensor_items_rejected() << "\n";
-  }
-  if (s.has_gpsd()) {
-    const auto& g = s.gpsd();
-    std::cout << "gpsd connected=" << (g.connected() ? "true" : "false") << " connects=" << g.connects()
-              << " connection_losses=" << g.connection_losses() << " fix_latency_median_ms="
-              << g.fix_latency_median_ms() << " fix_latency_max_ms=" << g.fix_latency_max_ms() << "\n";
-    if (!g.last_error().empty()) std::cout << "gpsd_last_error " << g.last_error() << "\n";
-  }
-  for (const auto& sub : s.subscriber()) {
-    std::cout << "subscriber " << sub.id() << " peer=" << sub.peer() << " delivered=" << sub.delivered()
-              << " dropped=" << sub.dropped() << " queued=" << sub.queued() << "\n";
-  }
 }
 
 std::unique_ptr<grpc::ClientContext> g_stream_ctx;

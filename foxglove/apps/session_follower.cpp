@@ -1,5 +1,7 @@
 #include "foxglove/apps/session_follower.hpp"
 
+#include "client/connection.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <sstream>
@@ -11,13 +13,7 @@ namespace {
 bool Live(v1::SessionState s) { return s == v1::SESSION_STATE_STARTING || s == v1::SESSION_STATE_RUNNING; }
 
 std::string Describe(const grpc::Status& s) {
-  // Indexed by grpc::StatusCode (0-16).
-  static const char* kNames[] = {
-      "OK",           "CANCELLED",           "UNKNOWN",  "INVALID_ARGUMENT", "DEADLINE_EXCEEDED", "NOT_FOUND",
-      "ALREADY_EXISTS", "PERMISSION_DENIED", "RESOURCE_EXHAUSTED", "FAILED_PRECONDITION", "ABORTED",
-      "OUT_OF_RANGE", "UNIMPLEMENTED",       "INTERNAL", "UNAVAILABLE",      "DATA_LOSS",         "UNAUTHENTICATED"};
-  const int code = static_cast<int>(s.error_code());
-  std::string name = code >= 0 && code < 17 ? kNames[code] : "code " + std::to_string(code);
+  const std::string name = client::StatusCodeName(s.error_code());
   return s.error_message().empty() ? name : name + ": " + s.error_message();
 }
 
