@@ -7,11 +7,6 @@
 namespace locaid::pipeline {
 namespace {
 
-template <typename T>
-void AppendAll(std::vector<T>& to, std::vector<T>&& from) {
-  to.insert(to.end(), std::make_move_iterator(from.begin()), std::make_move_iterator(from.end()));
-}
-
 template <typename T, typename Time>
 void MoveWhile(std::vector<T>& from, std::vector<T>& to, int64_t t_ns, Time time_of) {
   const auto end = std::find_if(from.begin(), from.end(), [&](const T& s) { return time_of(s) > t_ns; });
@@ -20,14 +15,6 @@ void MoveWhile(std::vector<T>& from, std::vector<T>& to, int64_t t_ns, Time time
 }
 
 }  // namespace
-
-void SensorBatch::Append(SensorBatch&& later) {
-  AppendAll(imu, std::move(later.imu));
-  AppendAll(gps, std::move(later.gps));
-  AppendAll(reference_imu, std::move(later.reference_imu));
-  AppendAll(reference_poses, std::move(later.reference_poses));
-  if (later.receiver_has_fix) receiver_has_fix = later.receiver_has_fix;
-}
 
 void SensorBatch::MoveUpTo(int64_t t_ns, SensorBatch& out) {
   auto t = [](const auto& s) { return s.t_ns; };

@@ -46,9 +46,6 @@ struct SensorBatch {
   bool empty() const {
     return imu.empty() && gps.empty() && reference_imu.empty() && reference_poses.empty() && !receiver_has_fix;
   }
-  bool has_measured() const { return !imu.empty() || !gps.empty() || receiver_has_fix.has_value(); }
-  // Appends `later` (data after this batch's, as a source delivers it).
-  void Append(SensorBatch&& later);
   // Moves the samples with t_ns <= t_ns of every list into `out` (appended).
   void MoveUpTo(int64_t t_ns, SensorBatch& out);
 };
