@@ -3,6 +3,7 @@
 // default_keyframe.cpp, the list in default_odometry.hpp).
 #include "vo/default_odometry.hpp"
 #include "core/stereo_camera.hpp"
+#include "vo/image_guard.hpp"
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/video/tracking.hpp>
@@ -290,7 +291,10 @@ RelativeMotion DefaultOdometry::Fail(RelativeMotion out, const Images& im) {
 
 std::unique_ptr<StereoOdometry> MakeDefaultOdometry(const StereoCamera& camera,
                                                     const DefaultConfig& config) {
-  return std::make_unique<detail::DefaultOdometry>(camera, config);
+  ImageGuardConfig guard;
+  guard.min_image_stddev = config.min_image_stddev;
+  guard.min_dark_snr = config.min_dark_snr;
+  return std::make_unique<GuardedOdometry>(std::make_unique<detail::DefaultOdometry>(camera, config), guard);
 }
 
 }  // namespace locaid::vo

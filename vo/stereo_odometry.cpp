@@ -22,6 +22,16 @@ const char* ToString(Status status) {
   return "UNKNOWN";
 }
 
+const char* ToString(Health health) {
+  switch (health) {
+    case Health::kTracking: return "tracking";
+    case Health::kDark: return "dark";
+    case Health::kFrozen: return "frozen";
+    case Health::kLost: return "lost";
+  }
+  return "unknown";
+}
+
 std::string ImageProblem(const cv::Mat& image, const StereoCamera& camera,
                          double min_stddev) {
   if (image.empty()) return "image missing";

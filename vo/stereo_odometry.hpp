@@ -17,6 +17,11 @@ namespace locaid::vo {
 
 enum class Status { kOk, kDegraded, kLost };
 const char* ToString(Status status);
+// What the cameras gave VO on a frame: tracking (status OK / DEGRADED), too
+// dark or noisy to track, frozen (the same content as the previous frame with
+// a new time stamp: never taken as standstill), or lost for another reason.
+enum class Health { kTracking, kDark, kFrozen, kLost };
+const char* ToString(Health health);  // "tracking", "dark", "frozen", "lost"
 
 struct StereoFrame {
   int64_t t_ns = 0;
@@ -41,6 +46,7 @@ struct RelativeMotion {
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Identity();
   int inliers = 0;
   Status status = Status::kLost;
+  Health health = Health::kLost;
   StageTimings timings;
   double total_ms = 0;  // sum of timings
 };
@@ -50,7 +56,8 @@ class StereoOdometry {
   virtual ~StereoOdometry() = default;
   // Never returns NaN; never throws on black, saturated, repeated or missing
   // frames (they come back DEGRADED or LOST with identity motion and a large
-  // covariance).
+  // covariance). Sets `health`; a frame repeating the previous frame's
+  // content (a frozen camera) is LOST with health kFrozen, never a standstill.
   virtual RelativeMotion Track(const StereoFrame& frame) = 0;
   virtual void Reset() = 0;
 };
@@ -110,6 +117,9 @@ struct DefaultConfig {
   double keyframe_flow_px = 1.0;
   double standstill_flow_px = 0.25;
   double min_image_stddev = 3.0;     // below: black / saturated / flat image
+  // Dark frames (vo/image_guard.hpp) are contrast-stretched and tracked while
+  // their texture-to-noise ratio is at least this; below, LOST (health kDark).
+  double min_dark_snr = 0.6;
   TimingClock timing_clock = TimingClock::kWall;
 };
 
@@ -127,11 +137,13 @@ struct ThesisConfig {
   int min_inliers_ok = 40, min_inliers_degraded = 12;
   double standstill_flow_px = 0.3;   // guard (not in the thesis): no flow -> identity
   double min_image_stddev = 3.0;
+  double min_dark_snr = 2.5;         // ORB + StereoBM report wrong motions on noisier stretched images
   TimingClock timing_clock = TimingClock::kWall;
 };
 
-// Methods: "default" (locaid's design) and "thesis" (baseline). Throws
-// std::invalid_argument for an unknown name.
+// Methods: "default" (locaid's design) and "thesis" (baseline), each behind
+// the image checks of vo/image_guard.hpp (frozen and dark frames, health).
+// Throws std::invalid_argument for an unknown name.
 std::unique_ptr<StereoOdometry> MakeStereoOdometry(const std::string& method,
                                                    const StereoCamera& camera,
                                                    TimingClock clock = TimingClock::kWall);

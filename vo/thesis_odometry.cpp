@@ -6,6 +6,7 @@
 // rotation from the essential matrix (5-point RANSAC, left camera only) ->
 // translation from PnP RANSAC on the previous frame's stereo depth.
 #include "core/stereo_camera.hpp"
+#include "vo/image_guard.hpp"
 #include "vo/odometry_common.hpp"
 #include "vo/stereo_geometry.hpp"
 #include "vo/stereo_odometry.hpp"
@@ -219,7 +220,10 @@ RelativeMotion ThesisOdometry::Track(const StereoFrame& frame) {
 
 std::unique_ptr<StereoOdometry> MakeThesisOdometry(const StereoCamera& camera,
                                                    const ThesisConfig& config) {
-  return std::make_unique<ThesisOdometry>(camera, config);
+  ImageGuardConfig guard;
+  guard.min_image_stddev = config.min_image_stddev;
+  guard.min_dark_snr = config.min_dark_snr;
+  return std::make_unique<GuardedOdometry>(std::make_unique<ThesisOdometry>(camera, config), guard);
 }
 
 }  // namespace locaid::vo
