@@ -31,6 +31,55 @@ const char* ToString(ImuGrade grade) {
   return grade == ImuGrade::kMems ? "mems" : "as-recorded";
 }
 
+const char* ToString(CameraFaultKind kind) {
+  switch (kind) {
+    case CameraFaultKind::kDark: return "dark";
+    case CameraFaultKind::kNoise: return "noise";
+    case CameraFaultKind::kBlur: return "blur";
+    case CameraFaultKind::kFrozen: return "frozen";
+    case CameraFaultKind::kDrop: return "drop";
+    case CameraFaultKind::kLeftOnly: return "left_only";
+    case CameraFaultKind::kRightOnly: return "right_only";
+  }
+  return "unknown";
+}
+
+std::string CameraFaultParameterProblem(const CameraFaultWindow& w) {
+  std::ostringstream os;
+  if (!(std::isfinite(w.gain) && w.gain > 0 && w.gain <= 1)) {
+    os << "gain: must be in (0, 1], got " << w.gain;
+  } else if (!(std::isfinite(w.noise_dn) && w.noise_dn >= 0 && w.noise_dn <= 255)) {
+    os << "noise_dn: must be in [0, 255], got " << w.noise_dn;
+  } else if (!(std::isfinite(w.blur_sigma_px) && w.blur_sigma_px > 0 && w.blur_sigma_px <= 50)) {
+    // A Gaussian kernel of 6 sigma + 1 px: 50 px is already 301 px wide.
+    os << "blur_sigma_px: must be in (0, 50], got " << w.blur_sigma_px;
+  }
+  return os.str();
+}
+
+void ValidateCameraFaults(const Scenario& s) {
+  // Seconds become int64 nanoseconds, like the outages: bounded at 1e6 s.
+  constexpr double kMaxS = 1e6;
+  for (size_t i = 0; i < s.camera_faults.size(); ++i) {
+    const CameraFaultWindow& w = s.camera_faults[i];
+    const std::string f = "camera[" + std::to_string(i) + "]";
+    std::ostringstream os;
+    if (!(std::isfinite(w.start_s) && w.start_s >= 0 && w.start_s <= kMaxS)) {
+      os << "must be in [0, 1e6], got " << w.start_s;
+      Bad(s, f + ".start_s", os.str());
+    }
+    if (!(std::isfinite(w.duration_s) && w.duration_s > 0 && w.duration_s <= kMaxS)) {
+      os << "must be in (0, 1e6] (end after start), got " << w.duration_s;
+      Bad(s, f + ".duration_s", os.str());
+    }
+    const std::string problem = CameraFaultParameterProblem(w);
+    if (!problem.empty()) {
+      const size_t colon = problem.find(':');
+      Bad(s, f + "." + problem.substr(0, colon), problem.substr(colon + 2));
+    }
+  }
+}
+
 void ValidateScenario(const Scenario& s) {
   if (!s.gps_antenna_body_m.allFinite() || s.gps_antenna_body_m.norm() > 10.0)
     Bad(s, "gps.antenna_body_m", "must be finite and within 10 m of the IMU");
@@ -65,6 +114,7 @@ void ValidateScenario(const Scenario& s) {
       Bad(s, f + ".duration_s", "must be in (0, 1e6] (end after start), got " +
                                     std::to_string(s.outages[i].duration_s));
   }
+  ValidateCameraFaults(s);
 }
 
 std::vector<std::string> BuiltinScenarioNames() {

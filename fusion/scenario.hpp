@@ -24,6 +24,24 @@ struct OutageWindow {
   bool centered = false;
 };
 
+// A camera fault over a window of sensor time from the first frame: what
+// happens to the images before VO sees them (pipeline/camera_faults.hpp
+// applies it). Data only: the fusion library never touches images.
+enum class CameraFaultKind { kDark, kNoise, kBlur, kFrozen, kDrop, kLeftOnly, kRightOnly };
+const char* ToString(CameraFaultKind kind);  // "dark", "noise", ... as in scenario YAML
+struct CameraFaultWindow {
+  double start_s = 0;
+  double duration_s = 0;
+  CameraFaultKind kind = CameraFaultKind::kDark;
+  double gain = 0.06;          // kDark: image gain in (0, 1]
+  double noise_dn = 3.0;       // kDark, kNoise: 1-sigma sensor noise, digital numbers
+  double blur_sigma_px = 3.0;  // kBlur
+};
+// Why a camera fault's parameters are out of range, "" when they are fine:
+// "gain: must be in (0, 1], got 2" (gain in (0, 1], noise_dn in [0, 255],
+// blur_sigma_px in (0, 50]; times are not checked here).
+std::string CameraFaultParameterProblem(const CameraFaultWindow& fault);
+
 enum class ImuGrade {
   kAsRecorded,  // OXTS accelerations / angular rates unchanged (RT3003 grade)
   kMems,        // + constant turn-on bias, bias random walk and white noise
@@ -52,6 +70,8 @@ struct Scenario {
   double imu_gyro_noise_radps_sqrt_hz = 0.0005; // kMems
   // Outages relative to the drive start.
   std::vector<OutageWindow> outages;
+  // Camera faults relative to the first frame (scenario key `camera:`).
+  std::vector<CameraFaultWindow> camera_faults;
   uint64_t seed = 1;
 };
 
@@ -59,6 +79,10 @@ struct Scenario {
 // value is out of range (negative sigma, rate <= 0, probability outside [0, 1],
 // outage with negative start or non-positive duration ...).
 void ValidateScenario(const Scenario& scenario);
+// The camera faults' part of ValidateScenario: "scenario NAME: field
+// camera[0].gain: must be in (0, 1], got 2"; start_s in [0, 1e6],
+// duration_s in (0, 1e6], parameters as CameraFaultParameterProblem.
+void ValidateCameraFaults(const Scenario& scenario);
 
 // Built-in scenarios: "open-sky" (1.5 m at 10 Hz), "urban-canyon" (3 m at
 // 1 Hz, multipath jumps), "tunnel-30s" (open-sky GPS with one 30 s outage in

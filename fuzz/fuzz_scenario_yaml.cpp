@@ -3,15 +3,19 @@
 // sigma_v_m, bias_sigma_m, bias_tau_s, jump_probability, jump_size_m,
 // jump_duration_s, antenna_body_m}, imu.{grade, accel_bias_sigma_mps2,
 // gyro_bias_sigma_radps, accel_noise_mps2_sqrt_hz, gyro_noise_radps_sqrt_hz},
-// outages[].{start_s, duration_s, end_s, centered}, seed.
+// outages[].{start_s, duration_s, end_s, centered}, camera[].{start_s,
+// duration_s, end_s, fault, gain, noise_dn, blur_sigma_px}, seed.
 // Contract: ParseScenarioYaml returns a scenario or throws
 // pipeline::ScenarioError (no yaml-cpp or std exception escapes); an accepted
 // scenario passes fusion::ValidateScenario, its outages placed on a drive
 // (PlaceOutagesForDrive) and it drives a GpsScenario (with an attitude, so the
 // antenna lever arm is used) and an ImuDegrader over a short synthetic drive
-// without undefined behaviour, every fix and sample finite.
+// without undefined behaviour, every fix and sample finite; its camera faults
+// go through a CameraFaultStage over small stereo pairs of the same drive,
+// each image coming out empty or of its size and type.
 #include "fuzz/fuzz_support.hpp"
 #include "fusion/scenario.hpp"
+#include "pipeline/camera_faults.hpp"
 #include "pipeline/scenario_yaml.hpp"
 
 #include <Eigen/Geometry>
@@ -55,6 +59,17 @@ void Exercise(const locaid::fusion::Scenario& scenario) {
     const fusion::ImuSample degraded = imu.Apply(sample);
     LOCAID_FUZZ_CHECK(degraded.accel_mps2.allFinite() && degraded.gyro_radps.allFinite(),
                       "non-finite degraded IMU sample");
+  }
+  // Camera faults over 20 s of 10 Hz frames (images small: a blur of 50 px
+  // sigma is a 301 px kernel on them).
+  locaid::pipeline::CameraFaultStage camera(placed);
+  const cv::Mat left(8, 16, CV_8UC1, cv::Scalar(100)), right(8, 16, CV_8UC1, cv::Scalar(120));
+  for (int i = 0; i < kSamples; ++i) {
+    locaid::vo::StereoFrame frame{kStartNs + i * kStepNs, left, right};
+    camera.Apply(frame);
+    for (const cv::Mat* image : {&frame.left, &frame.right})
+      LOCAID_FUZZ_CHECK(image->empty() || (image->size() == left.size() && image->type() == CV_8UC1),
+                        "camera fault changed an image's size or type");
   }
 }
 

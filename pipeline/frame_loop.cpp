@@ -30,11 +30,19 @@ StepResult FrameLoop::Step() {
   }
   if (!std::exchange(had_frame_, true) && r.error.empty()) r.error = std::move(notice_);
   r.kind = StepResult::Kind::kPose;
-  r.frame = estimator_->Process(vo::StereoFrame{item.t_ns, std::move(item.left), std::move(item.right)});
+  vo::StereoFrame frame{item.t_ns, std::move(item.left), std::move(item.right)};
+  camera_faults_.Apply(frame);
+  r.frame = estimator_->Process(frame);
   r.frame.in_outage = scenario_.InOutage(item.t_ns);
   if (item.truth) r.truth = Truth(*item.truth);
   r.processing_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   return r;
+}
+
+void FrameLoop::SetScenario(const fusion::Scenario& scenario) {
+  fusion::ValidateScenario(scenario);
+  scenario_.SetScenario(scenario);
+  camera_faults_.SetScenario(scenario);
 }
 
 void FrameLoop::RecordFixLatency(const SensorBatch& sensors) {

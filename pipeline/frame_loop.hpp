@@ -1,8 +1,10 @@
-// The one frame loop: source -> scenario stage -> estimator, one StepResult
-// per Step(). A FrameSource (KITTI drive, synthetic drive, frames and sensors
-// a client pushes) yields frames and typed sensor data; the ScenarioStage
-// (scenario_stage.hpp) makes the measurements and owns GPS availability; the
-// Estimator (the Localizer: VO + EKF) fuses them. Every session of the gRPC
+// The one frame loop: source -> scenario stage -> camera faults -> estimator,
+// one StepResult per Step(). A FrameSource (KITTI drive, synthetic drive,
+// frames and sensors a client pushes) yields frames and typed sensor data;
+// the ScenarioStage (scenario_stage.hpp) makes the measurements and owns GPS
+// availability; the CameraFaultStage (camera_faults.hpp) does to the images
+// what the scenario's `camera:` list and injected faults say; the Estimator
+// (the Localizer: VO + EKF) fuses them. Every session of the gRPC
 // server runs one, and so does locaid-replay.
 //
 // Threading: Step() and Release() are called from one thread (the session's
@@ -12,6 +14,7 @@
 
 #include "fusion/scenario.hpp"
 #include "fusion/types.hpp"
+#include "pipeline/camera_faults.hpp"
 #include "pipeline/frame_source.hpp"
 #include "pipeline/localizer.hpp"
 #include "pipeline/scenario_stage.hpp"
@@ -83,6 +86,10 @@ class Pipeline {
   virtual void StartOutageNow(double duration_s) = 0;  // 0 = until StopOutage
   virtual void StopOutage() = 0;
   virtual void AddOutageWindow(double start_s, double duration_s) = 0;
+  // Camera faults, applied from the next frame on (CameraFaultStage::Inject;
+  // times relative to the first frame). Throws std::invalid_argument for
+  // out-of-range values.
+  virtual void InjectCameraFault(CameraFaultAction action, const fusion::CameraFaultWindow& fault) = 0;
   // Throws std::invalid_argument when the scenario is invalid.
   virtual void SetScenario(const fusion::Scenario& scenario) = 0;
   // ENU origin once known.
@@ -93,12 +100,16 @@ class Pipeline {
 
 class FrameLoop final : public Pipeline {
  public:
+  // The camera faults are the scenario stage's scenario's (`camera:`).
   FrameLoop(std::unique_ptr<FrameSource> source, ScenarioStage scenario, std::unique_ptr<Estimator> estimator)
-      : source_(std::move(source)), scenario_(std::move(scenario)), estimator_(std::move(estimator)) {}
+      : source_(std::move(source)),
+        scenario_(std::move(scenario)),
+        camera_faults_(scenario_.scenario()),
+        estimator_(std::move(estimator)) {}
 
   // Reads the next item: its sensor data goes through the scenario stage to
   // the estimator (so a fix reaches the filter before VO runs on the frame),
-  // then a frame is processed.
+  // then a frame, with the active camera faults applied, is processed.
   StepResult Step() override;
   // A message for the user (e.g. OutageCoverageWarning) that the first pose's
   // result carries in `error` when it has no input error of its own.
@@ -109,7 +120,11 @@ class FrameLoop final : public Pipeline {
   void StartOutageNow(double duration_s) override { scenario_.StartOutageNow(duration_s); }
   void StopOutage() override { scenario_.StopOutage(); }
   void AddOutageWindow(double start_s, double duration_s) override { scenario_.AddOutageWindow(start_s, duration_s); }
-  void SetScenario(const fusion::Scenario& scenario) override { scenario_.SetScenario(scenario); }
+  void InjectCameraFault(CameraFaultAction action, const fusion::CameraFaultWindow& fault) override {
+    camera_faults_.Inject(action, fault);
+  }
+  // Both stages take the new scenario (validated before either changes).
+  void SetScenario(const fusion::Scenario& scenario) override;
   bool origin(double* lat_deg, double* lon_deg, double* alt_m) const override;
   // The source's counters plus the arrival-to-use latency of received fixes.
   LiveInputStats input_stats() const override;
@@ -122,6 +137,7 @@ class FrameLoop final : public Pipeline {
 
   std::unique_ptr<FrameSource> source_;
   ScenarioStage scenario_;
+  CameraFaultStage camera_faults_;
   std::unique_ptr<Estimator> estimator_;
   // Arrival-to-use times of the last kLatencyWindow received fixes, ms.
   static constexpr size_t kLatencyWindow = 256;

@@ -2,6 +2,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -52,7 +53,74 @@ struct Ctx {
     if (!(v > 0)) Fail(n, field, "must be > 0, got " + n.Scalar());
     return v;
   }
+  // The length of window `w` (entry `field`, a `what` starting at start_s):
+  // its duration_s, or its end_s - start_s.
+  double WindowDuration(const YAML::Node& w, const std::string& field, double start_s, const char* what) const {
+    if (w["duration_s"] && w["end_s"]) Fail(w, field, "give duration_s or end_s, not both");
+    if (w["duration_s"]) return Positive(w["duration_s"], field + ".duration_s");
+    if (!w["end_s"]) Fail(w, field + ".duration_s", "missing (give duration_s or end_s)");
+    const double end = Number(w["end_s"], field + ".end_s");
+    if (!(end > start_s))
+      Fail(w["end_s"], field + ".end_s", std::string(what) + " ends (" + w["end_s"].Scalar() +
+                                             " s) before or at its start (" + std::to_string(start_s) + " s)");
+    return end - start_s;
+  }
 };
+
+// The `camera:` list: [{start_s, duration_s | end_s, fault, parameters of that fault}].
+std::vector<fusion::CameraFaultWindow> ParseCameraFaults(const Ctx& c, const YAML::Node& list) {
+  using fusion::CameraFaultKind;
+  if (!list.IsSequence()) c.Fail(list, "camera", "expected a list of {start_s, duration_s | end_s, fault, ...}");
+  const std::vector<std::pair<std::string, CameraFaultKind>> kinds = {
+      {"dark", CameraFaultKind::kDark},         {"noise", CameraFaultKind::kNoise},
+      {"blur", CameraFaultKind::kBlur},         {"frozen", CameraFaultKind::kFrozen},
+      {"drop", CameraFaultKind::kDrop},         {"left_only", CameraFaultKind::kLeftOnly},
+      {"right_only", CameraFaultKind::kRightOnly}};
+  std::vector<fusion::CameraFaultWindow> out;
+  for (size_t i = 0; i < list.size(); ++i) {
+    const std::string f = "camera[" + std::to_string(i) + "]";
+    const YAML::Node w = list[i];
+    if (!w.IsMap()) c.Fail(w, f, "expected a mapping {start_s, duration_s | end_s, fault, ...}");
+    if (!w["fault"]) c.Fail(w, f + ".fault", "missing (dark, noise, blur, frozen, drop, left_only, right_only)");
+    const std::string name = w["fault"].IsScalar() ? w["fault"].Scalar() : "";
+    const auto kind = std::find_if(kinds.begin(), kinds.end(), [&](const auto& k) { return k.first == name; });
+    if (kind == kinds.end())
+      c.Fail(w["fault"], f + ".fault",
+             "expected dark, noise, blur, frozen, drop, left_only or right_only, got '" + name + "'");
+    fusion::CameraFaultWindow win;
+    win.kind = kind->second;
+    // Parameters only for the faults they change.
+    const std::vector<std::pair<std::string, std::set<CameraFaultKind>>> parameters = {
+        {"gain", {CameraFaultKind::kDark}},
+        {"noise_dn", {CameraFaultKind::kDark, CameraFaultKind::kNoise}},
+        {"blur_sigma_px", {CameraFaultKind::kBlur}}};
+    std::set<std::string> keys = {"start_s", "duration_s", "end_s", "fault"};
+    for (const auto& [key, applies] : parameters) {
+      if (applies.count(win.kind)) {
+        keys.insert(key);
+      } else if (w[key]) {
+        c.Fail(w[key], f + "." + key, std::string("applies to ") + (key == "noise_dn" ? "dark and noise" :
+                                      key == "gain" ? "dark" : "blur") + " faults, not to " + name);
+      }
+    }
+    c.CheckKeys(w, f, keys);
+    if (!w["start_s"]) c.Fail(w, f + ".start_s", "missing");
+    win.start_s = c.NonNegative(w["start_s"], f + ".start_s");
+    win.duration_s = c.WindowDuration(w, f, win.start_s, "fault");
+    if (win.kind == CameraFaultKind::kNoise) win.noise_dn = 8;  // default of a noise fault (as the API's)
+    if (w["gain"]) win.gain = c.Positive(w["gain"], f + ".gain");
+    if (w["noise_dn"]) win.noise_dn = c.NonNegative(w["noise_dn"], f + ".noise_dn");
+    if (w["blur_sigma_px"]) win.blur_sigma_px = c.Positive(w["blur_sigma_px"], f + ".blur_sigma_px");
+    // Upper bounds (gain <= 1, noise <= 255, blur <= 50) with the line of the value.
+    const std::string problem = fusion::CameraFaultParameterProblem(win);
+    if (!problem.empty()) {
+      const std::string key = problem.substr(0, problem.find(':'));
+      c.Fail(w[key], f + "." + key, problem.substr(key.size() + 2));
+    }
+    out.push_back(win);
+  }
+  return out;
+}
 
 }  // namespace
 
@@ -65,7 +133,7 @@ fusion::Scenario ParseScenarioYaml(const std::string& text, const std::string& w
     throw ScenarioError(where + ":" + std::to_string(e.mark.line + 1) + ": YAML syntax: " + e.msg);
   }
   if (!root.IsDefined() || root.IsNull()) throw ScenarioError(where + ": empty scenario file");
-  c.CheckKeys(root, "", {"name", "base", "gps", "imu", "outages", "seed"});
+  c.CheckKeys(root, "", {"name", "base", "gps", "imu", "outages", "camera", "seed"});
   fusion::Scenario s;
   if (root["base"]) {
     if (!root["base"].IsScalar()) c.Fail(root["base"], "base", "expected a built-in scenario name");
@@ -129,21 +197,11 @@ fusion::Scenario ParseScenarioYaml(const std::string& text, const std::string& w
         try { win.centered = w["centered"].as<bool>(); }
         catch (const YAML::Exception&) { c.Fail(w["centered"], f + ".centered", "expected true or false"); }
       }
-      if (w["duration_s"] && w["end_s"]) c.Fail(w, f, "give duration_s or end_s, not both");
-      if (w["duration_s"]) {
-        win.duration_s = c.Positive(w["duration_s"], f + ".duration_s");
-      } else if (w["end_s"]) {
-        const double end = c.Number(w["end_s"], f + ".end_s");
-        if (!(end > win.start_s))
-          c.Fail(w["end_s"], f + ".end_s", "outage ends (" + w["end_s"].Scalar() +
-                                             " s) before or at its start (" + std::to_string(win.start_s) + " s)");
-        win.duration_s = end - win.start_s;
-      } else {
-        c.Fail(w, f + ".duration_s", "missing (give duration_s or end_s)");
-      }
+      win.duration_s = c.WindowDuration(w, f, win.start_s, "outage");
       s.outages.push_back(win);
     }
   }
+  if (root["camera"]) s.camera_faults = ParseCameraFaults(c, root["camera"]);
   if (root["seed"]) {
     const auto n = root["seed"];
     try {

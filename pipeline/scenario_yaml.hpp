@@ -9,6 +9,16 @@
 //         gyro_bias_sigma_radps: 0.002, accel_noise_mps2_sqrt_hz: 0.01,
 //         gyro_noise_radps_sqrt_hz: 0.0005}
 //   outages: [{start_s: 20, duration_s: 10}, {start_s: 60, end_s: 75}]
+//   camera: [{start_s: 20, duration_s: 10, fault: dark, gain: 0.06, noise_dn: 3},
+//            {start_s: 40, end_s: 50, fault: frozen}]
+//     # faults on the images before VO (pipeline/camera_faults.hpp), times
+//     # from the first frame: dark {gain (0, 1], default 0.06; noise_dn
+//     # [0, 255], default 3}, noise {noise_dn, default 8}, blur
+//     # {blur_sigma_px (0, 50], default 3}, frozen, drop, left_only,
+//     # right_only; a parameter of another fault is an unknown key
+//   speed: {rate_hz: 50, sigma_mps: 0.05, scale_error: 0.005}
+//     # a simulated vehicle speed sensor from the drive's reference forward
+//     # speed (reads 0.5 % high here, like a worn tyre); no key: none
 //   seed: 7
 #pragma once
 

@@ -6,6 +6,7 @@
 #include "server/service.hpp"
 
 #include "server/metrics.hpp"
+#include "server/camera_fault_request.hpp"
 #include "server/outage_request.hpp"
 #include "server/status.hpp"
 #include "server/stream_reactors.hpp"
@@ -174,17 +175,33 @@ grpc::ServerWriteReactor<grpc::ByteBuffer>* LocalizationService::StreamPoses(grp
   return NewPoseWriter(this, std::move(session), std::move(encodings), req.from_start(), ctx->peer(), queue);
 }
 
-grpc::ServerUnaryReactor* LocalizationService::InjectOutage(grpc::CallbackServerContext* ctx,
-                                                            const v1::InjectOutageRequest* req, v1::Session* resp) {
+grpc::ServerUnaryReactor* LocalizationService::PostControl(
+    grpc::CallbackServerContext* ctx, const std::string& session_id, const char* rpc,
+    const std::function<Status(Session::Command*)>& to_command, v1::Session* resp) {
   if (Status s = Authorize(ctx); !s.ok()) return Reply(ctx, s);
   std::shared_ptr<Session> session;
-  if (Status s = sessions_.Find(req->session_id(), &session); !s.ok()) return Reply(ctx, s);
-  if (Status s = RequireActive(*session, "InjectOutage"); !s.ok()) return Reply(ctx, s);
+  if (Status s = sessions_.Find(session_id, &session); !s.ok()) return Reply(ctx, s);
+  if (Status s = RequireActive(*session, rpc); !s.ok()) return Reply(ctx, s);
   Session::Command command;
-  if (Status s = OutageCommandFromProto(*req, &command); !s.ok()) return Reply(ctx, s);
+  if (Status s = to_command(&command); !s.ok()) return Reply(ctx, s);
   session->Post(std::move(command));
   *resp = session->ToProto();
   return Reply(ctx, Status::OK);
+}
+
+grpc::ServerUnaryReactor* LocalizationService::InjectOutage(grpc::CallbackServerContext* ctx,
+                                                            const v1::InjectOutageRequest* req, v1::Session* resp) {
+  return PostControl(
+      ctx, req->session_id(), "InjectOutage",
+      [req](Session::Command* command) { return OutageCommandFromProto(*req, command); }, resp);
+}
+
+grpc::ServerUnaryReactor* LocalizationService::InjectCameraFault(grpc::CallbackServerContext* ctx,
+                                                                 const v1::InjectCameraFaultRequest* req,
+                                                                 v1::Session* resp) {
+  return PostControl(
+      ctx, req->session_id(), "InjectCameraFault",
+      [req](Session::Command* command) { return CameraFaultCommandFromProto(*req, command); }, resp);
 }
 
 grpc::ServerUnaryReactor* LocalizationService::SetScenario(grpc::CallbackServerContext* ctx,

@@ -17,6 +17,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -115,6 +116,9 @@ class LocalizationService final
   grpc::ServerUnaryReactor* SetScenario(grpc::CallbackServerContext* ctx,
                                         const locaid::v1::SetScenarioRequest* req,
                                         locaid::v1::Session* resp) override;
+  grpc::ServerUnaryReactor* InjectCameraFault(grpc::CallbackServerContext* ctx,
+                                              const locaid::v1::InjectCameraFaultRequest* req,
+                                              locaid::v1::Session* resp) override;
   grpc::ServerBidiReactor<locaid::v1::PushRequest, locaid::v1::PushResponse>* PushSensorData(
       grpc::CallbackServerContext* ctx) override;
 
@@ -146,6 +150,14 @@ class LocalizationService final
   grpc::Status StartSynthetic(const locaid::v1::SyntheticSource& s, SessionOptions options, EstimatorSetup setup,
                               std::string* id);
   grpc::Status ResolveScenario(const locaid::v1::Scenario& s, fusion::Scenario* out, std::string* name) const;
+  // A control of a running session (InjectOutage, InjectCameraFault): the
+  // session found and active (else NOT_FOUND / FAILED_PRECONDITION naming
+  // `rpc`), the request turned into a command by `to_command` (its
+  // INVALID_ARGUMENT returned as is), the command posted, the session in `resp`.
+  grpc::ServerUnaryReactor* PostControl(grpc::CallbackServerContext* ctx, const std::string& session_id,
+                                        const char* rpc,
+                                        const std::function<grpc::Status(Session::Command*)>& to_command,
+                                        locaid::v1::Session* resp);
 
   const ServerConfig config_;
   const EstimatorFactory estimator_factory_;

@@ -132,6 +132,10 @@ int main(int argc, char** argv) {
     const std::string cache_header =
         pipeline::VoCacheHeader(std::filesystem::weakly_canonical(drive_dir).string(), vo_method, n_frames);
     std::optional<pipeline::VoResults> vo_cache;
+    if (!vo_cache_path.empty() && !scenario.camera_faults.empty())
+      throw std::runtime_error("--vo-cache: scenario " + scenario.name +
+                               " has camera faults, which change what VO sees; a VO cache holds VO of the untouched "
+                               "images (run without --vo-cache)");
     if (!vo_cache_path.empty()) vo_cache = pipeline::ReadVoCache(vo_cache_path, cache_header);
     auto localizer = vo_cache ? std::make_unique<pipeline::Localizer>(
                                     dataset.T_cam0_imu(), options,

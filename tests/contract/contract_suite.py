@@ -146,7 +146,9 @@ class Contract(unittest.TestCase):
                               (self.stub.SetScenario, pb.SetScenarioRequest(
                                   session_id=sid, scenario=pb.Scenario(name="open-sky"))),
                               (self.stub.InjectOutage, pb.InjectOutageRequest(
-                                  session_id=sid, action=pb.InjectOutageRequest.START_NOW))):
+                                  session_id=sid, action=pb.InjectOutageRequest.START_NOW)),
+                              (self.stub.InjectCameraFault, pb.InjectCameraFaultRequest(
+                                  session_id=sid, action=pb.InjectCameraFaultRequest.STOP_NOW))):
                 code, msg = self.code(call, req)
                 self.assertEqual(code, grpc.StatusCode.NOT_FOUND, (call, sid[:20], msg[:100]))
                 self.assertLessEqual(len(msg), 1100)
@@ -226,12 +228,30 @@ class Contract(unittest.TestCase):
         self.assertEqual(code, grpc.StatusCode.INVALID_ARGUMENT)
         code, _ = self.code(self.stub.SetScenario, pb.SetScenarioRequest(session_id=s.id))
         self.assertEqual(code, grpc.StatusCode.INVALID_ARGUMENT)
+        dark = pb.CameraFault(kind=pb.CameraFault.DARK, gain=0.1, noise_dn=3)
+        ok = self.stub.InjectCameraFault(pb.InjectCameraFaultRequest(
+            session_id=s.id, action=pb.InjectCameraFaultRequest.START_NOW, fault=dark), timeout=10)
+        self.assertEqual(ok.id, s.id)
+        for fault in (pb.CameraFault(), pb.CameraFault(kind=pb.CameraFault.DARK, gain=math.nan),
+                      pb.CameraFault(kind=pb.CameraFault.DARK, gain=2), pb.CameraFault(kind=99),
+                      pb.CameraFault(kind=pb.CameraFault.FROZEN, noise_dn=1),
+                      pb.CameraFault(kind=pb.CameraFault.BLUR, blur_sigma_px=1e300),
+                      pb.CameraFault(kind=pb.CameraFault.DROP, duration_s=-1)):
+            code, msg = self.code(self.stub.InjectCameraFault, pb.InjectCameraFaultRequest(
+                session_id=s.id, action=pb.InjectCameraFaultRequest.START_NOW, fault=fault))
+            self.assertEqual(code, grpc.StatusCode.INVALID_ARGUMENT, (str(fault), msg))
+        code, _ = self.code(self.stub.InjectCameraFault, pb.InjectCameraFaultRequest(
+            session_id=s.id, action=pb.InjectCameraFaultRequest.WINDOW, fault=pb.CameraFault(
+                kind=pb.CameraFault.DROP, start_s=1e300, duration_s=1)))
+        self.assertEqual(code, grpc.StatusCode.INVALID_ARGUMENT)
         stopped = self.stop(s.id)
         self.assertEqual(stopped.state, pb.SESSION_STATE_STOPPED)
         for call, req in ((self.stub.InjectOutage, pb.InjectOutageRequest(
                               session_id=s.id, action=pb.InjectOutageRequest.START_NOW)),
                           (self.stub.SetScenario, pb.SetScenarioRequest(
-                              session_id=s.id, scenario=pb.Scenario(name="open-sky")))):
+                              session_id=s.id, scenario=pb.Scenario(name="open-sky"))),
+                          (self.stub.InjectCameraFault, pb.InjectCameraFaultRequest(
+                              session_id=s.id, action=pb.InjectCameraFaultRequest.STOP_NOW))):
             code, _ = self.code(call, req)
             self.assertEqual(code, grpc.StatusCode.FAILED_PRECONDITION)
         self.assertEqual(self.stub.GetSession(pb.GetSessionRequest(session_id=s.id), timeout=10).state,

@@ -35,6 +35,7 @@ class RecordingEstimator : public Estimator {
   struct Log {
     std::vector<std::string> calls;
     std::vector<int64_t> frame_t_ns;
+    std::vector<bool> had_left, had_right;  // the images each processed frame had
     size_t imu_samples = 0;
     fusion::EnuFrame enu;  // the test sets its origin
   };
@@ -53,6 +54,8 @@ class RecordingEstimator : public Estimator {
   FrameResult Process(const vo::StereoFrame& frame) override {
     log_->calls.push_back("process " + std::to_string(frame.t_ns));
     log_->frame_t_ns.push_back(frame.t_ns);
+    log_->had_left.push_back(!frame.left.empty());
+    log_->had_right.push_back(!frame.right.empty());
     FrameResult r;
     r.pose.t_ns = frame.t_ns;
     r.vo.status = vo::Status::kOk;
@@ -157,6 +160,59 @@ TEST(FrameLoop, OutageWindowsGivenBeforeTheFirstFrameCountFromIt) {
     EXPECT_EQ(out[static_cast<size_t>(i)], expected) << "frame " << i;
   }
   EXPECT_EQ(fixes, 40u - 3 - 9 - 5) << "a fix inside an outage never reaches the filter";
+}
+
+// Frames at kT0 + i * kPeriod with a small grey pair each.
+std::deque<SourceItem> FramesWithImages(int n) {
+  std::deque<SourceItem> items;
+  for (int i = 0; i < n; ++i) {
+    SourceItem f = Frame(i, kT0 + i * kPeriod);
+    f.left = cv::Mat(4, 8, CV_8UC1, cv::Scalar(100 + i));
+    f.right = cv::Mat(4, 8, CV_8UC1, cv::Scalar(50 + i));
+    items.push_back(std::move(f));
+  }
+  return items;
+}
+
+fusion::CameraFaultWindow CameraFault(fusion::CameraFaultKind kind, double start_s, double duration_s) {
+  fusion::CameraFaultWindow w;
+  w.kind = kind;
+  w.start_s = start_s;
+  w.duration_s = duration_s;
+  return w;
+}
+
+TEST(FrameLoop, CameraFaultsOfTheScenarioInjectedAndReplacedReachTheEstimator) {
+  auto log = std::make_shared<RecordingEstimator::Log>();
+  fusion::Scenario scenario;
+  scenario.camera_faults = {CameraFault(fusion::CameraFaultKind::kDrop, 0.2, 0.2)};  // frames 2, 3
+  FrameLoop loop = MakeLoop(FramesWithImages(20), log, scenario);
+  loop.InjectCameraFault(CameraFaultAction::kWindow, CameraFault(fusion::CameraFaultKind::kLeftOnly, 0.5, 0.1));
+  for (StepResult r = loop.Step(); r.kind != StepResult::Kind::kEnd; r = loop.Step()) {
+    ASSERT_EQ(r.kind, StepResult::Kind::kPose);
+    if (r.frame_index == 7) loop.InjectCameraFault(CameraFaultAction::kStartNow,
+                                                   CameraFault(fusion::CameraFaultKind::kRightOnly, 0, 0.2));
+    if (r.frame_index == 10) {
+      // The new scenario's faults on the same clock (from frame 0); the injected ones stay.
+      fusion::Scenario next;
+      next.camera_faults = {CameraFault(fusion::CameraFaultKind::kDrop, 1.5, 0.1)};  // frame 15
+      loop.SetScenario(next);
+      loop.InjectCameraFault(CameraFaultAction::kStartNow, CameraFault(fusion::CameraFaultKind::kDrop, 0, 0));
+    }
+    if (r.frame_index == 12) loop.InjectCameraFault(CameraFaultAction::kStop, {});
+  }
+  ASSERT_EQ(log->had_left.size(), 20u);
+  for (int i = 0; i < 20; ++i) {
+    const bool drop = i == 2 || i == 3 || i == 11 || i == 12 || i == 15;
+    const bool left = !drop && !(i == 8 || i == 9);  // right_only from frame 8 for 0.2 s
+    const bool right = !drop && i != 5;              // left_only at frame 5
+    EXPECT_EQ(log->had_left[static_cast<size_t>(i)], left) << "frame " << i;
+    EXPECT_EQ(log->had_right[static_cast<size_t>(i)], right) << "frame " << i;
+  }
+  fusion::Scenario bad;
+  bad.camera_faults = {CameraFault(fusion::CameraFaultKind::kDark, 0, 1)};
+  bad.camera_faults[0].gain = 0;
+  EXPECT_THROW(loop.SetScenario(bad), std::invalid_argument);
 }
 
 TEST(FrameLoop, SensorDataReachesTheFilterBeforeItsFrameAndFixesComeWithThePose) {
