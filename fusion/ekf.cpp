@@ -21,7 +21,12 @@ Mat6 Ekf::VoNoise(const Mat6& reported, const Eigen::Isometry3d& motion) const {
 // ------------------------------------------------------------------ IMU
 
 void Ekf::PropagateImu(const ImuSample& sample) {
-  if (!model_->AddImu(s_, sample)) ++stats_.imu_rejected;
+  if (!model_->AddImu(s_, sample)) {
+    ++stats_.imu_rejected;
+    return;
+  }
+  last_imu_ns_ = sample.t_ns;
+  stillness_.Add(sample, config_.zupt_window_s);
 }
 
 // ------------------------------------------------------------------ VO
@@ -113,6 +118,7 @@ VoUpdate Ekf::ApplyVoUpdate(const VoMeasurement& m, const VoPlan& plan, VoUpdate
     if (gate->rejected) ++stats_.vo_rejected;
   }
   out.used = plan.vo_ok && !out.rejected;
+  ApplyVehicleConstraints(m.t_ns);
   return out;
 }
 
@@ -147,8 +153,12 @@ FusedPose Ekf::Output(int64_t t_ns, bool vo_ok) const {
   // Fixes that reach the filter late (a live receiver's latency) are not an
   // outage: twice their recent worst lag is added to the allowance (margin
   // for the jitter of that lag).
+  out.speed_scale_error = model_->speed_scale_error();
+  out.speed_used = stats_.speed_used;
   if (out.seconds_since_gps > config_.vo_only_after_periods * gps_period_s_ + 2 * gps_lag_s_) {
-    out.mode = vo_ok ? Mode::kVoOnly : Mode::kLost;
+    // Without GPS: VO, else the IMU while its samples keep coming.
+    const bool imu_alive = config_.use_imu && last_imu_ns_ && Seconds(t_ns, *last_imu_ns_) <= config_.max_imu_gap_s;
+    out.mode = vo_ok ? Mode::kVoOnly : imu_alive ? Mode::kDeadReckoning : Mode::kLost;
   } else if (last_gps_rejected_ns_ && Seconds(t_ns, *last_gps_rejected_ns_) < config_.degraded_hold_s) {
     out.mode = Mode::kGpsDegraded;
   } else {

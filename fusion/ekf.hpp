@@ -1,12 +1,14 @@
 // Error-state EKF: GPS position updates with a chi-square gate over one of
 // two process models (fusion/process_model.hpp), chosen once from
-// EkfConfig::use_imu: IMU propagation with VO relative-motion updates, or
-// VO-driven propagation for cars without an IMU. Single-threaded, no I/O.
+// EkfConfig::use_imu: IMU propagation with VO relative-motion updates, vehicle
+// speed readings and the car's motion constraints, or VO-driven propagation
+// for cars without an IMU. Single-threaded, no I/O.
 //
 // Call order per camera frame (the pipeline does this):
-//   for each IMU sample / GPS fix since the last frame, in time order:
-//     PropagateImu(sample)  |  UpdateGps(fix)
-//   ProcessVo(body_motion, vo_ok)    // VO update (IMU) or propagation (no IMU)
+//   for each IMU sample / GPS fix / speed reading since the last frame, in time order:
+//     PropagateImu(sample)  |  UpdateGps(fix)  |  UpdateSpeed(reading)
+//   ProcessVo(body_motion, vo_ok)    // VO update (IMU) or propagation (no IMU),
+//                                    // then the vehicle constraints (IMU)
 //   Output(t_ns, vo_ok)
 // Before the filter is initialised, GPS fixes and VO motions are buffered:
 // the pose is initialised from >= init_min_fixes fixes spanning
@@ -16,6 +18,7 @@
 
 #include "fusion/ekf_models.hpp"
 #include "fusion/geodesy.hpp"
+#include "fusion/imu_stillness.hpp"
 #include "fusion/process_model.hpp"
 #include "fusion/types.hpp"
 
@@ -124,6 +127,41 @@ struct EkfConfig {
   // The fix is where the antenna was this long before the fix's time stamp
   // (receiver latency), s; 0 = the time stamp is the measurement time.
   double gps_latency_s = 0.0;
+  // Vehicle (IMU mode; fusion/vehicle_updates.cpp). A car's wheels neither
+  // slide sideways nor lift: at every frame the vehicle-frame lateral and
+  // vertical velocities are measured as 0 (non-holonomic constraints, NHC),
+  // with a sigma that covers the IMU sitting off the rear axle (lateral speed
+  // omega_z x lever in turns) and suspension motion. At a standstill (a speed
+  // reading below zupt_speed_mps, or the IMU still while the estimated speed
+  // is below zupt_max_estimated_speed_mps) the whole velocity is measured as 0
+  // (zero-velocity update, ZUPT). Off for platforms that slide (robots, boats).
+  // The NHC sigmas are wide on purpose: a tight constraint turns the velocity
+  // to the filter's heading, and in an outage the heading is the weaker
+  // estimate. Real excerpt, 10 s outage with VO blind, 6 seeds, end error
+  // mean: frozen camera + recorded IMU 4.6 % (no NHC) / 4.3 (0.2 m/s) / 2.95
+  // (0.5) / 2.8 (1.0); dark + MEMS IMU 5.9 / 5.8 / 4.6 / 4.4; 0.05 m/s: 14 %.
+  bool vehicle_constraints = true;
+  Mat3 R_vehicle_body = Mat3::Identity();  // IMU mounting: vehicle <- body axes
+  double nhc_sigma_lateral_mps = 0.5;
+  double nhc_sigma_vertical_mps = 0.5;
+  double zupt_speed_mps = 0.05;
+  double zupt_sigma_mps = 0.02;
+  // IMU stillness over the last zupt_window_s: gyro within zupt_gyro_radps of
+  // its mean and specific force within zupt_accel_mps2 of its mean, at least
+  // zupt_min_samples samples. A car cruising straight at constant speed on a
+  // smooth road looks still to an IMU too, hence the bound on the estimated
+  // speed: stillness only holds a car the filter already believes stopped.
+  double zupt_window_s = 0.5;
+  double zupt_gyro_radps = 0.01;
+  double zupt_accel_mps2 = 0.1;
+  int zupt_min_samples = 10;
+  double zupt_max_estimated_speed_mps = 0.5;
+  // Vehicle speed readings: 1-sigma when a reading states none, the scale
+  // factor's prior 1-sigma (estimated while GPS is good: a worn tyre reads
+  // 0.5 % high), the chi-square gate (1 dof).
+  double speed_sigma_mps = 0.05;
+  double speed_scale_sigma = 0.01;
+  double speed_gate_probability = 0.9999;
   double degraded_hold_s = 3.0;       // GPS_DEGRADED while a rejection is this recent
   double vo_only_after_periods = 1.5; // VO_ONLY when no fix for this x GPS period
 };
@@ -147,6 +185,14 @@ struct VoUpdate {
   double nis = 0;                // 0 when not gated
 };
 
+// What UpdateSpeed did with one reading.
+struct SpeedUpdate {
+  bool used = false;      // fused
+  bool rejected = false;  // refused: gate, non-finite, or the filter has no velocity state
+  bool zupt = false;      // a standstill reading: the whole velocity fused as 0
+  double nis = 0;
+};
+
 // The filter's running counts, one struct.
 struct EkfStats {
   int gps_used = 0, gps_rejected = 0;  // a fix counts as used when its horizontal part is fused
@@ -158,6 +204,9 @@ struct EkfStats {
   // VO motions that did not start at the filter's anchor (VO restarted on a
   // frame it reported lost): skipped, the anchor moves on.
   int vo_anchor_mismatches = 0;
+  int speed_used = 0, speed_rejected = 0;  // vehicle speed readings
+  int zupt_updates = 0;                    // zero-velocity updates (speed 0 or IMU still)
+  int nhc_updates = 0;                     // frames with the non-holonomic constraints fused
   double last_gps_nis = 0, last_gps_nis_vertical = 0, last_vo_nis = 0;
 };
 
@@ -182,6 +231,11 @@ class Ekf {
   // body_motion: VO relative motion in body axes (CameraMotionToBody).
   // vo_ok false (VO lost): skip the update (IMU) or coast (no IMU).
   VoUpdate ProcessVo(const VoMeasurement& body_motion, bool vo_ok);
+  // Fuses one vehicle speed reading (IMU mode; the scale factor is estimated).
+  // Before initialisation: ignored (neither used nor refused). Without IMU,
+  // non-finite, or beyond the gate: refused. A reading below zupt_speed_mps
+  // is a standstill (vehicle_constraints): the whole velocity is fused as 0.
+  SpeedUpdate UpdateSpeed(const SpeedSample& reading);
   FusedPose Output(int64_t t_ns, bool vo_ok) const;
 
   const EkfConfig& config() const { return config_; }
@@ -193,6 +247,8 @@ class Ekf {
   // Estimated VO calibration (IMU mode; identity / 0 otherwise).
   const Mat3& vo_boresight() const { return model_->vo_boresight(); }
   double vo_scale_error() const { return model_->vo_scale_error(); }
+  // Estimated speed sensor scale error (IMU mode; 0 otherwise).
+  double speed_scale_error() const { return model_->speed_scale_error(); }
   // adaptive_vo_rotation_noise: VO rotation variance scale per body axis (x, y, z).
   const Vec3& vo_rotation_noise_scale() const { return model_->vo_rotation_noise_scale(); }
   double gps_period_s() const { return gps_period_s_; }
@@ -233,6 +289,9 @@ class Ekf {
   VoPlan PlanVo(const VoMeasurement& m, bool vo_ok, VoUpdate& out);
   void ChainStartup(const VoMeasurement& m, const VoPlan& plan);
   VoUpdate ApplyVoUpdate(const VoMeasurement& m, const VoPlan& plan, VoUpdate out);
+  // Vehicle (ekf_vehicle.cpp): the constraints at a frame, and whether the car stands still.
+  void ApplyVehicleConstraints(int64_t t_ns);
+  bool Standstill(int64_t t_ns) const;
   // Start-up (ekf_init.cpp).
   struct InitFix { int64_t t_ns; Vec3 p_enu; double sigma_h; Eigen::Isometry3d T_start_body; };
   struct HeadingFit { double psi = 0; Eigen::Vector2d p_mean, q_mean; double z_off = 0, spread2 = 0; int used = 0; };
@@ -259,6 +318,10 @@ class Ekf {
   double gate_h_ = 0, gate_v_ = 0;
   int rejections_h_ = 0, rejections_v_ = 0;  // in a row, per component
   std::optional<int64_t> last_gps_accepted_ns_, last_gps_rejected_ns_, last_gps_received_ns_;
+  std::optional<int64_t> last_imu_ns_;  // newest IMU sample the model took
+  ImuStillness stillness_;
+  std::optional<int64_t> last_speed_ns_;  // newest speed reading fused
+  double last_speed_mps_ = 0;
   double gps_period_s_ = 1.0;
   double gps_lag_s_ = 0;  // how late fixes reach the filter after their frames (recent worst), s
 };

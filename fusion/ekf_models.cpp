@@ -187,6 +187,20 @@ Eigen::Matrix<double, 3, 9> GpsAntennaJacobian(const Mat3& R_enu_body, const Vec
   return H;
 }
 
+Vec3 VehicleVelocity(const Vec3& v_enu, const Mat3& R_enu_body, const Mat3& R_vehicle_body) {
+  return R_vehicle_body * R_enu_body.transpose() * v_enu;
+}
+
+Eigen::Matrix<double, 3, 6> VehicleVelocityJacobian(const Vec3& v_enu, const Mat3& R_enu_body,
+                                                    const Mat3& R_vehicle_body) {
+  // R = Exp(dtheta) R_hat: R^T v ~= R_hat^T (v - dtheta x v) = R_hat^T (v + [v]x dtheta).
+  const Mat3 A = R_vehicle_body * R_enu_body.transpose();
+  Eigen::Matrix<double, 3, 6> H;
+  H.leftCols<3>() = A;
+  H.rightCols<3>() = A * Skew(v_enu);
+  return H;
+}
+
 Vec3 CorrectVoTranslation(const Vec3& t_measured, const Mat3& R_boresight, double scale_error) {
   return R_boresight.transpose() * t_measured / (1.0 + scale_error);
 }

@@ -97,6 +97,14 @@ Vec3 GpsAntennaPrediction(const Vec3& p_enu, const Vec3& v_enu, const Mat3& R_en
                           double latency_s);
 Eigen::Matrix<double, 3, 9> GpsAntennaJacobian(const Mat3& R_enu_body, const Vec3& lever_body_m, double latency_s);
 
+// Vehicle velocity (IMU mode): the body velocity in vehicle axes (x forward,
+// y left, z up), v_veh = R_vb R^T v, for speed readings and the non-holonomic
+// constraints; its Jacobian w.r.t. [dv, dtheta] (3 x 6, global attitude error)
+// so that v_veh(x (+) dx) ~= v_veh(x) + H dx.
+Vec3 VehicleVelocity(const Vec3& v_enu, const Mat3& R_enu_body, const Mat3& R_vehicle_body);
+Eigen::Matrix<double, 3, 6> VehicleVelocityJacobian(const Vec3& v_enu, const Mat3& R_enu_body,
+                                                    const Mat3& R_vehicle_body);
+
 // No-IMU mode: pose propagated by the body motion (t_b, R_b) measured by VO:
 //   p' = p + R t_b,  R' = R R_b.  F (6x6) w.r.t. [dp, dtheta], G (6x6) w.r.t.
 // the VO noise [n_t, n_theta] (convention of VoMeasurement::covariance).

@@ -21,9 +21,10 @@ class ImuProcessModel final : public ProcessModel {
   explicit ImuProcessModel(const EkfConfig& config)
       : config_(config),
         vo_gate_(ChiSquareQuantile(config.vo_gate_probability, 6)),
-        gate_vel_(ChiSquareQuantile(config.gps_gate_probability, 3)) {}
+        gate_vel_(ChiSquareQuantile(config.gps_gate_probability, 3)),
+        speed_gate_(ChiSquareQuantile(config.speed_gate_probability, 1)) {}
 
-  int StateSize() const override { return kImuStates + kCloneStates + kVoCalibStates; }
+  int StateSize() const override { return kImuStates + kCloneStates + kVoCalibStates + kSpeedStates; }
   int AttitudeIndex() const override { return kTh; }
 
   Mat6 VoNoise(const Mat6& reported, const Eigen::Isometry3d& motion) const override {
@@ -87,8 +88,10 @@ class ImuProcessModel final : public ProcessModel {
     P.block<3, 3>(kBg, kBg).diagonal().setConstant(std::pow(config_.init_gyro_bias_sigma_radps, 2));
     P.block<3, 3>(kCal, kCal).diagonal().setConstant(std::pow(config_.vo_boresight_sigma_rad, 2));
     P(kCal + 3, kCal + 3) = std::pow(config_.vo_scale_sigma, 2);
+    P(kSpd, kSpd) = std::pow(config_.speed_scale_sigma, 2);
     R_boresight_ = Mat3::Identity();
     vo_scale_error_ = 0;
+    speed_scale_error_ = 0;
     Clone(s);
   }
 
@@ -156,23 +159,12 @@ class ImuProcessModel final : public ProcessModel {
     const Vec3 w = last_imu_ ? Vec3(last_imu_->gyro_radps - s.x.gyro_bias_radps) : Vec3::Zero();
     const Vec3 predicted = s.x.v_enu_mps + s.x.R_enu_body * w.cross(config_.gps_lever_arm_body_m);
     const Vec3 y = *fix.v_enu_mps - predicted;
-    Eigen::MatrixXd& P = s.P;
-    const int n = static_cast<int>(P.rows());
-    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(3, n);
+    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(3, s.P.rows());
     H.middleCols<3>(kV).setIdentity();
     // A late fix's velocity is compared with the current one: the acceleration
     // since then is noise.
     const Mat3 R = Mat3::Identity() * (std::pow(fix.sigma_v_enu_mps, 2) + std::pow(0.5 * late_s, 2));
-    const Mat3 S = H * P * H.transpose() + R;
-    const double nis = y.dot(S.ldlt().solve(y));
-    if (!std::isfinite(nis) || nis > gate_vel_) return false;
-    const Eigen::MatrixXd PHt = P * H.transpose();
-    const Eigen::MatrixXd K = PHt * S.inverse();
-    const Eigen::MatrixXd IKH = Eigen::MatrixXd::Identity(n, n) - K * H;
-    P = IKH * P * IKH.transpose() + K * R * K.transpose();
-    Symmetrize(P);
-    Correct(s, K * y);
-    return true;
+    return !Update(s, H, R, y, gate_vel_).rejected;
   }
 
   void ResetPosition(FilterState& s, const Vec3& jump, const Vec3& mask, const Mat3& R, double gap_s) override {
@@ -190,7 +182,45 @@ class ImuProcessModel final : public ProcessModel {
     }
   }
 
+  std::optional<VehicleGate> FuseSpeed(FilterState& s, double speed_mps, double sigma_mps,
+                                       const Mat3& R_vehicle_body) override {
+    // z = (1 + k) v_veh,x: the reading scales the vehicle's forward speed.
+    if (!s.initialized) return std::nullopt;
+    const Vec3 v_veh = VehicleVelocity(s.x.v_enu_mps, s.x.R_enu_body, R_vehicle_body);
+    const Eigen::Matrix<double, 3, 6> J = VehicleVelocityJacobian(s.x.v_enu_mps, s.x.R_enu_body, R_vehicle_body);
+    const double k = 1.0 + speed_scale_error_;
+    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(1, s.P.rows());
+    H.block<1, 3>(0, kV) = k * J.block<1, 3>(0, 0);
+    H.block<1, 3>(0, kTh) = k * J.block<1, 3>(0, 3);
+    H(0, kSpd) = v_veh.x();
+    const Eigen::VectorXd r = Eigen::VectorXd::Constant(1, speed_mps - k * v_veh.x());
+    const Eigen::MatrixXd R = Eigen::MatrixXd::Constant(1, 1, sigma_mps * sigma_mps);
+    return Update(s, H, R, r, speed_gate_);
+  }
+
+  std::optional<VehicleGate> FuseZeroVelocity(FilterState& s, double sigma_mps) override {
+    if (!s.initialized) return std::nullopt;
+    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(3, s.P.rows());
+    H.middleCols<3>(kV).setIdentity();
+    const Eigen::MatrixXd R = Eigen::MatrixXd::Identity(3, 3) * sigma_mps * sigma_mps;
+    return Update(s, H, R, -s.x.v_enu_mps, 0);  // a standstill is certain: no gate
+  }
+
+  std::optional<VehicleGate> FuseNonHolonomic(FilterState& s, const Mat3& R_vehicle_body,
+                                              const Eigen::Vector2d& sigma_mps) override {
+    if (!s.initialized) return std::nullopt;
+    const Vec3 v_veh = VehicleVelocity(s.x.v_enu_mps, s.x.R_enu_body, R_vehicle_body);
+    const Eigen::Matrix<double, 3, 6> J = VehicleVelocityJacobian(s.x.v_enu_mps, s.x.R_enu_body, R_vehicle_body);
+    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(2, s.P.rows());
+    H.middleCols<3>(kV) = J.block<2, 3>(1, 0);
+    H.middleCols<3>(kTh) = J.block<2, 3>(1, 3);
+    const Eigen::VectorXd r = -v_veh.tail<2>();
+    const Eigen::MatrixXd R = sigma_mps.cwiseAbs2().asDiagonal();
+    return Update(s, H, R, r, 0);  // a constraint, not a sensor: never gated
+  }
+
   const Mat3& vo_boresight() const override { return R_boresight_; }
+  double speed_scale_error() const override { return speed_scale_error_; }
   double vo_scale_error() const override { return vo_scale_error_; }
   const Vec3& vo_rotation_noise_scale() const override { return vo_rotation_noise_scale_; }
 
@@ -201,6 +231,14 @@ class ImuProcessModel final : public ProcessModel {
     R_clone_ = ExpSO3(dx.segment<3>(kThc)) * R_clone_;
     R_boresight_ = ExpSO3(dx.segment<3>(kCal)) * R_boresight_;
     vo_scale_error_ += dx(kCal + 3);
+    speed_scale_error_ += dx(kSpd);
+  }
+
+  VehicleGate Update(FilterState& s, const Eigen::MatrixXd& H, const Eigen::MatrixXd& R, const Eigen::VectorXd& r,
+                     double gate) {
+    const GatedCorrection c = GatedKalmanUpdate(s.P, H, R, r, gate);
+    if (c.accepted) Correct(s, c.dx);
+    return {c.nis, !c.accepted};
   }
 
   // The VO motion since the clone, with the estimated boresight and scale removed.
@@ -264,7 +302,7 @@ class ImuProcessModel final : public ProcessModel {
   }
 
   EkfConfig config_;
-  double vo_gate_ = 0, gate_vel_ = 0;
+  double vo_gate_ = 0, gate_vel_ = 0, speed_gate_ = 0;
   // Last IMU sample (zero-order hold between samples).
   std::optional<ImuSample> last_imu_;
   // Start-up: specific force since the last frame, and the gravity fit's samples.
@@ -277,6 +315,7 @@ class ImuProcessModel final : public ProcessModel {
   // VO calibration estimate.
   Mat3 R_boresight_ = Mat3::Identity();
   double vo_scale_error_ = 0;
+  double speed_scale_error_ = 0;  // speed sensor: reads (1 + error) x true speed
   int vo_consecutive_rejections_ = 0;
   Vec3 vo_rotation_noise_scale_ = Vec3::Ones(), rot_nis_mean_ = Vec3::Ones();  // adaptive_vo_rotation_noise
 };

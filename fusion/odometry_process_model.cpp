@@ -75,6 +75,13 @@ class OdometryProcessModel final : public ProcessModel {
     static const Vec3 kOnes = Vec3::Ones();
     return kOnes;
   }
+  double speed_scale_error() const override { return 0.0; }
+  // Velocity is not a state here (it is the VO's): no vehicle measurements.
+  std::optional<VehicleGate> FuseSpeed(FilterState&, double, double, const Mat3&) override { return std::nullopt; }
+  std::optional<VehicleGate> FuseZeroVelocity(FilterState&, double) override { return std::nullopt; }
+  std::optional<VehicleGate> FuseNonHolonomic(FilterState&, const Mat3&, const Eigen::Vector2d&) override {
+    return std::nullopt;
+  }
 
  private:
   void BoxPlus(FilterState& s, const Eigen::VectorXd& dx) override {

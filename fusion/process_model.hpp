@@ -4,10 +4,11 @@
 //
 //   ImuProcessModel (imu_process_model.cpp): strapdown IMU propagation; error
 //     state p v theta ba bg, a clone of the pose at the VO anchor and the VO
-//     calibration (boresight, scale): 25 states. The VO motion is a
-//     relative-pose measurement between the clone and now, with a chi-square
-//     gate; fixes are compared at their own time (late fixes) and their
-//     velocity is fused.
+//     calibration (boresight, scale), the speed sensor's scale: 26 states.
+//     The VO motion is a relative-pose measurement between the clone and now,
+//     with a chi-square gate; fixes are compared at their own time (late
+//     fixes) and their velocity is fused; vehicle speed readings and the car's
+//     motion constraints measure the velocity.
 //   OdometryProcessModel (odometry_process_model.cpp), for cars without an
 //     IMU: the VO motion itself propagates the pose (error state p theta: 6
 //     states); velocity is the VO's, and fixes are extrapolated to the frame.
@@ -53,6 +54,9 @@ struct VoGate {
   bool rejected = false;
 };
 
+// What a vehicle measurement update did (same verdict as VoGate).
+using VehicleGate = VoGate;
+
 class ProcessModel {
  public:
   virtual ~ProcessModel() = default;
@@ -97,10 +101,21 @@ class ProcessModel {
   // fix covariance R, gap since the last used fix): the model's own states.
   virtual void ResetPosition(FilterState& s, const Vec3& jump, const Vec3& mask, const Mat3& R, double gap_s) = 0;
 
+  // ---- Vehicle measurements at the state time (models without a velocity
+  // state return nullopt): a speed reading (1 + scale error) x forward speed,
+  // zero velocity (3 dof), the non-holonomic constraints (vehicle-frame
+  // lateral and vertical velocity 0, 2 dof, sigma per axis).
+  virtual std::optional<VehicleGate> FuseSpeed(FilterState& s, double speed_mps, double sigma_mps,
+                                               const Mat3& R_vehicle_body) = 0;
+  virtual std::optional<VehicleGate> FuseZeroVelocity(FilterState& s, double sigma_mps) = 0;
+  virtual std::optional<VehicleGate> FuseNonHolonomic(FilterState& s, const Mat3& R_vehicle_body,
+                                                      const Eigen::Vector2d& sigma_mps) = 0;
+
   // ---- Estimates shown to users (identity / 0 / 1 where the model has none)
   virtual const Mat3& vo_boresight() const = 0;
   virtual double vo_scale_error() const = 0;
   virtual const Vec3& vo_rotation_noise_scale() const = 0;
+  virtual double speed_scale_error() const = 0;
 
  private:
   virtual void BoxPlus(FilterState& s, const Eigen::VectorXd& dx) = 0;

@@ -115,6 +115,14 @@ void ValidateScenario(const Scenario& s) {
                                     std::to_string(s.outages[i].duration_s));
   }
   ValidateCameraFaults(s);
+  if (s.speed) {
+    if (!(std::isfinite(s.speed->rate_hz) && s.speed->rate_hz > 0 && s.speed->rate_hz <= kMaxRateHz))
+      Bad(s, "speed.rate_hz", "must be in (0, 1000], got " + std::to_string(s.speed->rate_hz));
+    if (!(std::isfinite(s.speed->sigma_mps) && s.speed->sigma_mps > 0 && s.speed->sigma_mps <= 10))
+      Bad(s, "speed.sigma_mps", "must be in (0, 10], got " + std::to_string(s.speed->sigma_mps));
+    if (!(std::isfinite(s.speed->scale_error) && std::abs(s.speed->scale_error) <= 0.5))
+      Bad(s, "speed.scale_error", "must be in [-0.5, 0.5], got " + std::to_string(s.speed->scale_error));
+  }
 }
 
 std::vector<std::string> BuiltinScenarioNames() {
@@ -297,6 +305,33 @@ ImuSample ImuDegrader::Apply(const ImuSample& in) {
     out.accel_mps2[i] += accel_bias_mps2_[i] + sa * n01(rng_);
     out.gyro_radps[i] += gyro_bias_radps_[i] + sg * n01(rng_);
   }
+  return out;
+}
+
+SpeedSimulator::SpeedSimulator(const Scenario& scenario)
+    : sensor_(scenario.speed), rng_(scenario.seed ^ 0x5bd1e9955bd1e995ULL) {}
+
+std::vector<SpeedSample> SpeedSimulator::Apply(int64_t t_ns, double v_mps) {
+  std::vector<SpeedSample> out;
+  if (!sensor_ || !std::isfinite(v_mps) || (last_ && t_ns <= last_->first)) return out;
+  const auto period_ns = static_cast<int64_t>(std::llround(kNsPerS / sensor_->rate_hz));
+  constexpr int64_t kMaxGapNs = 1'000'000'000;
+  std::normal_distribution<double> n01;
+  auto reading = [&](int64_t t, double v) {
+    out.push_back({t, (1.0 + sensor_->scale_error) * v + sensor_->sigma_mps * n01(rng_), sensor_->sigma_mps});
+  };
+  if (!last_ || t_ns - last_->first > kMaxGapNs) {
+    // The first sample, or after a gap: a reading now, the grid restarts here.
+    reading(t_ns, v_mps);
+    next_ns_ = t_ns + period_ns;
+  } else {
+    const auto [t0, v0] = *last_;
+    for (; next_ns_ <= t_ns; next_ns_ += period_ns) {
+      const double a = static_cast<double>(next_ns_ - t0) / static_cast<double>(t_ns - t0);
+      reading(next_ns_, v0 + a * (v_mps - v0));
+    }
+  }
+  last_ = {t_ns, v_mps};
   return out;
 }
 

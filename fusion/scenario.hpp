@@ -42,6 +42,15 @@ struct CameraFaultWindow {
 // blur_sigma_px in (0, 50]; times are not checked here).
 std::string CameraFaultParameterProblem(const CameraFaultWindow& fault);
 
+// A simulated vehicle speed sensor (CAN speed / wheel ticks), made from a
+// reference unit's forward speed: reads (1 + scale_error) x the true speed
+// plus white noise of sigma_mps, at rate_hz.
+struct SpeedSensorSim {
+  double rate_hz = 50.0;
+  double sigma_mps = 0.05;
+  double scale_error = 0.0;
+};
+
 enum class ImuGrade {
   kAsRecorded,  // OXTS accelerations / angular rates unchanged (RT3003 grade)
   kMems,        // + constant turn-on bias, bias random walk and white noise
@@ -72,6 +81,8 @@ struct Scenario {
   std::vector<OutageWindow> outages;
   // Camera faults relative to the first frame (scenario key `camera:`).
   std::vector<CameraFaultWindow> camera_faults;
+  // A simulated speed sensor (scenario key `speed:`); none when unset.
+  std::optional<SpeedSensorSim> speed;
   uint64_t seed = 1;
 };
 
@@ -147,6 +158,25 @@ class GpsScenario {
   bool bias_initialized_ = false;
   std::vector<std::pair<int64_t, int64_t>> runtime_outages_;
   bool forced_outage_ = false;
+};
+
+// A simulated vehicle speed sensor (Scenario::speed) made from a reference
+// unit's forward speed: readings on a rate_hz grid, the speed interpolated
+// between reference samples (never across a gap of more than 1 s), read
+// (1 + scale_error) x high, plus white noise of sigma_mps. Seeded, repeatable.
+class SpeedSimulator {
+ public:
+  // Nothing comes out when the scenario has no speed sensor.
+  explicit SpeedSimulator(const Scenario& scenario);
+  // Feed each reference forward speed in time order; returns the readings
+  // due in (previous sample, t_ns].
+  std::vector<SpeedSample> Apply(int64_t t_ns, double forward_speed_mps);
+
+ private:
+  std::optional<SpeedSensorSim> sensor_;
+  std::mt19937_64 rng_;
+  std::optional<std::pair<int64_t, double>> last_;  // previous reference sample
+  int64_t next_ns_ = 0;                              // next reading on the grid
 };
 
 // Degrades IMU samples to MEMS grade (identity for kAsRecorded). Seeded.

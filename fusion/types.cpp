@@ -8,6 +8,7 @@ const char* ToString(Mode mode) {
     case Mode::kGpsDegraded: return "GPS_DEGRADED";
     case Mode::kVoOnly: return "VO_ONLY";
     case Mode::kLost: return "LOST";
+    case Mode::kDeadReckoning: return "DEAD_RECKONING";
   }
   return "UNKNOWN";
 }

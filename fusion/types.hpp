@@ -43,6 +43,14 @@ struct ImuSample {
   double gyro_noise_radps_sqrt_hz = 0;
 };
 
+// One vehicle speed reading (CAN bus speed, wheel ticks turned to speed):
+// the forward speed of the vehicle (negative when reversing).
+struct SpeedSample {
+  int64_t t_ns = 0;
+  double speed_mps = 0;
+  double sigma_mps = 0;  // 1-sigma of this reading; 0 = EkfConfig::speed_sigma_mps
+};
+
 // Where a reference unit (a recorded drive's OXTS RT3003: ground truth) says
 // the body was. Never fused: the scenario (fusion/scenario.hpp) makes the
 // receiver fixes the filter sees from it, and evaluation compares with it.
@@ -50,6 +58,9 @@ struct ReferencePose {
   int64_t t_ns = 0;
   double lat_deg = 0, lon_deg = 0, alt_m = 0;
   Eigen::Matrix3d R_enu_body = Eigen::Matrix3d::Identity();  // attitude (places an antenna)
+  // Velocity in body axes (x forward, y left, z up), m/s, when the unit
+  // reports it: a simulated speed sensor reads its x.
+  std::optional<Eigen::Vector3d> v_body_mps;
 };
 
 // Relative motion of the body between two VO frames: p_prev = T_prev_curr * p_curr,
@@ -60,7 +71,10 @@ struct VoMeasurement {
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Identity();
 };
 
-enum class Mode { kGpsFused, kGpsDegraded, kVoOnly, kLost };
+// kDeadReckoning: no GPS and no usable VO, the IMU (with vehicle speed and
+// the car's motion constraints) carries the estimate. kLost: not initialised,
+// or nothing to stand on (no IMU, no VO, no GPS).
+enum class Mode { kGpsFused, kGpsDegraded, kVoOnly, kLost, kDeadReckoning };
 const char* ToString(Mode mode);
 
 struct FusedPose {
@@ -77,6 +91,10 @@ struct FusedPose {
   // Normalised innovation squared of the newest GPS fix's horizontal part and
   // the gate it was held against (2 dof); 0 before the first gated fix.
   double last_gps_nis = 0, gps_gate = 0;
+  // Vehicle speed: the estimated scale error of the speed sensor (reads
+  // (1 + error) x true speed) and the readings fused so far (cumulative).
+  double speed_scale_error = 0;
+  int speed_used = 0;
 };
 
 }  // namespace locaid::fusion

@@ -236,6 +236,9 @@ void StatusJson(const v1::PoseUpdate& p, json& body) {
   PutString(body, "mode", EnumName(v1::Mode_Name(p.mode()), "MODE_"));
   PutString(body, "vo_status", EnumName(v1::VoStatus_Name(p.vo_status()), "VO_STATUS_"));
   PutInt(body, "vo_inliers", p.vo_inliers());
+  PutString(body, "vo_health", EnumName(v1::VoHealth_Name(p.vo_health()), "VO_HEALTH_"));
+  PutUint(body, "speed_samples_used", p.speed_samples_used());
+  Put(body, "speed_scale_error", p.speed_scale_error());
   PutFiniteOrNull(body, "seconds_since_gps", p.seconds_since_gps());
   PutBool(body, "gps_outage_active", p.gps_outage_active());
   PutUint(body, "gps_used", p.gps_used());

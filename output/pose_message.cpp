@@ -14,6 +14,7 @@ locaid::v1::Mode ToProtoMode(fusion::Mode m) {
     case fusion::Mode::kGpsDegraded: return locaid::v1::MODE_GPS_DEGRADED;
     case fusion::Mode::kVoOnly: return locaid::v1::MODE_VO_ONLY;
     case fusion::Mode::kLost: return locaid::v1::MODE_LOST;
+    case fusion::Mode::kDeadReckoning: return locaid::v1::MODE_DEAD_RECKONING;
   }
   return locaid::v1::MODE_UNSPECIFIED;
 }
@@ -25,6 +26,16 @@ locaid::v1::VoStatus ToProtoVo(vo::Status s) {
     case vo::Status::kLost: return locaid::v1::VO_STATUS_LOST;
   }
   return locaid::v1::VO_STATUS_UNSPECIFIED;
+}
+
+locaid::v1::VoHealth ToProtoHealth(vo::Health h) {
+  switch (h) {
+    case vo::Health::kTracking: return locaid::v1::VO_HEALTH_TRACKING;
+    case vo::Health::kDark: return locaid::v1::VO_HEALTH_DARK;
+    case vo::Health::kFrozen: return locaid::v1::VO_HEALTH_FROZEN;
+    case vo::Health::kLost: return locaid::v1::VO_HEALTH_LOST;
+  }
+  return locaid::v1::VO_HEALTH_UNSPECIFIED;
 }
 
 }  // namespace
@@ -60,6 +71,9 @@ void FillPoseUpdate(const pipeline::StepResult& r, double latency_ms, locaid::v1
   out->set_seconds_since_gps(p.seconds_since_gps);
   out->set_vo_inliers(r.frame.vo.inliers);
   out->set_vo_status(ToProtoVo(r.frame.vo.status));
+  out->set_vo_health(ToProtoHealth(r.frame.vo.health));
+  out->set_speed_scale_error(p.speed_scale_error);
+  out->set_speed_samples_used(static_cast<uint32_t>(std::max(0, p.speed_used)));
   out->set_gps_used(static_cast<uint32_t>(std::max(0, p.gps_used)));
   out->set_gps_rejected(static_cast<uint32_t>(std::max(0, p.gps_rejected)));
   out->set_gps_resets(static_cast<uint32_t>(std::max(0, p.gps_resets)));

@@ -27,7 +27,7 @@ namespace locaid::pipeline {
 // Counters of a live source's typed input and GPS receiver (all zero for
 // file sources).
 struct LiveInputStats {
-  uint64_t imu_samples = 0, gps_fixes_in = 0, gps_fixes_late = 0, gps_no_fix = 0;
+  uint64_t imu_samples = 0, gps_fixes_in = 0, gps_fixes_late = 0, gps_no_fix = 0, speed_samples = 0;
   uint64_t sensor_rejected = 0;  // typed items refused (out of order); last_error says why
   std::string last_error;
   bool has_gpsd = false, gpsd_connected = false;

@@ -120,6 +120,20 @@ void LiveFrameSource::TakeImu(const LiveItem& item) {
   sensor_time_ns_ = std::max(sensor_time_ns_, item.t_ns);
 }
 
+void LiveFrameSource::TakeSpeed(const LiveItem& item) {
+  std::lock_guard s(stats_mu_);
+  ++stats_.speed_samples;
+  if (last_speed_ns_ && item.t_ns <= *last_speed_ns_) {
+    ++stats_.sensor_rejected;
+    stats_.last_error = "pushed speed sample: t_ns " + std::to_string(item.t_ns) +
+                        " not after the previous sample (" + std::to_string(*last_speed_ns_) + ")";
+    return;
+  }
+  last_speed_ns_ = item.t_ns;
+  speed_.push_back(item.speed);
+  sensor_time_ns_ = std::max(sensor_time_ns_, item.t_ns);
+}
+
 void LiveFrameSource::TakeGps(LiveItem item) {
   std::lock_guard s(stats_mu_);
   ++stats_.gps_fixes_in;
@@ -154,7 +168,7 @@ void LiveFrameSource::TakeGps(LiveItem item) {
 }
 
 bool LiveFrameSource::HasReleasable() const {
-  return !imu_.empty() || receiver_has_fix_.has_value() ||
+  return !imu_.empty() || !speed_.empty() || receiver_has_fix_.has_value() ||
          (!held_gps_.empty() && held_gps_.front().fix.t_ns <= sensor_time_ns_);
 }
 
@@ -162,6 +176,10 @@ void LiveFrameSource::Release(int64_t t_ns, SourceItem& out) {
   auto imu_end = std::find_if(imu_.begin(), imu_.end(), [&](const fusion::ImuSample& s) { return s.t_ns > t_ns; });
   out.sensors.imu.assign(imu_.begin(), imu_end);
   imu_.erase(imu_.begin(), imu_end);
+  auto speed_end =
+      std::find_if(speed_.begin(), speed_.end(), [&](const fusion::SpeedSample& s) { return s.t_ns > t_ns; });
+  out.sensors.speed.assign(speed_.begin(), speed_end);
+  speed_.erase(speed_.begin(), speed_end);
   while (!held_gps_.empty() && held_gps_.front().fix.t_ns <= t_ns) {
     out.sensors.gps.push_back(held_gps_.front());
     held_gps_.pop_front();
@@ -244,6 +262,10 @@ SourceItem LiveFrameSource::Next() {
     }
     if (item.kind == LiveItem::Kind::kGps) {
       TakeGps(std::move(item));
+      continue;
+    }
+    if (item.kind == LiveItem::Kind::kSpeed) {
+      TakeSpeed(item);
       continue;
     }
     if (item.kind == LiveItem::Kind::kOxts) {

@@ -24,7 +24,7 @@ namespace locaid::pipeline {
 // One item pushed by a client (values already validated, see the server's
 // sensor_requests.cpp; ordering is checked here).
 struct LiveItem {
-  enum class Kind { kFrame, kOxts, kImu, kGps };
+  enum class Kind { kFrame, kOxts, kImu, kGps, kSpeed };
   Kind kind = Kind::kFrame;
   int64_t t_ns = 0;
   bool png = true;          // frames: PNG/encoded bytes, else raw GRAY8
@@ -32,6 +32,7 @@ struct LiveItem {
   std::string oxts_line;    // OXTS: the 30 fields
   fusion::ImuSample imu;    // kImu
   fusion::GpsFix gps;       // kGps (gps.t_ns == t_ns)
+  fusion::SpeedSample speed;  // kSpeed (speed.t_ns == t_ns)
   bool gps_no_fix = false;  // kGps: a no-fix report (position meaningless)
   int64_t arrival_steady_ns = 0;  // kGps read from gpsd: when it arrived; 0 for pushed items
 };
@@ -83,6 +84,7 @@ class LiveFrameSource : public FrameSource {
   // Consumer side: typed items go to the pending lists (false: refused).
   void TakeImu(const LiveItem& item);
   void TakeGps(LiveItem item);
+  void TakeSpeed(const LiveItem& item);
   // Moves the pending typed data up to t_ns into `out`.
   void Release(int64_t t_ns, SourceItem& out);
   bool HasReleasable() const;
@@ -106,9 +108,10 @@ class LiveFrameSource : public FrameSource {
   // sensor time (newest frame / IMU sample) reaches them.
   std::deque<LiveItem> async_fixes_;  // mu_: from PushAsyncFix
   std::vector<fusion::ImuSample> imu_;
+  std::vector<fusion::SpeedSample> speed_;
   std::deque<ArrivedFix> held_gps_;   // time order, at most kMaxAsyncFixes
   std::optional<bool> receiver_has_fix_;
-  std::optional<int64_t> last_imu_ns_, last_gps_ns_;
+  std::optional<int64_t> last_imu_ns_, last_gps_ns_, last_speed_ns_;
   int64_t sensor_time_ns_ = INT64_MIN;  // newest frame or IMU time seen
   mutable std::mutex stats_mu_;
   LiveInputStats stats_;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <limits>
 #include <utility>
 
 namespace locaid::pipeline {
@@ -36,13 +37,20 @@ Localizer::Localizer(const Eigen::Isometry3d& T_cam0_imu, LocalizerOptions optio
 Localizer::~Localizer() = default;
 
 void Localizer::Fuse(const Measurements& m) {
+  // One time line; at equal times IMU first, then the fix, then the speed.
   const auto t0 = std::chrono::steady_clock::now();
-  size_t i = 0, g = 0;
-  while (i < m.imu.size() || g < m.gps.size()) {
-    if (g == m.gps.size() || (i < m.imu.size() && m.imu[i].t_ns <= m.gps[g].t_ns)) {
+  constexpr int64_t kEnd = std::numeric_limits<int64_t>::max();
+  size_t i = 0, g = 0, v = 0;
+  while (i < m.imu.size() || g < m.gps.size() || v < m.speed.size()) {
+    const int64_t ti = i < m.imu.size() ? m.imu[i].t_ns : kEnd;
+    const int64_t tg = g < m.gps.size() ? m.gps[g].t_ns : kEnd;
+    const int64_t tv = v < m.speed.size() ? m.speed[v].t_ns : kEnd;
+    if (ti <= tg && ti <= tv) {
       ekf_.PropagateImu(m.imu[i++]);  // the filter's process model decides whether IMU is used
-    } else {
+    } else if (tg <= tv) {
       FeedGps(m.gps[g++]);
+    } else {
+      ekf_.UpdateSpeed(m.speed[v++]);
     }
   }
   fusion_ms_ += MsSince(t0);

@@ -13,7 +13,8 @@ fusion::ImuSample OxtsImu(int64_t t_ns, const kitti::OxtsRecord& r) {
 }
 
 fusion::ReferencePose OxtsReferencePose(int64_t t_ns, const kitti::OxtsRecord& r) {
-  return {t_ns, r.lat_deg, r.lon_deg, r.alt_m, kitti::OxtsAttitude(r.roll_rad, r.pitch_rad, r.yaw_rad)};
+  return {t_ns, r.lat_deg, r.lon_deg, r.alt_m, kitti::OxtsAttitude(r.roll_rad, r.pitch_rad, r.yaw_rad),
+          Eigen::Vector3d(r.vf_mps, r.vl_mps, r.vu_mps)};
 }
 
 void AppendOxts(const kitti::OxtsSample& s, SensorBatch& batch) {

@@ -58,6 +58,15 @@ ReplayMetrics ComputeReplayMetrics(const std::vector<ReplaySample>& s, double si
       if (scored(k)) o.max_error_m = std::max(o.max_error_m, err_h(k));
     o.end_error_m = scored(j) ? err_h(j) : std::nan("");
     o.end_error_pct = o.distance_m > 0 ? 100.0 * o.end_error_m / o.distance_m : std::nan("");
+    // What the outage added: the horizontal error vector at its end minus the
+    // one at the last frame with GPS (the error it started with).
+    if (scored(first) && scored(j)) {
+      o.start_error_m = err_h(first);
+      const Eigen::Vector3d e0 = s[first].p_enu_est_m - s[first].p_enu_gt_m;
+      const Eigen::Vector3d e1 = s[j].p_enu_est_m - s[j].p_enu_gt_m;
+      o.added_error_m = (e1 - e0).head<2>().norm();
+      o.added_error_pct = o.distance_m > 0 ? 100.0 * o.added_error_m / o.distance_m : std::nan("");
+    }
     for (size_t k = j + 1; k < s.size() && !s[k].in_outage; ++k) {
       if (scored(k) && err_h(k) <= 2 * sigma_h) { o.reconverge_s = s[k].t_s - s[j].t_s; break; }
     }
@@ -156,7 +165,7 @@ void WritePlotCsv(const std::string& path, const std::vector<ReplaySample>& samp
   std::ofstream csv(path);
   if (!csv) throw std::runtime_error(path + ": cannot write");
   csv << "t_s,gt_e,gt_n,gt_u,est_e,est_n,est_u,gps_e,gps_n,gps_u,gps_rejected,vo_e,vo_n,vo_u,"
-         "sigma_e,sigma_n,sigma_u,err_h,mode,in_outage,initialized,gps_gt_e,gps_gt_n,gps_gt_u\n";
+         "sigma_e,sigma_n,sigma_u,err_h,mode,in_outage,initialized,gps_gt_e,gps_gt_n,gps_gt_u,vo_health\n";
   csv << std::fixed << std::setprecision(4);
   auto xyz = [&csv](const std::optional<Eigen::Vector3d>& p) {
     if (p) csv << p->x() << ',' << p->y() << ',' << p->z() << ',';
@@ -178,7 +187,7 @@ void WritePlotCsv(const std::string& path, const std::vector<ReplaySample>& samp
     csv << ',' << fusion::ToString(s.mode) << ',' << int(s.in_outage) << ',' << int(s.initialized) << ',';
     if (x.p_enu_gt_at_gps_m) csv << x.p_enu_gt_at_gps_m->x() << ',' << x.p_enu_gt_at_gps_m->y() << ',' << x.p_enu_gt_at_gps_m->z();
     else csv << ",,";
-    csv << '\n';
+    csv << ',' << x.vo_health << '\n';
   }
   if (!csv) throw std::runtime_error(path + ": write failed");
 }

@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <cmath>
 #include <optional>
 #include <string>
 #include <vector>
@@ -28,6 +29,10 @@ struct OutageStats {
   double distance_m = 0;     // ground-truth path length inside the outage
   double end_error_m = 0;    // horizontal error at the last frame of the outage
   double end_error_pct = 0;  // end_error_m / distance_m * 100
+  // The horizontal error when GPS went (last frame before the outage), and
+  // what the outage added: |error vector at its end - error vector at its
+  // start| (NaN when either frame has no ground truth).
+  double start_error_m = std::nan(""), added_error_m = std::nan(""), added_error_pct = std::nan("");
   double max_error_m = 0;    // max horizontal error inside the outage
   double reconverge_s = -1;  // after the outage until the error <= 2 sigma_h GPS (-1: never)
   double max_jump_m = 0;     // largest frame-to-frame pose correction in the 10 s after it
@@ -85,6 +90,7 @@ struct PlotExtras {
   bool gps_rejected = false;
   std::optional<Eigen::Vector3d> p_enu_vo_m;   // raw VO chained in ENU
   std::optional<Eigen::Vector3d> p_enu_gt_at_gps_m;  // ground truth at the fix's own time
+  std::string vo_health;                             // vo::ToString(Health) of the frame
 };
 
 // Writes the per-frame CSV that clients/plot_outage.py reads. `extras` is

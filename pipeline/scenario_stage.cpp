@@ -20,6 +20,7 @@ ScenarioStage::ScenarioStage(fusion::Scenario scenario) : scenario_(std::move(sc
 void ScenarioStage::RebuildDegradation(std::optional<int64_t> drive_start_ns) {
   gps_ = std::make_unique<fusion::GpsScenario>(scenario_);
   imu_ = std::make_unique<fusion::ImuDegrader>(scenario_);
+  speed_ = std::make_unique<fusion::SpeedSimulator>(scenario_);
   // Keep the drive clock: the scenario's outages stay relative to the drive start.
   if (drive_start_ns) gps_->SetDriveStart(*drive_start_ns);
   for (const auto& [a, b] : runtime_outages_) gps_->ScheduleOutage(a, b);
@@ -45,15 +46,19 @@ Measurements ScenarioStage::Apply(const SensorBatch& batch) {
     for (; next_imu < batch.reference_imu.size() && batch.reference_imu[next_imu].t_ns <= p.t_ns; ++next_imu)
       out.imu.push_back(imu_->Apply(batch.reference_imu[next_imu]));
     if (auto fix = gps_->Apply(p.t_ns, p.lat_deg, p.lon_deg, p.alt_m, &p.R_enu_body)) out.gps.push_back(*fix);
+    if (p.v_body_mps)
+      for (const fusion::SpeedSample& v : speed_->Apply(p.t_ns, p.v_body_mps->x())) out.speed.push_back(v);
   }
   for (; next_imu < batch.reference_imu.size(); ++next_imu) out.imu.push_back(imu_->Apply(batch.reference_imu[next_imu]));
   // Measured data: IMU as it is, fixes unless GPS is out at their time.
   out.imu.insert(out.imu.end(), batch.imu.begin(), batch.imu.end());
   for (const ArrivedFix& f : batch.gps)
     if (!gps_->InOutage(f.fix.t_ns)) out.gps.push_back(f.fix);
+  out.speed.insert(out.speed.end(), batch.speed.begin(), batch.speed.end());
   auto by_time = [](const auto& a, const auto& b) { return a.t_ns < b.t_ns; };
   std::stable_sort(out.imu.begin(), out.imu.end(), by_time);
   std::stable_sort(out.gps.begin(), out.gps.end(), by_time);
+  std::stable_sort(out.speed.begin(), out.speed.end(), by_time);
   return out;
 }
 

@@ -1,7 +1,8 @@
 // The scenario stage: between a source and the estimator, typed sensor data in,
 // typed measurements out. It owns everything about GPS availability: the
 // scenario's degradation of a reference unit (receiver fixes made from the
-// reference poses, the IMU degraded to the scenario's grade), the scenario's
+// reference poses, the IMU degraded to the scenario's grade, a simulated speed
+// sensor reading the reference forward speed when the scenario has one), the scenario's
 // and run-time outage windows, a forced outage, and the receiver's own no-fix
 // state. Measured IMU samples pass unchanged; measured fixes pass unless GPS
 // is in an outage.
@@ -51,6 +52,7 @@ class ScenarioStage {
   fusion::Scenario scenario_;
   std::unique_ptr<fusion::GpsScenario> gps_;
   std::unique_ptr<fusion::ImuDegrader> imu_;
+  std::unique_ptr<fusion::SpeedSimulator> speed_;
   std::optional<int64_t> first_frame_ns_;
   int64_t last_frame_ns_ = 0;
   std::vector<std::pair<double, double>> early_windows_;      // asked for before the first frame

@@ -122,6 +122,16 @@ std::vector<fusion::CameraFaultWindow> ParseCameraFaults(const Ctx& c, const YAM
   return out;
 }
 
+// The `speed:` mapping: a simulated vehicle speed sensor.
+fusion::SpeedSensorSim ParseSpeedSensor(const Ctx& c, const YAML::Node& m) {
+  c.CheckKeys(m, "speed", {"rate_hz", "sigma_mps", "scale_error"});
+  fusion::SpeedSensorSim sensor;
+  if (m["rate_hz"]) sensor.rate_hz = c.Positive(m["rate_hz"], "speed.rate_hz");
+  if (m["sigma_mps"]) sensor.sigma_mps = c.Positive(m["sigma_mps"], "speed.sigma_mps");
+  if (m["scale_error"]) sensor.scale_error = c.Number(m["scale_error"], "speed.scale_error");
+  return sensor;
+}
+
 }  // namespace
 
 fusion::Scenario ParseScenarioYaml(const std::string& text, const std::string& where) {
@@ -133,7 +143,7 @@ fusion::Scenario ParseScenarioYaml(const std::string& text, const std::string& w
     throw ScenarioError(where + ":" + std::to_string(e.mark.line + 1) + ": YAML syntax: " + e.msg);
   }
   if (!root.IsDefined() || root.IsNull()) throw ScenarioError(where + ": empty scenario file");
-  c.CheckKeys(root, "", {"name", "base", "gps", "imu", "outages", "camera", "seed"});
+  c.CheckKeys(root, "", {"name", "base", "gps", "imu", "outages", "camera", "speed", "seed"});
   fusion::Scenario s;
   if (root["base"]) {
     if (!root["base"].IsScalar()) c.Fail(root["base"], "base", "expected a built-in scenario name");
@@ -202,6 +212,7 @@ fusion::Scenario ParseScenarioYaml(const std::string& text, const std::string& w
     }
   }
   if (root["camera"]) s.camera_faults = ParseCameraFaults(c, root["camera"]);
+  if (root["speed"]) s.speed = ParseSpeedSensor(c, root["speed"]);
   if (root["seed"]) {
     const auto n = root["seed"];
     try {

@@ -28,13 +28,15 @@ struct ArrivedFix {
 struct Measurements {
   std::vector<fusion::ImuSample> imu;
   std::vector<fusion::GpsFix> gps;
-  bool empty() const { return imu.empty() && gps.empty(); }
+  std::vector<fusion::SpeedSample> speed;  // vehicle speed readings
+  bool empty() const { return imu.empty() && gps.empty() && speed.empty(); }
 };
 
 // What a source delivers with one item, each list in time order.
 struct SensorBatch {
   std::vector<fusion::ImuSample> imu;  // measured IMU: fused as it is
   std::vector<ArrivedFix> gps;         // measured fixes: scenario outages apply, its noise does not
+  std::vector<fusion::SpeedSample> speed;  // measured vehicle speed: fused as it is
   // A reference unit's samples (recorded drives): the scenario degrades the
   // IMU to its grade and makes the receiver's fixes from the poses.
   std::vector<fusion::ImuSample> reference_imu;
@@ -44,7 +46,8 @@ struct SensorBatch {
   std::optional<bool> receiver_has_fix;
 
   bool empty() const {
-    return imu.empty() && gps.empty() && reference_imu.empty() && reference_poses.empty() && !receiver_has_fix;
+    return imu.empty() && gps.empty() && speed.empty() && reference_imu.empty() && reference_poses.empty() &&
+           !receiver_has_fix;
   }
   // Moves the samples with t_ns <= t_ns of every list into `out` (appended).
   void MoveUpTo(int64_t t_ns, SensorBatch& out);

@@ -69,6 +69,7 @@ const char* ModeName(fusion::Mode m) {
     case fusion::Mode::kGpsDegraded: return "gps_degraded";
     case fusion::Mode::kVoOnly: return "vo_only";
     case fusion::Mode::kLost: return "lost";
+    case fusion::Mode::kDeadReckoning: return "dead_reckoning";
   }
   return "lost";
 }
@@ -102,7 +103,7 @@ void AddSession(Families& f, const std::string& id, const Session::MetricsSnapsh
       .metric.push_back(std::move(hist));
   if (!m.has_pose) return;
   for (fusion::Mode mode : {fusion::Mode::kGpsFused, fusion::Mode::kGpsDegraded, fusion::Mode::kVoOnly,
-                            fusion::Mode::kLost}) {
+                            fusion::Mode::kDeadReckoning, fusion::Mode::kLost}) {
     f.Add("locaid_session_mode", "1 for the mode of the newest pose, 0 for the others", MetricType::Gauge,
           {{"session", id}, {"mode", ModeName(mode)}}, mode == m.mode ? 1.0 : 0.0);
   }
@@ -118,6 +119,14 @@ void AddSession(Families& f, const std::string& id, const Session::MetricsSnapsh
   f.Add("locaid_session_gps_gate", "The gate the NIS is held against (chi-square, 2 dof)", MetricType::Gauge, sid,
         m.gps_gate);
   f.Add("locaid_session_vo_inliers", "VO inlier tracks of the newest frame", MetricType::Gauge, sid, m.vo_inliers);
+  for (vo::Health h : {vo::Health::kTracking, vo::Health::kDark, vo::Health::kFrozen, vo::Health::kLost}) {
+    f.Add("locaid_session_vo_health", "1 for what the cameras gave VO on the newest frame, 0 for the others",
+          MetricType::Gauge, {{"session", id}, {"health", vo::ToString(h)}}, h == m.vo_health ? 1.0 : 0.0);
+  }
+  f.Add("locaid_session_speed_readings_used_total", "Vehicle speed readings the filter fused", MetricType::Counter,
+        sid, m.speed_used);
+  f.Add("locaid_session_speed_scale_error", "Estimated speed sensor scale error (reads (1 + e) x true speed)",
+        MetricType::Gauge, sid, m.speed_scale_error);
   f.Add("locaid_session_position_sigma_meters", "Horizontal position 1-sigma radius, sqrt(var_e + var_n)",
         MetricType::Gauge, sid, m.position_sigma_h_m);
 }

@@ -63,6 +63,17 @@ std::string ImuItemFromProto(const v1::ImuSample& in, pipeline::LiveItem* out) {
                &out->imu.gyro_noise_radps_sqrt_hz);
 }
 
+std::string SpeedItemFromProto(const v1::SpeedSample& in, pipeline::LiveItem* out) {
+  out->kind = pipeline::LiveItem::Kind::kSpeed;
+  out->t_ns = in.t_ns();
+  out->speed.t_ns = in.t_ns();
+  // 100 m/s = 360 km/h: beyond that a car's speed reading is corrupt.
+  if (!std::isfinite(in.speed_mps()) || std::abs(in.speed_mps()) > 100)
+    return "speed_mps: must be finite and within 100 m/s, got " + Number(in.speed_mps());
+  out->speed.speed_mps = in.speed_mps();
+  return Sigma("sigma_mps", in.sigma_mps(), 0, 10, false, &out->speed.sigma_mps);
+}
+
 std::string GpsItemFromProto(const v1::GpsFix& in, pipeline::LiveItem* out) {
   out->kind = pipeline::LiveItem::Kind::kGps;
   out->t_ns = in.t_ns();

@@ -15,6 +15,7 @@ namespace locaid::server {
 // Both return "" and fill `out`, or the reason the message is refused (the
 // stream answers it with PushRejected and goes on).
 std::string ImuItemFromProto(const locaid::v1::ImuSample& in, pipeline::LiveItem* out);
+std::string SpeedItemFromProto(const locaid::v1::SpeedSample& in, pipeline::LiveItem* out);
 std::string GpsItemFromProto(const locaid::v1::GpsFix& in, pipeline::LiveItem* out);
 
 // A pushed frame (its images are moved out of `in`). `rejected`: the message

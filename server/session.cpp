@@ -175,6 +175,7 @@ locaid::v1::SessionStats Session::Stats() const {
   locaid::v1::SessionStats s = counters_.Stats();
   const pipeline::LiveInputStats in = pipeline_->input_stats();
   s.set_imu_samples(in.imu_samples);
+  s.set_speed_samples(in.speed_samples);
   s.set_gps_fixes_in(in.gps_fixes_in);
   s.set_gps_fixes_late(in.gps_fixes_late);
   s.set_gps_no_fix(in.gps_no_fix);

@@ -89,6 +89,38 @@ Status ParseLeverArm(const v1::LiveSource& l, Eigen::Vector3d* out) {
   return Status::OK;
 }
 
+// LiveSource.speed_sensor: the noise and scale prior of the car's speed sensor.
+Status ParseSpeedSensor(const v1::LiveSource& l, EstimatorSetup* setup) {
+  const v1::SpeedSensor& s = l.speed_sensor();
+  const std::pair<const char*, double> fields[] = {
+      {"rate_hz", s.rate_hz()}, {"sigma_mps", s.sigma_mps()}, {"scale_factor_sigma", s.scale_factor_sigma()}};
+  for (const auto& [name, v] : fields)
+    if (!Finite(v) || v < 0) return Invalid(std::string("live.speed_sensor.") + name + ": must be finite and >= 0");
+  if (s.sigma_mps() > 10) return Invalid("live.speed_sensor.sigma_mps: must be <= 10 m/s");
+  if (s.scale_factor_sigma() > 0.5) return Invalid("live.speed_sensor.scale_factor_sigma: must be <= 0.5");
+  setup->speed_sigma_mps = s.sigma_mps();
+  setup->speed_scale_sigma = s.scale_factor_sigma();
+  return Status::OK;
+}
+
+// VehicleOptions: constraints on or off, and the IMU's mounting in the car.
+Status ParseVehicleOptions(const v1::VehicleOptions& v, EstimatorSetup* setup) {
+  setup->vehicle_constraints = !v.constraints_off();
+  if (v.r_vehicle_body_size() == 0) return Status::OK;
+  if (v.r_vehicle_body_size() != 9)
+    return Invalid("vehicle.R_vehicle_body: expected 0 or 9 values (row-major 3x3), got " +
+                   std::to_string(v.r_vehicle_body_size()));
+  Eigen::Matrix3d R;
+  for (int i = 0; i < 9; ++i) {
+    if (!Finite(v.r_vehicle_body(i))) return Invalid("vehicle.R_vehicle_body: values must be finite");
+    R(i / 3, i % 3) = v.r_vehicle_body(i);
+  }
+  if (!(R.transpose() * R).isApprox(Eigen::Matrix3d::Identity(), 1e-6) || R.determinant() < 0)
+    return Invalid("vehicle.R_vehicle_body: not a rotation (R^T R must be I to 1e-6, det +1)");
+  setup->R_vehicle_body = R;
+  return Status::OK;
+}
+
 Status ParseGpsdSource(const v1::LiveSource& l, std::optional<GpsdEndpoint>* out) {
   if (!l.has_gps_source() || l.gps_source().kind_case() == v1::GpsSource::KIND_NOT_SET) return Status::OK;
   const auto& g = l.gps_source().gpsd();
@@ -180,6 +212,7 @@ Status OpenLiveSource(const v1::LiveSource& l, EstimatorSetup* setup, std::uniqu
   if (Status st = ParseLiveSource(l, &cam); !st.ok()) return st;
   if (Status st = ParseLeverArm(l, &setup->gps_antenna_body_m); !st.ok()) return st;
   if (Status st = ParseGpsdSource(l, gpsd); !st.ok()) return st;
+  if (Status st = ParseSpeedSensor(l, setup); !st.ok()) return st;
   *out = std::make_unique<pipeline::LiveFrameSource>(cam);
   *name = *gpsd ? "live+gpsd:" + (*gpsd)->host + ":" + std::to_string((*gpsd)->port) : "live";
   return Status::OK;
@@ -191,6 +224,10 @@ std::unique_ptr<pipeline::Estimator> MakeLocalizer(const EstimatorSetup& setup) 
   pipeline::LocalizerOptions options;
   options.vo_method = setup.vo_method;
   options.ekf.gps_lever_arm_body_m = setup.gps_antenna_body_m;
+  options.ekf.vehicle_constraints = setup.vehicle_constraints;
+  options.ekf.R_vehicle_body = setup.R_vehicle_body;
+  if (setup.speed_sigma_mps > 0) options.ekf.speed_sigma_mps = setup.speed_sigma_mps;
+  if (setup.speed_scale_sigma > 0) options.ekf.speed_scale_sigma = setup.speed_scale_sigma;
   options.ekf = pipeline::EkfConfigForScenario(options.ekf, setup.scenario);
   return std::make_unique<pipeline::Localizer>(setup.camera, setup.T_cam0_imu, options);
 }
@@ -235,6 +272,7 @@ Status LocalizationService::SessionOptionsFromRequest(const v1::StartSessionRequ
   options->history_size = req.history_size() == 0 ? config_.history_size
                                                    : std::min<size_t>(req.history_size(), config_.max_history_size);
   setup->vo_method = options->vo_method;
+  if (Status s = ParseVehicleOptions(req.vehicle(), setup); !s.ok()) return s;
   return ResolveScenario(req.scenario(), &setup->scenario, &options->scenario);
 }
 
@@ -329,6 +367,7 @@ Status LocalizationService::StartLive(const v1::PushStart& start, std::shared_pt
   v1::StartSessionRequest req;
   *req.mutable_live() = start.live();
   *req.mutable_scenario() = start.scenario();
+  *req.mutable_vehicle() = start.vehicle();
   req.set_vo_method(start.vo_method());
   req.set_history_size(start.history_size());
   std::string id;

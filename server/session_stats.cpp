@@ -36,6 +36,9 @@ void SessionCounters::Record(const pipeline::StepResult& r, double latency_ms) {
   last_.gps_gate = p.gps_gate;
   last_.position_sigma_h_m = std::sqrt(std::max(0.0, p.covariance(0, 0) + p.covariance(1, 1)));
   last_.vo_inliers = r.frame.vo.inliers;
+  last_.vo_health = r.frame.vo.health;
+  last_.speed_scale_error = r.frame.pose.speed_scale_error;
+  last_.speed_used = r.frame.pose.speed_used;
   last_.gps_used = p.gps_used;
   last_.gps_rejected = p.gps_rejected;
   const double latency_s = latency_ms / 1000.0;

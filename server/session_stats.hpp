@@ -24,6 +24,9 @@ struct SessionMetricsSnapshot {
   fusion::Mode mode = fusion::Mode::kLost;
   double seconds_since_gps = 0, last_gps_nis = 0, gps_gate = 0, position_sigma_h_m = 0;
   int vo_inliers = 0, gps_used = 0, gps_rejected = 0;
+  vo::Health vo_health = vo::Health::kLost;
+  double speed_scale_error = 0;
+  int speed_used = 0;
   std::array<uint64_t, kLatencyBucketsS.size()> latency_le{};  // cumulative counts per bucket
   uint64_t latency_count = 0;
   double latency_sum_s = 0;

@@ -24,6 +24,7 @@ std::string ItemName(v1::PushRequest::ItemCase c) {
     case v1::PushRequest::kOxts: return "oxts";
     case v1::PushRequest::kImu: return "imu";
     case v1::PushRequest::kGps: return "gps";
+    case v1::PushRequest::kSpeed: return "speed";
     case v1::PushRequest::ITEM_NOT_SET: break;
   }
   return "an empty message";
@@ -250,11 +251,21 @@ class PushReactor final : public HubStream<grpc::ServerBidiReactor<v1::PushReque
         PushToSession(std::move(item));
         return;
       }
+      case v1::PushRequest::kSpeed: {
+        const int64_t index = speed_++;
+        pipeline::LiveItem item;
+        if (const std::string error = SpeedItemFromProto(req_.speed(), &item); !error.empty()) {
+          Reject("speed", index, error);
+          break;
+        }
+        PushToSession(std::move(item));
+        return;
+      }
       case v1::PushRequest::kStart:
         Reject("start", 0, "the stream already has a session; 'start' must be the first message only");
         break;
       case v1::PushRequest::ITEM_NOT_SET:
-        Reject("empty", 0, "message without frame, oxts, imu or gps");
+        Reject("empty", 0, "message without frame, oxts, imu, gps or speed");
         break;
     }
     StartReadIfOpen();
@@ -339,7 +350,7 @@ class PushReactor final : public HubStream<grpc::ServerBidiReactor<v1::PushReque
   std::deque<v1::PushResponse> control_;
   bool reads_done_ = false;
   Status end_status_;  // replaces OK at the end of the stream (a refused frame)
-  int64_t frames_ = 0, oxts_ = 0, imu_ = 0, gps_ = 0;
+  int64_t frames_ = 0, oxts_ = 0, imu_ = 0, gps_ = 0, speed_ = 0;
 };
 
 }  // namespace

@@ -64,6 +64,13 @@ void ApplyEkfSetting(fusion::EkfConfig& c, const std::string& setting) {
       {"no_imu_lost_sigma_mps", &c.no_imu_lost_sigma_mps},
       {"degraded_hold_s", &c.degraded_hold_s},
       {"vo_only_after_periods", &c.vo_only_after_periods},
+      {"nhc_sigma_lateral_mps", &c.nhc_sigma_lateral_mps},
+      {"nhc_sigma_vertical_mps", &c.nhc_sigma_vertical_mps},
+      {"zupt_speed_mps", &c.zupt_speed_mps},
+      {"zupt_sigma_mps", &c.zupt_sigma_mps},
+      {"zupt_max_estimated_speed_mps", &c.zupt_max_estimated_speed_mps},
+      {"speed_sigma_mps", &c.speed_sigma_mps},
+      {"speed_scale_sigma", &c.speed_scale_sigma},
   };
   const auto eq = setting.find('=');
   const std::string name = setting.substr(0, eq);
@@ -87,7 +94,7 @@ void ApplyEkfSetting(fusion::EkfConfig& c, const std::string& setting) {
 int main(int argc, char** argv) {
   CLI::App app{"locaid-replay: VO + GPS/IMU fusion over a recorded drive, with outage metrics"};
   std::string drive_dir, scenario_arg = "open-sky", out_tum, out_csv, out_mcap, vo_method = "default";
-  bool json = false, no_imu = false;
+  bool json = false, no_imu = false, no_vehicle_constraints = false;
   int max_frames = 0;
   int64_t seed = -1;
   std::string vo_cache_path;
@@ -100,6 +107,8 @@ int main(int argc, char** argv) {
                  "the poses as an MCAP recording (the Foxglove channels of `locaid subscribe --format mcap`)");
   app.add_flag("--json", json, "print metrics as JSON on stdout");
   app.add_flag("--no-imu", no_imu, "VO + GPS only (no IMU)");
+  app.add_flag("--no-vehicle-constraints", no_vehicle_constraints,
+               "no car motion constraints (non-holonomic, zero-velocity updates): a platform that slides");
   app.add_option("--vo-method", vo_method, "VO method (default, thesis)");
   app.add_option("--max-frames", max_frames, "stop after N frames (0: all)");
   app.add_option("--seed", seed, "override the scenario seed");
@@ -127,6 +136,7 @@ int main(int argc, char** argv) {
     pipeline::LocalizerOptions options;
     options.vo_method = vo_method;
     options.ekf.use_imu = !no_imu;
+    options.ekf.vehicle_constraints = !no_vehicle_constraints;
     for (const auto& setting : ekf_settings) ApplyEkfSetting(options.ekf, setting);
     options.ekf = pipeline::EkfConfigForScenario(options.ekf, scenario);
     const std::string cache_header =

@@ -46,6 +46,9 @@ void ReplayRun::Add(const StepResult& step) {
   samples_.push_back(s);
 
   PlotExtras extra;
+  extra.vo_health = vo::ToString(r.vo.health);
+  ++vo_health_counts_[extra.vo_health];
+  ++mode_counts_[fusion::ToString(r.pose.mode)];
   for (const auto& f : r.gps_feeds) {
     extra.p_enu_gps_m = f.p_enu_m;
     extra.gps_rejected = extra.gps_rejected || f.update.rejected;
@@ -125,12 +128,22 @@ nlohmann::json ReplayRun::Summary(const ReplayMetrics& metrics, double wall_s) c
                    {"rms_model_sigma", vec6(vo_err.rms_model_sigma)},
                    {"nees6_mean_model", vo_err.nees_mean_model},
                    {"nees6_median_model", vo_err.nees_median_model}};
+  const fusion::EkfStats& st = ekf.stats();
+  j["vehicle"] = {{"speed_used", st.speed_used},
+                  {"speed_rejected", st.speed_rejected},
+                  {"speed_scale_error", ekf.speed_scale_error()},
+                  {"zupt_updates", st.zupt_updates},
+                  {"nhc_updates", st.nhc_updates},
+                  {"constraints", ekf.config().vehicle_constraints}};
+  j["modes"] = mode_counts_;
+  j["vo_health"] = vo_health_counts_;
   j["outages"] = nlohmann::json::array();
   for (const auto& o : metrics.outages) {
     j["outages"].push_back({{"start_s", o.start_s}, {"duration_s", o.duration_s}, {"distance_m", o.distance_m},
                             {"end_error_m", o.end_error_m}, {"end_error_pct", o.end_error_pct},
                             {"max_error_m", o.max_error_m}, {"reconverge_s", o.reconverge_s},
-                            {"max_jump_m", o.max_jump_m}});
+                            {"max_jump_m", o.max_jump_m}, {"start_error_m", o.start_error_m},
+                            {"added_error_m", o.added_error_m}, {"added_error_pct", o.added_error_pct}});
   }
   return j;
 }

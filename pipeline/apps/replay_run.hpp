@@ -15,6 +15,7 @@
 
 #include <Eigen/Geometry>
 
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -55,6 +56,7 @@ class ReplayRun {
   std::vector<PlotExtras> extras_;            // p_enu_vo_m filled at the end
   std::vector<VoErrorPair> vo_pairs_;         // VO vs ground truth (noise calibration)
   int lost_frames_ = 0;
+  std::map<std::string, int> mode_counts_, vo_health_counts_;  // poses per mode / VO health
   int rejection_run_ = 0, rejection_run_v_ = 0, max_rejection_run_ = 0, max_rejection_run_v_ = 0;
   double vo_ms_total_ = 0;
   FrameResult last_;

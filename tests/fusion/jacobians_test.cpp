@@ -239,5 +239,36 @@ TEST(ChiSquareQuantile, MatchesTables) {
   EXPECT_NEAR(ChiSquareQuantile(0.95, 1), 3.841, kTableTol);
 }
 
+TEST(VehicleVelocityJacobian, MatchesFiniteDifferences) {
+  // The speed reading and the non-holonomic constraints both measure v_veh.
+  std::mt19937_64 rng(21);
+  std::normal_distribution<double> n01;
+  for (int trial = 0; trial < 10; ++trial) {
+    const NominalState x = RandomState(rng);
+    const Mat3 R_vb = ExpSO3(Vec3(0.05 * n01(rng), 0.05 * n01(rng), 0.05 * n01(rng)));
+    const auto H = VehicleVelocityJacobian(x.v_enu_mps, x.R_enu_body, R_vb);
+    Eigen::Matrix<double, 3, 6> H_num;
+    for (int j = 0; j < 6; ++j) {
+      Eigen::Matrix<double, 15, 1> d = Eigen::Matrix<double, 15, 1>::Zero();
+      d[3 + j] = kStep;  // [dv, dtheta] are error states 3..8
+      const NominalState xp = BoxPlus(x, d), xm = BoxPlus(x, -d);
+      H_num.col(j) = (VehicleVelocity(xp.v_enu_mps, xp.R_enu_body, R_vb) -
+                      VehicleVelocity(xm.v_enu_mps, xm.R_enu_body, R_vb)) / (2 * kStep);
+    }
+    EXPECT_LT((H - H_num).cwiseAbs().maxCoeff(), kJacobianTol) << "H\n" << H << "\nnum\n" << H_num;
+  }
+}
+
+TEST(VehicleVelocity, IsTheBodyVelocityInVehicleAxes) {
+  // A car heading north-east at 10 m/s, IMU aligned: all of it forward.
+  NominalState x;
+  x.R_enu_body = ExpSO3(Vec3(0, 0, M_PI / 4));
+  x.v_enu_mps = Vec3(10 / std::sqrt(2.0), 10 / std::sqrt(2.0), 0);
+  const Vec3 v = VehicleVelocity(x.v_enu_mps, x.R_enu_body, Mat3::Identity());
+  EXPECT_NEAR(v.x(), 10.0, 1e-12);
+  EXPECT_NEAR(v.y(), 0.0, 1e-12);
+  EXPECT_NEAR(v.z(), 0.0, 1e-12);
+}
+
 }  // namespace
 }  // namespace locaid::fusion
