@@ -15,20 +15,7 @@ using test::Simulate;
 constexpr int kNeesRuns = 8;
 constexpr int kPosDof = 3;
 
-EkfConfig ConfigFor(const SimConfig& c, bool use_imu) {
-  EkfConfig e;
-  e.use_imu = use_imu;
-  e.accel_noise_mps2_sqrt_hz = c.accel_noise;
-  e.gyro_noise_radps_sqrt_hz = c.gyro_noise;
-  e.init_accel_bias_sigma_mps2 = 0.05;
-  e.init_gyro_bias_sigma_radps = 0.001;
-  // The simulated VO noise is isotropic and the same on every axis (sim.hpp):
-  // the isotropic per-metre model these tests were set with, not the real
-  // camera's anisotropic one.
-  e.vo_cov_scale = 5.0;
-  e.vo_sigma_lateral_per_m = e.vo_sigma_vertical_per_m = e.vo_sigma_t_per_m;
-  return e;
-}
+EkfConfig ConfigFor(const SimConfig& c, bool use_imu) { return test::SimEkfConfig(c, use_imu); }
 
 void ExpectNeesConsistent(bool use_imu) {
   double nees_sum = 0;

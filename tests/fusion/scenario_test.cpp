@@ -5,7 +5,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 #include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
 
 namespace locaid::fusion {
 namespace {
@@ -177,6 +181,121 @@ TEST(Scenario, TunnelIsPlacedInTheMiddle) {
   ASSERT_EQ(s.outages.size(), 1u);
   EXPECT_DOUBLE_EQ(s.outages[0].start_s, 85.0);
   EXPECT_DOUBLE_EQ(s.outages[0].duration_s, 30.0);
+}
+
+// Reference forward speeds every `step_ns` from t0 over [t0, t1]; the readings.
+std::vector<SpeedSample> FeedSpeed(SpeedSimulator& sim, int64_t t0, int64_t t1, int64_t step_ns,
+                                   const std::function<double(int64_t)>& v) {
+  std::vector<SpeedSample> out;
+  for (int64_t t = t0; t <= t1; t += step_ns)
+    for (const SpeedSample& r : sim.Apply(t, v(t))) out.push_back(r);
+  return out;
+}
+
+Scenario WithSpeed(double rate_hz, double sigma_mps, double scale_error, uint64_t seed = 1) {
+  Scenario s;
+  s.name = "speed";
+  s.speed = SpeedSensorSim{rate_hz, sigma_mps, scale_error};
+  s.seed = seed;
+  return s;
+}
+
+TEST(SpeedSimulator, ReadingsOnTheRateGridInterpolatedBetweenReferenceSamples) {
+  constexpr double kTinySigma = 1e-9;
+  SpeedSimulator sim(WithSpeed(50, kTinySigma, 0.0));
+  // 10 Hz reference, speed ramping 1 m/s per second from 5 m/s, for 10 s.
+  const int64_t t0 = 3'000'000'000LL;
+  auto v = [&](int64_t t) { return 5.0 + static_cast<double>(t - t0) * 1e-9; };
+  const auto r = FeedSpeed(sim, t0, t0 + 10'000'000'000LL, kOxtsStepNs, v);
+  ASSERT_EQ(r.size(), 501u) << "one at the first sample, then 5 per 100 ms";
+  for (size_t i = 0; i < r.size(); ++i) {
+    EXPECT_EQ(r[i].t_ns, t0 + static_cast<int64_t>(i) * 20'000'000) << i;
+    EXPECT_NEAR(r[i].speed_mps, v(r[i].t_ns), 1e-6) << "interpolated, reading " << i;
+    EXPECT_DOUBLE_EQ(r[i].sigma_mps, kTinySigma);
+  }
+  // A reference sample that does not advance gives nothing.
+  EXPECT_TRUE(sim.Apply(t0 + 10'000'000'000LL, 10.0).empty());
+}
+
+TEST(SpeedSimulator, ScaleErrorNoiseAndRepeatability) {
+  constexpr double kScale = 0.01, kSigma = 0.05, kV = 10.0;
+  SpeedSimulator a(WithSpeed(50, kSigma, kScale, 9)), b(WithSpeed(50, kSigma, kScale, 9)),
+      other(WithSpeed(50, kSigma, kScale, 10));
+  auto v = [&](int64_t) { return kV; };
+  const auto ra = FeedSpeed(a, 0, 60'000'000'000LL, kOxtsStepNs, v);
+  const auto rb = FeedSpeed(b, 0, 60'000'000'000LL, kOxtsStepNs, v);
+  const auto ro = FeedSpeed(other, 0, 60'000'000'000LL, kOxtsStepNs, v);
+  ASSERT_EQ(ra.size(), 3001u);
+  ASSERT_EQ(rb.size(), ra.size());
+  double sum = 0, sum2 = 0;
+  bool all_same = true, any_differs = false;
+  for (size_t i = 0; i < ra.size(); ++i) {
+    sum += ra[i].speed_mps / kV;
+    const double e = ra[i].speed_mps - (1 + kScale) * kV;
+    sum2 += e * e;
+    all_same = all_same && ra[i].speed_mps == rb[i].speed_mps && ra[i].t_ns == rb[i].t_ns;
+    any_differs = any_differs || ra[i].speed_mps != ro[i].speed_mps;
+  }
+  const auto n = static_cast<double>(ra.size());
+  // Mean of n readings: sigma / sqrt(n) / v = 9e-5 of the ratio; 5 sigma.
+  EXPECT_NEAR(sum / n, 1 + kScale, 5 * kSigma / std::sqrt(n) / kV);
+  EXPECT_NEAR(std::sqrt(sum2 / n), kSigma, 0.1 * kSigma);
+  EXPECT_TRUE(all_same) << "same seed, same readings";
+  EXPECT_TRUE(any_differs) << "another seed, other noise";
+}
+
+TEST(SpeedSimulator, NoReadingsAcrossAGapOrWithoutASensor) {
+  SpeedSimulator sim(WithSpeed(50, 0.01, 0.0));
+  auto v = [](int64_t) { return 8.0; };
+  auto r = FeedSpeed(sim, 0, 1'000'000'000LL, kOxtsStepNs, v);
+  ASSERT_EQ(r.size(), 51u);
+  // The reference unit is silent for 2 s: no readings in the gap; the grid
+  // restarts at the next sample.
+  const auto after = FeedSpeed(sim, 3'000'000'000LL, 3'200'000'000LL, kOxtsStepNs, v);
+  ASSERT_FALSE(after.empty());
+  EXPECT_EQ(after.front().t_ns, 3'000'000'000LL);
+  for (const auto& s : after) EXPECT_GE(s.t_ns, 3'000'000'000LL);
+  EXPECT_EQ(after.size(), 11u) << "one at 3.0 s, then 5 per 100 ms";
+  // A gap of exactly 1 s is bridged.
+  SpeedSimulator bridged(WithSpeed(10, 0.01, 0.0));
+  ASSERT_EQ(bridged.Apply(0, 8.0).size(), 1u);
+  EXPECT_EQ(bridged.Apply(1'000'000'000LL, 8.0).size(), 10u);
+
+  Scenario none;
+  SpeedSimulator off(none);
+  EXPECT_TRUE(FeedSpeed(off, 0, 5'000'000'000LL, kOxtsStepNs, v).empty()) << "no speed: key, no sensor";
+  // A non-finite reference speed gives no reading.
+  SpeedSimulator nan_sim(WithSpeed(50, 0.01, 0.0));
+  EXPECT_TRUE(nan_sim.Apply(0, std::nan("")).empty());
+}
+
+TEST(Scenario, SpeedValidationNamesTheFieldAndTheRule) {
+  struct Case {
+    SpeedSensorSim sensor;
+    std::string expected;
+  };
+  const std::vector<Case> cases = {
+      {{0, 0.05, 0}, "scenario speed: field speed.rate_hz: must be in (0, 1000], got 0"},
+      {{-5, 0.05, 0}, "field speed.rate_hz: must be in (0, 1000], got -5"},
+      {{2000, 0.05, 0}, "field speed.rate_hz: must be in (0, 1000], got 2000"},
+      {{50, 0, 0}, "field speed.sigma_mps: must be in (0, 10], got 0"},
+      {{50, -0.1, 0}, "field speed.sigma_mps: must be in (0, 10], got -0.1"},
+      {{50, 0.05, 0.6}, "field speed.scale_error: must be in [-0.5, 0.5], got 0.6"},
+      {{50, 0.05, -0.51}, "field speed.scale_error: must be in [-0.5, 0.5], got -0.51"},
+      {{50, std::nan(""), 0}, "field speed.sigma_mps: must be in (0, 10]"},
+  };
+  for (const Case& c : cases) {
+    Scenario s = WithSpeed(c.sensor.rate_hz, c.sensor.sigma_mps, c.sensor.scale_error);
+    std::string error = "(accepted)";
+    try {
+      ValidateScenario(s);
+    } catch (const std::invalid_argument& e) {
+      error = e.what();
+    }
+    EXPECT_NE(error.find(c.expected), std::string::npos) << "expected: " << c.expected << "\ngot: " << error;
+  }
+  EXPECT_NO_THROW(ValidateScenario(WithSpeed(50, 0.05, 0.005)));
+  EXPECT_NO_THROW(ValidateScenario(WithSpeed(1000, 10, -0.5)));
 }
 
 }  // namespace

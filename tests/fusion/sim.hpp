@@ -48,6 +48,36 @@ struct SimEvent {
 
 inline constexpr double kLat0 = 49.0, kLon0 = 8.4, kAlt0 = 110.0;
 
+// A fix at the true position p_enu plus white noise of the config's sigmas
+// (E, N, U drawn in that order; the caller's distribution, which caches
+// every second draw, so a drive's noise sequence stays one sequence).
+inline GpsFix NoisyFix(const EnuFrame& geo, const SimConfig& c, int64_t t_ns, const Vec3& p_enu,
+                       std::mt19937_64& rng, std::normal_distribution<double>& n01) {
+  GpsFix fix;
+  const Vec3 noisy = p_enu + Vec3(c.gps_sigma_h_m * n01(rng), c.gps_sigma_h_m * n01(rng),
+                                  c.gps_sigma_v_m * n01(rng));
+  fix.t_ns = t_ns;
+  geo.ToGeodetic(noisy, fix.lat_deg, fix.lon_deg, fix.alt_m);
+  fix.sigma_h_m = c.gps_sigma_h_m;
+  fix.sigma_v_m = c.gps_sigma_v_m;
+  return fix;
+}
+
+// The filter's settings for a simulated drive: the sim's IMU noise, wide
+// bias priors, and the isotropic VO noise the sim draws (not the real
+// camera's anisotropic model).
+inline EkfConfig SimEkfConfig(const SimConfig& c, bool use_imu) {
+  EkfConfig e;
+  e.use_imu = use_imu;
+  e.accel_noise_mps2_sqrt_hz = c.accel_noise;
+  e.gyro_noise_radps_sqrt_hz = c.gyro_noise;
+  e.init_accel_bias_sigma_mps2 = 0.05;
+  e.init_gyro_bias_sigma_radps = 0.001;
+  e.vo_cov_scale = 5.0;
+  e.vo_sigma_lateral_per_m = e.vo_sigma_vertical_per_m = e.vo_sigma_t_per_m;
+  return e;
+}
+
 inline std::vector<SimEvent> Simulate(const SimConfig& c) {
   std::mt19937_64 rng(c.seed);
   std::normal_distribution<double> n01;
@@ -95,12 +125,7 @@ inline std::vector<SimEvent> Simulate(const SimConfig& c) {
     }
     if (k % gps_every == 0 && !outage) {
       SimEvent e{SimEvent::kGps, {}, {}, {}, {t_ns, truth}, outage};
-      const Vec3 noisy = p + Vec3(c.gps_sigma_h_m * n01(rng), c.gps_sigma_h_m * n01(rng),
-                                  c.gps_sigma_v_m * n01(rng));
-      e.gps.t_ns = t_ns;
-      geo.ToGeodetic(noisy, e.gps.lat_deg, e.gps.lon_deg, e.gps.alt_m);
-      e.gps.sigma_h_m = c.gps_sigma_h_m;
-      e.gps.sigma_v_m = c.gps_sigma_v_m;
+      e.gps = NoisyFix(geo, c, t_ns, p, rng, n01);
       ev.push_back(e);
     }
     if (k % frame_every == 0) {
