@@ -12,6 +12,7 @@ using namespace detail;
 Ekf::Ekf(EkfConfig config) : config_(config), model_(MakeProcessModel(config_)) {
   gate_h_ = ChiSquareQuantile(config_.gps_gate_probability, 2);
   gate_v_ = ChiSquareQuantile(config_.gps_gate_probability, 1);
+  zupt_gate_ = ChiSquareQuantile(config_.speed_gate_probability, 3);
 }
 
 Mat6 Ekf::VoNoise(const Mat6& reported, const Eigen::Isometry3d& motion) const {

@@ -67,10 +67,10 @@ SpeedUpdate Ekf::UpdateSpeed(const SpeedSample& reading) {
   }
   model_->PropagateTo(s_, reading.t_ns);
   last_speed_ns_ = reading.t_ns;
-  last_speed_mps_ = reading.speed_mps;
   std::optional<VehicleGate> gate;
   if (config_.vehicle_constraints && std::abs(reading.speed_mps) < config_.zupt_speed_mps) {
-    gate = model_->FuseZeroVelocity(s_, config_.zupt_sigma_mps);
+    // Gated: a sensor stuck at 0 must not stop a car the filter knows is moving.
+    gate = model_->FuseZeroVelocity(s_, config_.zupt_sigma_mps, zupt_gate_);
     out.zupt = gate && !gate->rejected;
     if (out.zupt) ++stats_.zupt_updates;
   } else {
@@ -89,20 +89,26 @@ SpeedUpdate Ekf::UpdateSpeed(const SpeedSample& reading) {
 }
 
 bool Ekf::Standstill(int64_t t_ns) const {
-  // A speed reading of ~0 in the last 0.2 s, or the IMU still while the
-  // filter already believes the car (nearly) stopped.
+  // A fresh speed reading decides (it fused its own gated ZUPT when ~0);
+  // without one, the IMU still while the filter already believes the car
+  // (nearly) stopped.
   constexpr double kSpeedReadingFreshS = 0.2;
-  if (last_speed_ns_ && Seconds(t_ns, *last_speed_ns_) <= kSpeedReadingFreshS)
-    return std::abs(last_speed_mps_) < config_.zupt_speed_mps;
+  if (last_speed_ns_ && Seconds(t_ns, *last_speed_ns_) <= kSpeedReadingFreshS) return false;
   const StillnessThresholds thresholds{config_.zupt_window_s, config_.zupt_gyro_radps, config_.zupt_accel_mps2,
                                        config_.zupt_min_samples};
   return s_.x.v_enu_mps.norm() < config_.zupt_max_estimated_speed_mps && stillness_.Still(thresholds);
 }
 
+bool Ekf::VehicleConstraintsActive() const {
+  return config_.vehicle_constraints && (!config_.vehicle_constraints_need_speed || stats_.speed_used > 0);
+}
+
 void Ekf::ApplyVehicleConstraints(int64_t t_ns) {
-  if (!config_.vehicle_constraints || !s_.initialized) return;
+  if (!VehicleConstraintsActive() || !s_.initialized) return;
   if (Standstill(t_ns)) {
-    if (const auto g = model_->FuseZeroVelocity(s_, config_.zupt_sigma_mps); g && !g->rejected) ++stats_.zupt_updates;
+    // Stillness only holds a car already believed stopped: no gate.
+    if (const auto g = model_->FuseZeroVelocity(s_, config_.zupt_sigma_mps, 0); g && !g->rejected)
+      ++stats_.zupt_updates;
     return;
   }
   const auto g = model_->FuseNonHolonomic(s_, config_.R_vehicle_body,

@@ -198,12 +198,12 @@ class ImuProcessModel final : public ProcessModel {
     return Update(s, H, R, r, speed_gate_);
   }
 
-  std::optional<VehicleGate> FuseZeroVelocity(FilterState& s, double sigma_mps) override {
+  std::optional<VehicleGate> FuseZeroVelocity(FilterState& s, double sigma_mps, double gate) override {
     if (!s.initialized) return std::nullopt;
     Eigen::MatrixXd H = Eigen::MatrixXd::Zero(3, s.P.rows());
     H.middleCols<3>(kV).setIdentity();
     const Eigen::MatrixXd R = Eigen::MatrixXd::Identity(3, 3) * sigma_mps * sigma_mps;
-    return Update(s, H, R, -s.x.v_enu_mps, 0);  // a standstill is certain: no gate
+    return Update(s, H, R, -s.x.v_enu_mps, gate);
   }
 
   std::optional<VehicleGate> FuseNonHolonomic(FilterState& s, const Mat3& R_vehicle_body,

@@ -78,7 +78,7 @@ class OdometryProcessModel final : public ProcessModel {
   double speed_scale_error() const override { return 0.0; }
   // Velocity is not a state here (it is the VO's): no vehicle measurements.
   std::optional<VehicleGate> FuseSpeed(FilterState&, double, double, const Mat3&) override { return std::nullopt; }
-  std::optional<VehicleGate> FuseZeroVelocity(FilterState&, double) override { return std::nullopt; }
+  std::optional<VehicleGate> FuseZeroVelocity(FilterState&, double, double) override { return std::nullopt; }
   std::optional<VehicleGate> FuseNonHolonomic(FilterState&, const Mat3&, const Eigen::Vector2d&) override {
     return std::nullopt;
   }

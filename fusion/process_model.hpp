@@ -107,7 +107,8 @@ class ProcessModel {
   // lateral and vertical velocity 0, 2 dof, sigma per axis).
   virtual std::optional<VehicleGate> FuseSpeed(FilterState& s, double speed_mps, double sigma_mps,
                                                const Mat3& R_vehicle_body) = 0;
-  virtual std::optional<VehicleGate> FuseZeroVelocity(FilterState& s, double sigma_mps) = 0;
+  // gate: chi-square (3 dof) the innovation must pass; 0 = none.
+  virtual std::optional<VehicleGate> FuseZeroVelocity(FilterState& s, double sigma_mps, double gate) = 0;
   virtual std::optional<VehicleGate> FuseNonHolonomic(FilterState& s, const Mat3& R_vehicle_body,
                                                       const Eigen::Vector2d& sigma_mps) = 0;
 

@@ -34,7 +34,7 @@ struct EstimatorSetup {
   std::string vo_method = "default";
   Eigen::Vector3d gps_antenna_body_m = Eigen::Vector3d::Zero();  // lever arm (live sources)
   // VehicleOptions: the car's motion constraints and the IMU mounting.
-  bool vehicle_constraints = true;
+  bool vehicle_constraints = true, vehicle_constraints_need_speed = true;
   Eigen::Matrix3d R_vehicle_body = Eigen::Matrix3d::Identity();
   // LiveSource.speed_sensor (0 = the filter's defaults).
   double speed_sigma_mps = 0, speed_scale_sigma = 0;

@@ -106,6 +106,7 @@ Status ParseSpeedSensor(const v1::LiveSource& l, EstimatorSetup* setup) {
 // VehicleOptions: constraints on or off, and the IMU's mounting in the car.
 Status ParseVehicleOptions(const v1::VehicleOptions& v, EstimatorSetup* setup) {
   setup->vehicle_constraints = !v.constraints_off();
+  setup->vehicle_constraints_need_speed = !v.constraints_without_speed();
   if (v.r_vehicle_body_size() == 0) return Status::OK;
   if (v.r_vehicle_body_size() != 9)
     return Invalid("vehicle.R_vehicle_body: expected 0 or 9 values (row-major 3x3), got " +
@@ -225,6 +226,7 @@ std::unique_ptr<pipeline::Estimator> MakeLocalizer(const EstimatorSetup& setup) 
   options.vo_method = setup.vo_method;
   options.ekf.gps_lever_arm_body_m = setup.gps_antenna_body_m;
   options.ekf.vehicle_constraints = setup.vehicle_constraints;
+  options.ekf.vehicle_constraints_need_speed = setup.vehicle_constraints_need_speed;
   options.ekf.R_vehicle_body = setup.R_vehicle_body;
   if (setup.speed_sigma_mps > 0) options.ekf.speed_sigma_mps = setup.speed_sigma_mps;
   if (setup.speed_scale_sigma > 0) options.ekf.speed_scale_sigma = setup.speed_scale_sigma;

@@ -6,7 +6,8 @@ error depends on that draw as much as on the filter. This runs locaid-replay
 for seeds 1..N on each (scenario, IMU / no IMU) case, reusing one VO run per
 drive through --vo-cache, and reports per case:
 
-  - rmse_gps_m, end_error_pct (every outage), reconverge_s: median / p90 / max
+  - rmse_gps_m, end_error_pct (every outage), added_error_pct (what the
+    outage added to the error it started with), reconverge_s: median / p90 / max
     (reconverge_s: time from the outage's end to the first frame within
     2 sigma_h of the truth; outages that never get there are counted apart)
   - NEES: per-run mean 3-dof position NEES against the run's own 99 %
@@ -25,6 +26,10 @@ its path: the drive folder's path and every file's relative path, size and
 modification time, and the locaid-replay binary's size and modification
 time. A drive re-rendered into the same folder, or a rebuilt locaid-replay,
 gets a new cache; an unchanged drive reuses its cache.
+
+Scenarios with camera faults (a `camera:` key) change what VO sees, so they
+run VO for every seed (no cache). Speed sensors (`speed:`) and camera faults
+come from the scenario file; --ekf and --vehicle-constraints pass through.
 
 Progress goes to stderr; with --json one object goes to stdout. Exit status 0
 even when a target is missed: this measures, it does not judge.
@@ -68,6 +73,14 @@ def run_one(cmd):
     return json.loads(run.stdout)
 
 
+def has_camera_faults(scenario):
+    """A scenario YAML with a `camera:` list (built-in names have none)."""
+    if not os.path.isfile(scenario):
+        return False
+    with open(scenario) as f:
+        return any(line.startswith("camera:") for line in f)
+
+
 def cache_key(drive, replay):
     """Content key of the VO cache: the drive's path, every file's relative
     path, size and mtime (ns), and the replay binary's size and mtime."""
@@ -97,6 +110,8 @@ def main():
                     help="where the VO cache is kept (default: the temp folder); its name is a hash of the "
                          "drive's files (paths, sizes, mtimes) and of the locaid-replay binary")
     ap.add_argument("--ekf", action="append", default=[], help="NAME=VALUE passed to locaid-replay --ekf")
+    ap.add_argument("--vehicle-constraints", choices=["auto", "on", "off"],
+                    help="pass --vehicle-constraints to locaid-replay (its default: auto)")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel replays (default: cores)")
     ap.add_argument("--runs-csv", help="also write one line per run to this CSV")
     ap.add_argument("--json", action="store_true", help="print one JSON object on stdout")
@@ -113,14 +128,17 @@ def main():
     drive = os.path.realpath(args.drive)
     cache = os.path.join(args.cache_dir, f"locaid-vo-{cache_key(drive, os.path.realpath(args.replay))}.v3.cache")
     extra = [a for e in args.ekf for a in ("--ekf", e)]
+    if args.vehicle_constraints:
+        extra += ["--vehicle-constraints", args.vehicle_constraints]
     cases = [(s, imu) for s in args.scenario for imu in ([True, False] if args.no_imu_too else [True])]
     result = {"drive": drive, "seeds": args.seeds, "ekf": args.ekf, "gate_probability": GATE_PROBABILITY,
               "cases": []}
     runs_out = []
     for scenario, imu in cases:
         def cmd(seed):
-            return [args.replay, "--drive", drive, "--scenario", scenario, "--json", "--seed", str(seed),
-                    "--vo-cache", cache] + ([] if imu else ["--no-imu"]) + extra
+            vo_cache = [] if has_camera_faults(scenario) else ["--vo-cache", cache]
+            return [args.replay, "--drive", drive, "--scenario", scenario, "--json", "--seed", str(seed)] + \
+                vo_cache + ([] if imu else ["--no-imu"]) + extra
         # Seed 1 first and alone: it writes the VO cache the others read.
         runs = {1: run_one(cmd(1))}
         with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
@@ -133,7 +151,8 @@ def main():
                     raise
                 print(f"\r{scenario} {'IMU' if imu else 'no IMU'} {n}/{args.seeds} runs   ",
                       end="", file=sys.stderr, flush=True)
-        rmse, end_pct, reconv, nees_ratio, max_up = [], [], [], [], []
+        rmse, end_pct, added_pct, reconv, nees_ratio, max_up = [], [], [], [], [], []
+        modes, vo_health, speed_scale = {}, {}, []
         fixes = rej_h = rej_v = resets = vo_rej = never = 0
         over_bound, longest_run = [], 0
         for seed in sorted(runs):
@@ -141,6 +160,8 @@ def main():
             rmse.append(j["rmse_gps_m"])
             for o in j["outages"]:
                 end_pct.append(o["end_error_pct"])
+                if o.get("added_error_pct") is not None:
+                    added_pct.append(o["added_error_pct"])
                 if o["reconverge_s"] >= 0:
                     reconv.append(o["reconverge_s"])
                 else:
@@ -149,6 +170,12 @@ def main():
             if j["nees_mean"] > j["nees_bound_99"]:
                 over_bound.append(seed)
             max_up.append(j["max_vertical_error_m"])
+            for name, n in j.get("modes", {}).items():
+                modes[name] = modes.get(name, 0) + n
+            for name, n in j.get("vo_health", {}).items():
+                vo_health[name] = vo_health.get(name, 0) + n
+            if j.get("vehicle", {}).get("speed_used", 0) > 0:
+                speed_scale.append(j["vehicle"]["speed_scale_error"])
             fixes += j["gps_used"] + j["gps_rejected"]
             rej_h += j["gps_rejected"]
             rej_v += j["gps_rejected_vertical"]
@@ -162,7 +189,9 @@ def main():
                              "end_error_pct": [o["end_error_pct"] for o in j["outages"]]})
         result["cases"].append({
             "scenario": scenario, "use_imu": imu, "rmse_gps_m": summary(rmse),
-            "end_error_pct": summary(end_pct), "reconverge_s": summary(reconv),
+            "end_error_pct": summary(end_pct), "added_error_pct": summary(added_pct),
+            "reconverge_s": summary(reconv), "modes": modes, "vo_health": vo_health,
+            "speed_scale_error": summary(speed_scale),
             "reconverge_never": never,
             "nees_over_bound_runs": over_bound, "nees_mean_over_bound": summary(nees_ratio),
             "max_vertical_error_m": summary(max_up),
@@ -190,6 +219,10 @@ def main():
         print(f"{c['scenario']} ({'IMU' if c['use_imu'] else 'no IMU'})")
         print(f"  rmse_gps_m med/p90/max        {fmt(c['rmse_gps_m'], '%.3f')}")
         print(f"  end_error_pct med/p90/max     {fmt(c['end_error_pct'], '%.2f')}")
+        print(f"  added_error_pct med/p90/max   {fmt(c['added_error_pct'], '%.2f')}")
+        if c["speed_scale_error"]:
+            print(f"  speed scale error med/p90/max {fmt(c['speed_scale_error'], '%.4f')}")
+        print(f"  poses per mode {c['modes']}; VO health {c['vo_health']}")
         print(f"  reconverge_s med/p90/max      {fmt(c['reconverge_s'], '%.2f')}"
               + (f"   never: {c['reconverge_never']} outages" if c['reconverge_never'] else ""))
         print(f"  NEES/bound99 med/p90/max      {fmt(c['nees_mean_over_bound'], '%.2f')}"

@@ -94,7 +94,8 @@ void ApplyEkfSetting(fusion::EkfConfig& c, const std::string& setting) {
 int main(int argc, char** argv) {
   CLI::App app{"locaid-replay: VO + GPS/IMU fusion over a recorded drive, with outage metrics"};
   std::string drive_dir, scenario_arg = "open-sky", out_tum, out_csv, out_mcap, vo_method = "default";
-  bool json = false, no_imu = false, no_vehicle_constraints = false;
+  bool json = false, no_imu = false;
+  std::string vehicle_constraints = "auto";
   int max_frames = 0;
   int64_t seed = -1;
   std::string vo_cache_path;
@@ -107,8 +108,10 @@ int main(int argc, char** argv) {
                  "the poses as an MCAP recording (the Foxglove channels of `locaid subscribe --format mcap`)");
   app.add_flag("--json", json, "print metrics as JSON on stdout");
   app.add_flag("--no-imu", no_imu, "VO + GPS only (no IMU)");
-  app.add_flag("--no-vehicle-constraints", no_vehicle_constraints,
-               "no car motion constraints (non-holonomic, zero-velocity updates): a platform that slides");
+  app.add_option("--vehicle-constraints", vehicle_constraints,
+                 "car motion constraints (non-holonomic, zero-velocity updates): auto (once a speed sensor "
+                 "reports), on (always), off (a platform that slides)")
+      ->check(CLI::IsMember({"auto", "on", "off"}));
   app.add_option("--vo-method", vo_method, "VO method (default, thesis)");
   app.add_option("--max-frames", max_frames, "stop after N frames (0: all)");
   app.add_option("--seed", seed, "override the scenario seed");
@@ -136,7 +139,8 @@ int main(int argc, char** argv) {
     pipeline::LocalizerOptions options;
     options.vo_method = vo_method;
     options.ekf.use_imu = !no_imu;
-    options.ekf.vehicle_constraints = !no_vehicle_constraints;
+    options.ekf.vehicle_constraints = vehicle_constraints != "off";
+    options.ekf.vehicle_constraints_need_speed = vehicle_constraints == "auto";
     for (const auto& setting : ekf_settings) ApplyEkfSetting(options.ekf, setting);
     options.ekf = pipeline::EkfConfigForScenario(options.ekf, scenario);
     const std::string cache_header =

@@ -398,5 +398,25 @@ TEST(ImuStillness, WindowHoldsAtMostMaxSamples) {
   EXPECT_TRUE(w.Still(t));
 }
 
+TEST(VehicleConstraints, ByDefaultTheyWaitForASpeedSensor) {
+  // Without speed readings the default (vehicle_constraints_need_speed) fuses
+  // no constraint; asked for without speed, every frame fuses them.
+  SimConfig c;
+  c.duration_s = 30;
+  c.seed = 5;
+  const auto ev = Simulate(c);
+  auto nhc_updates = [&](bool need_speed) {
+    EkfConfig config = ConfigFor(c);
+    config.vehicle_constraints_need_speed = need_speed;
+    Ekf ekf(config);
+    Drive(ekf, ev, DriveHooks{});
+    EXPECT_TRUE(ekf.initialized());
+    EXPECT_EQ(ekf.stats().speed_used, 0);
+    return ekf.stats().nhc_updates + ekf.stats().zupt_updates;
+  };
+  EXPECT_EQ(nhc_updates(true), 0);
+  EXPECT_GT(nhc_updates(false), 100);
+}
+
 }  // namespace
 }  // namespace locaid::fusion
