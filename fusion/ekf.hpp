@@ -127,7 +127,7 @@ struct EkfConfig {
   // The fix is where the antenna was this long before the fix's time stamp
   // (receiver latency), s; 0 = the time stamp is the measurement time.
   double gps_latency_s = 0.0;
-  // Vehicle (IMU mode; fusion/vehicle_updates.cpp). A car's wheels neither
+  // Vehicle (IMU mode; fusion/ekf_vehicle.cpp). A car's wheels neither
   // slide sideways nor lift: at every frame the vehicle-frame lateral and
   // vertical velocities are measured as 0 (non-holonomic constraints, NHC),
   // with a sigma that covers the IMU sitting off the rear axle (lateral speed

@@ -418,5 +418,29 @@ TEST(VehicleConstraints, ByDefaultTheyWaitForASpeedSensor) {
   EXPECT_GT(nhc_updates(false), 100);
 }
 
+TEST(VehicleSpeed, AStuckAtZeroSensorDoesNotStopAMovingCar) {
+  // Two seconds of 0 readings (a CAN dropout sending 0) while the car drives
+  // on with GPS and VO: the zero-velocity update is gated, so they are refused.
+  SimConfig c;
+  c.duration_s = 40;
+  c.seed = 9;
+  const auto ev = Simulate(c);
+  Ekf ekf(ConfigFor(c));
+  DriveHooks h;
+  auto stuck = [](const SimEvent& e) { return e.truth.t_ns >= 30 * kNsPerS && e.truth.t_ns < 32 * kNsPerS; };
+  h.reading = [&](const SimEvent& e) -> std::optional<SpeedSample> {
+    return SpeedSample{e.truth.t_ns, stuck(e) ? 0.0 : ForwardSpeed(e.truth.x), 0.05};
+  };
+  double slowest_ratio = std::numeric_limits<double>::infinity();
+  h.after_frame = [&](const SimEvent& e, const FusedPose&) {
+    if (!stuck(e)) return;
+    slowest_ratio = std::min(slowest_ratio, ForwardSpeed(ekf.state()) / ForwardSpeed(e.truth.x));
+  };
+  Drive(ekf, ev, h);
+  ASSERT_TRUE(std::isfinite(slowest_ratio)) << "frames inside the stuck window";
+  EXPECT_GT(slowest_ratio, 0.9) << "the zero readings pulled the estimate down";
+  EXPECT_GE(ekf.stats().speed_rejected, 90) << "~100 zero readings (50 Hz over 2 s), refused";
+}
+
 }  // namespace
 }  // namespace locaid::fusion
