@@ -11,6 +11,7 @@
 //   locaid stats ID
 // Every call carries a deadline (--timeout-s; subscribe: --stream-timeout-s).
 #include "client/connection.hpp"
+#include "clients/cli_camera_fault.hpp"
 #include "clients/cli_print.hpp"
 #include "clients/recorder.hpp"
 #include "output/mcap_recording.hpp"
@@ -45,6 +46,9 @@
 #include <unistd.h>
 
 namespace v1 = locaid::v1;
+using locaid::clients::AddCameraFaultCommand;
+using locaid::clients::CameraFaultCommand;
+using locaid::clients::CameraFaultMessage;
 using locaid::clients::ModeName;
 using locaid::clients::PrintSession;
 using locaid::clients::PrintStats;
@@ -152,30 +156,6 @@ void FillScenario(const std::string& name, const std::string& file, v1::Scenario
   } else if (!name.empty()) {
     out->set_name(name);
   }
-}
-
-// `locaid camera-fault`: 0 = the server's default for each parameter.
-struct CameraFaultArgs {
-  std::string kind;
-  double start_s = 0, duration_s = 0, gain = 0, noise_dn = 0, blur_sigma_px = 0;
-};
-
-// The --kind names, as in scenario YAML, in the order of CameraFault.Kind.
-std::vector<std::string> CameraFaultKindNames() {
-  return {"dark", "noise", "blur", "frozen", "drop", "left_only", "right_only"};
-}
-
-v1::CameraFault CameraFaultMessage(const CameraFaultArgs& a) {
-  v1::CameraFault f;
-  const std::vector<std::string> names = CameraFaultKindNames();
-  const auto it = std::find(names.begin(), names.end(), a.kind);  // checked by the parser
-  f.set_kind(static_cast<v1::CameraFault::Kind>(v1::CameraFault::DARK + (it - names.begin())));
-  f.set_start_s(a.start_s);
-  f.set_duration_s(a.duration_s);
-  f.set_gain(a.gain);
-  f.set_noise_dn(a.noise_dn);
-  f.set_blur_sigma_px(a.blur_sigma_px);
-  return f;
 }
 
 // One unary call with the common deadline and credentials: prints the
@@ -402,24 +382,7 @@ int main(int argc, char** argv) {
   o_window_cmd->add_option("--start", o_start, "seconds since the first frame")->required();
   o_window_cmd->add_option("--duration", o_duration, "seconds")->required();
 
-  auto* camera = app.add_subcommand("camera-fault", "inject camera faults (dark, frozen, dropped images ...)");
-  camera->require_subcommand(1);
-  CameraFaultArgs cam;
-  auto* c_start_cmd = camera->add_subcommand("start", "the fault from the next frame on");
-  auto* c_stop_cmd = camera->add_subcommand("stop", "end every injected camera fault now (the scenario's stay)");
-  auto* c_window_cmd = camera->add_subcommand("window", "the fault in [start, start+duration) since the first frame");
-  for (auto* cmd : {c_start_cmd, c_stop_cmd, c_window_cmd}) cmd->add_option("id", session_id)->required();
-  for (auto* cmd : {c_start_cmd, c_window_cmd}) {
-    cmd->add_option("--kind", cam.kind, "dark|noise|blur|frozen|drop|left_only|right_only")
-        ->required()
-        ->check(CLI::IsMember(CameraFaultKindNames()));
-    cmd->add_option("--gain", cam.gain, "dark: image gain in (0, 1] (0 = 0.06)");
-    cmd->add_option("--noise-dn", cam.noise_dn, "dark, noise: 1-sigma noise, DN (0 = 3 dark, 8 noise)");
-    cmd->add_option("--blur-px", cam.blur_sigma_px, "blur: Gaussian sigma, px (0 = 3)");
-  }
-  c_start_cmd->add_option("--duration", cam.duration_s, "seconds of sensor time (0 = until 'camera-fault stop')");
-  c_window_cmd->add_option("--start", cam.start_s, "seconds since the first frame")->required();
-  c_window_cmd->add_option("--duration", cam.duration_s, "seconds")->required();
+  const CameraFaultCommand cam = AddCameraFaultCommand(app, session_id);
 
   auto* scenario = app.add_subcommand("scenario", "change a running session's GPS scenario");
   std::string scenario_name, scenario_file;
@@ -484,12 +447,12 @@ int main(int argc, char** argv) {
                                             : v1::InjectOutageRequest::WINDOW);
       return Unary(c, *stub, &v1::Localization::Stub::InjectOutage, req, PrintSession);
     }
-    if (camera->parsed()) {
+    if (cam.command->parsed()) {
       v1::InjectCameraFaultRequest req = with_id(v1::InjectCameraFaultRequest{});
-      req.set_action(c_start_cmd->parsed()  ? v1::InjectCameraFaultRequest::START_NOW
-                     : c_stop_cmd->parsed() ? v1::InjectCameraFaultRequest::STOP_NOW
-                                            : v1::InjectCameraFaultRequest::WINDOW);
-      if (!c_stop_cmd->parsed()) *req.mutable_fault() = CameraFaultMessage(cam);
+      req.set_action(cam.start->parsed()  ? v1::InjectCameraFaultRequest::START_NOW
+                     : cam.stop->parsed() ? v1::InjectCameraFaultRequest::STOP_NOW
+                                          : v1::InjectCameraFaultRequest::WINDOW);
+      if (!cam.stop->parsed()) *req.mutable_fault() = CameraFaultMessage(*cam.args);
       return Unary(c, *stub, &v1::Localization::Stub::InjectCameraFault, req, PrintSession);
     }
     if (scenario->parsed()) {
