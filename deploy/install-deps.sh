@@ -22,14 +22,14 @@ build_pkgs=(
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc
   libgtest-dev libgmock-dev libbenchmark-dev
   libyaml-cpp-dev nlohmann-json3-dev libcli11-dev prometheus-cpp-dev
-  libgps-dev libzstd-dev zlib1g-dev libboost-dev
+  libgps-dev libzstd-dev liblz4-dev zlib1g-dev libboost-dev
   python3 python3-matplotlib python3-grpcio python3-protobuf python3-grpc-tools
 )
 runtime_pkgs=(
   libopencv-core406 libopencv-imgproc406 libopencv-imgcodecs406
   libopencv-features2d406 libopencv-calib3d406 libopencv-video406
   libgeographiclib23 libgrpc++1.51 libprotobuf32 libyaml-cpp0.7
-  libprometheus-cpp-pull1.0 libprometheus-cpp-core1.0 libgps28 libzstd1 zlib1g
+  libprometheus-cpp-pull1.0 libprometheus-cpp-core1.0 libgps28 libzstd1 liblz4-1 zlib1g
 )
 
 test_pkgs=(

@@ -19,7 +19,7 @@ import tempfile
 # Layer of each library module (lower number = lower layer).
 LAYERS = {
     "core": 0, "fusion": 0, "record": 0, "locaid": 0,  # "locaid/v1/...": the generated API (proto/)
-    "kitti": 1, "sensors": 2,
+    "kitti": 1, "bag": 1, "sensors": 2,
     "synth": 3, "eval": 3, "vo": 3,
     "pipeline": 4,
     "output": 5, "client": 5,
@@ -28,8 +28,8 @@ LAYERS = {
 PROGRAMS = 5.5   # apps/ folders and clients/: above output/ and client/, below server/ and foxglove/
 ANYTHING = 100   # tests/, bench/, fuzz/
 LAYERS["clients"] = PROGRAMS
-SCANNED = ["core", "fusion", "record", "kitti", "sensors", "synth", "eval", "vo", "pipeline", "output", "client",
-           "server", "foxglove", "clients", "tests", "bench", "fuzz"]
+SCANNED = ["core", "fusion", "record", "kitti", "bag", "sensors", "synth", "eval", "vo", "pipeline", "output",
+           "client", "server", "foxglove", "clients", "tests", "bench", "fuzz"]
 INCLUDE = re.compile(r'^\s*#\s*include\s+"(([a-z_0-9]+)/[^"]*)"')
 
 
