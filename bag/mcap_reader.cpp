@@ -255,6 +255,14 @@ void McapReader::LoadChunk(std::string_view content, uint64_t offset) {
     Fail(offset, "the Chunk states " + std::to_string(uncompressed_size) + " uncompressed bytes, more than the " +
                      std::to_string(kMaxChunkBytes) + " this reader accepts");
   }
+  // Neither format can expand beyond these ratios (zstd: a 4-byte RLE block
+  // per 128 KiB; lz4: 255 bytes per length byte), so a small chunk cannot make
+  // the reader allocate up to the limit.
+  const uint64_t max_ratio = compression == "zstd" ? 32768 : compression == "lz4" ? 256 : 1;
+  if (!compression.empty() && uncompressed_size / max_ratio > records.size() + 1024) {
+    Fail(offset, "the Chunk states " + std::to_string(uncompressed_size) + " uncompressed bytes, more than its " +
+                     std::to_string(records.size()) + " bytes of " + std::string(compression) + " can hold");
+  }
   if (compression.empty() && records.size() != uncompressed_size) {
     Fail(offset, "an uncompressed Chunk holds " + std::to_string(records.size()) + " bytes of records but states " +
                      std::to_string(uncompressed_size));

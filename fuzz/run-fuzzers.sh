@@ -39,7 +39,7 @@ while (($#)); do
 done
 data=${LOCAID_SHARED_DATA:-$repo/../shared/data/kitti}
 all_targets=(oxts timestamps pose_file calib_cam_to_cam calib_rigid calib_odometry
-             scenario_yaml server_config frame_decode push_sensors)
+             scenario_yaml server_config frame_decode push_sensors bag_reader)
 ((${#targets[@]})) || targets=("${all_targets[@]}")
 
 if ((do_build)); then
@@ -144,6 +144,9 @@ EOF
     push_sensors)
       # PushRequest streams written from text format by protoc (fuzz/make_push_seeds.py).
       /usr/bin/python3 "$repo/fuzz/make_push_seeds.py" "$work/$t" "$repo" ;;
+    bag_reader)
+      # Small MCAP files as rosbag2 writes them (fuzz/make_bag_seeds.py).
+      /usr/bin/python3 "$repo/fuzz/make_bag_seeds.py" "$work/$t" ;;
   esac
   return 0
 }

@@ -392,6 +392,11 @@ TEST(McapReader, BrokenRecordsAreErrorsNamingTheFileAndOffset) {
     AppendChunk(tail, records, "zstd", records, std::nullopt, uint64_t{1} << 60);
     cases.push_back({"huge chunk", tail, "uncompressed bytes, more than the"});
   }
+  {  // 1 GiB from a few bytes: more than zstd can expand to
+    std::string tail;
+    AppendChunk(tail, "x", "zstd", "0123456789", std::nullopt, McapReader::kMaxChunkBytes);
+    cases.push_back({"zstd ratio", tail, "uncompressed bytes, more than its 10 bytes of zstd can hold"});
+  }
   {  // not a zstd frame
     std::string records;
     AppendMessage(records, Sample(1, 0));
