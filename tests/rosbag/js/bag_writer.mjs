@@ -49,7 +49,8 @@ const yamlStr = (s) => JSON.stringify(s);  // a JSON string is a valid YAML doub
 export class BagWriter {
   // out: file path (single) or directory (split > 0). topics: [{name, type,
   // transientLocal}]. layout: {useChunks, chunkSize, compress, summary}.
-  constructor({ out, split = 0, topics, layout }) {
+  constructor({ out, split = 0, topics, layout, msgNames = "short" }) {
+    this.msgNames = msgNames;
     this.out = out;
     this.split = split;
     this.topics = topics;
@@ -87,7 +88,7 @@ export class BagWriter {
     for (const t of this.topics) {
       if (!schemaIds.has(t.type)) {
         schemaIds.set(t.type, await this.writer.registerSchema({
-          name: t.type, encoding: "ros2msg", data: new TextEncoder().encode(schemaText(t.type)),
+          name: t.type, encoding: "ros2msg", data: new TextEncoder().encode(schemaText(t.type, { msgNames: this.msgNames })),
         }));
       }
       this.channelIds.set(t.name, await this.writer.registerChannel({

@@ -11,6 +11,7 @@
 //   P/camera/{left,right}/image_raw/compressed  CompressedImage instead, with --images png|jpeg
 //   P/camera/{left,right}/camera_info       sensor_msgs/msg/CameraInfo: S_0x, K_0x, D_0x (plumb_bob),
 //                                           R = R_rect_0x, P = P_rect_0x; one per image, same stamp
+//                                           (P_rect_0x is for KITTI's rectified 1242x375 crop; roi zero)
 //   P/imu/data                              sensor_msgs/msg/Imu (imu_link) from OXTS
 //   P/gps/fix                               sensor_msgs/msg/NavSatFix (gps_link) from OXTS or --gps-csv
 //   P/vehicle/speed                         geometry_msgs/msg/TwistStamped (base_link), --speed only
@@ -47,7 +48,9 @@ const USAGE = `usage: node kitti_to_bag.mjs --drive DIR --out PATH [options]
   --no-summary            no summary section, indexes or statistics
   --split N               a rosbag2 folder of MCAP files of about N messages each + metadata.yaml
   --truncate-at F         cut the written file at F (0..1) of its bytes
-  --first-frame N, --max-frames N   image frames [N, N + max)`;
+  --first-frame N, --max-frames N   image frames [N, N + max)
+  --schema-msg-names short|long     dependency lines "MSG: std_msgs/Header" as rosbag2_cpp
+                          writes them (default) or "MSG: std_msgs/msg/Header" as its docs show`;
 
 function options() {
   const { values } = parseArgs({
@@ -60,7 +63,8 @@ function options() {
       "no-chunks": { type: "boolean" }, compression: { type: "string", default: "zstd" },
       "no-summary": { type: "boolean" }, split: { type: "string", default: "0" },
       "truncate-at": { type: "string" }, "first-frame": { type: "string", default: "0" },
-      "max-frames": { type: "string" }, help: { type: "boolean" },
+      "max-frames": { type: "string" }, "schema-msg-names": { type: "string", default: "short" },
+      help: { type: "boolean" },
     },
   });
   if (values.help) {
@@ -79,6 +83,7 @@ function options() {
   };
   if (!["raw", "png", "jpeg"].includes(values.images)) fail("--images must be raw, png or jpeg");
   if (!["delay", "stamp"].includes(values["log-time"])) fail("--log-time must be delay or stamp");
+  if (!["short", "long"].includes(values["schema-msg-names"])) fail("--schema-msg-names must be short or long");
   const nofix = values.nofix.map((s) => {
     const m = /^([\d.]+):([\d.]+)$/.exec(s);
     if (!m || !(Number(m[1]) <= Number(m[2]))) fail(`--nofix '${s}': expected S0:S1 with S0 <= S1`);
@@ -185,7 +190,7 @@ async function main() {
   if (fs.existsSync(opt.out)) fs.rmSync(opt.out, { recursive: true });
   fs.mkdirSync(path.dirname(path.resolve(opt.out)), { recursive: true });
   const bag = new BagWriter({
-    out: opt.out, split: opt.split, topics: declared,
+    out: opt.out, split: opt.split, topics: declared, msgNames: opt["schema-msg-names"],
     layout: { useChunks: !opt["no-chunks"], chunkSize: opt.chunkSize, compress: await chunkCompressor(opt.compression),
               summary: !opt["no-summary"] },
   });

@@ -107,8 +107,8 @@ if (r6 && w0) {
         `truncated: readable prefix of ${r6.message_count} of ${w0.message_count} messages`);
 }
 // Options.
-const [, r7] = variant("prefix", ["--prefix", "/car"]);
-if (r7) check(Object.keys(r7.topics).every((t) => t.startsWith("/car/")) && "/car/imu/data" in r7.topics, "prefix: topics under /car");
+const [, r7] = variant("prefix", ["--prefix", "/car", "--schema-msg-names", "long"]);
+if (r7) check(Object.keys(r7.topics).every((t) => t.startsWith("/car/")) && "/car/imu/data" in r7.topics, "prefix: topics under /car (schemas with MSG: pkg/msg/Type)");
 const [, r8] = variant("imu_no_orientation", ["--imu-no-orientation"]);
 if (r8) {
   const imu = r8.samples["/imu/data"][0];
