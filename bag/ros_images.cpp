@@ -1,0 +1,207 @@
+#include "bag/ros_images.hpp"
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <stdexcept>
+
+namespace locaid::bag {
+namespace {
+
+std::runtime_error ImageError(const std::string& what) { return std::runtime_error("image: " + what); }
+
+// Bytes per pixel and the OpenCV conversion to gray of a raw encoding
+// (code < 0: none needed).
+struct Encoding {
+  int bytes_per_pixel;
+  int cv_type;
+  int to_gray;
+};
+
+const std::map<std::string, Encoding>& Encodings() {
+  // ROS's bayer names give the colour of the top-left 2x2 block; OpenCV names
+  // the second row's second and third pixels: rggb <-> BayerBG, and so on.
+  static const std::map<std::string, Encoding> table = {
+      {"mono8", {1, CV_8UC1, -1}},
+      {"8UC1", {1, CV_8UC1, -1}},
+      {"mono16", {2, CV_16UC1, -1}},
+      {"16UC1", {2, CV_16UC1, -1}},
+      {"rgb8", {3, CV_8UC3, cv::COLOR_RGB2GRAY}},
+      {"bgr8", {3, CV_8UC3, cv::COLOR_BGR2GRAY}},
+      {"rgba8", {4, CV_8UC4, cv::COLOR_RGBA2GRAY}},
+      {"bgra8", {4, CV_8UC4, cv::COLOR_BGRA2GRAY}},
+      {"bayer_rggb8", {1, CV_8UC1, cv::COLOR_BayerBG2GRAY}},
+      {"bayer_bggr8", {1, CV_8UC1, cv::COLOR_BayerRG2GRAY}},
+      {"bayer_gbrg8", {1, CV_8UC1, cv::COLOR_BayerGR2GRAY}},
+      {"bayer_grbg8", {1, CV_8UC1, cv::COLOR_BayerGB2GRAY}},
+  };
+  return table;
+}
+
+std::string Lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return s;
+}
+
+bool AllZero(const double* v, size_t n) {
+  return std::all_of(v, v + n, [](double x) { return x == 0; });
+}
+
+}  // namespace
+
+cv::Mat ToGray(const ros::Image& image) {
+  const auto it = Encodings().find(image.encoding);
+  if (it == Encodings().end()) {
+    throw ImageError("encoding '" + image.encoding +
+                     "' not supported (mono8, mono16, rgb8, bgr8, rgba8, bgra8, bayer_*8)");
+  }
+  const Encoding& e = it->second;
+  if (image.width == 0 || image.height == 0 || image.width > 1u << 15 || image.height > 1u << 15) {
+    throw ImageError("size " + std::to_string(image.width) + "x" + std::to_string(image.height) + " out of range");
+  }
+  const uint64_t row = uint64_t{image.width} * static_cast<uint64_t>(e.bytes_per_pixel);
+  if (image.step < row) {
+    throw ImageError("step " + std::to_string(image.step) + " < width " + std::to_string(image.width) + " x " +
+                     std::to_string(e.bytes_per_pixel) + " bytes of " + image.encoding);
+  }
+  if (image.data.size() < uint64_t{image.step} * image.height) {
+    throw ImageError(std::to_string(image.data.size()) + " bytes of data, step x height needs " +
+                     std::to_string(uint64_t{image.step} * image.height));
+  }
+  // A view of the message bytes; every path below copies out of it.
+  const cv::Mat view(static_cast<int>(image.height), static_cast<int>(image.width), e.cv_type,
+                     const_cast<char*>(image.data.data()), image.step);
+  cv::Mat gray;
+  if (e.cv_type == CV_16UC1) {
+    cv::Mat host = view.clone();
+    const bool host_big = false;  // locaid builds for little-endian hosts only (x86-64, arm64)
+    if (image.big_endian != host_big) {
+      for (int y = 0; y < host.rows; ++y) {
+        auto* p = host.ptr<uint16_t>(y);
+        for (int x = 0; x < host.cols; ++x) p[x] = static_cast<uint16_t>((p[x] >> 8) | (p[x] << 8));
+      }
+    }
+    host.convertTo(gray, CV_8U, 1.0 / 256.0);
+  } else if (e.to_gray < 0) {
+    gray = view.clone();
+  } else {
+    cv::cvtColor(view, gray, e.to_gray);
+  }
+  return gray;
+}
+
+cv::Mat ToGray(const ros::CompressedImage& image) {
+  const std::string format = Lower(image.format);
+  const bool png = format.find("png") != std::string::npos;
+  const bool jpeg = format.find("jpeg") != std::string::npos || format.find("jpg") != std::string::npos;
+  if (!png && !jpeg && !format.empty()) {
+    throw ImageError("compressed format '" + image.format + "' not supported (png, jpeg)");
+  }
+  if (image.data.empty()) throw ImageError("compressed image with no data");
+  const cv::Mat bytes(1, static_cast<int>(image.data.size()), CV_8UC1, const_cast<char*>(image.data.data()));
+  cv::Mat gray = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
+  if (gray.empty()) throw ImageError("the " + (format.empty() ? std::string("compressed") : format) +
+                                     " data does not decode");
+  if (gray.depth() != CV_8U) gray.convertTo(gray, CV_8U, 1.0 / 256.0);
+  return gray;
+}
+
+Rectifier::Rectifier(const ros::CameraInfo& info)
+    : width_(static_cast<int>(info.width)), height_(static_cast<int>(info.height)) {
+  const std::string who = "camera_info of '" + info.header.frame_id + "': ";
+  if (info.width == 0 || info.height == 0 || info.width > 1u << 15 || info.height > 1u << 15)
+    throw std::runtime_error(who + "size " + std::to_string(info.width) + "x" + std::to_string(info.height));
+  if (AllZero(info.k.data(), 9) || AllZero(info.p.data(), 12) || info.p[0] <= 0 || info.p[5] <= 0)
+    throw std::runtime_error(who + "K or P is zero (an uncalibrated camera): cannot rectify");
+  if (info.binning_x > 1 || info.binning_y > 1)
+    throw std::runtime_error(who + "binning " + std::to_string(info.binning_x) + "x" +
+                             std::to_string(info.binning_y) + " not supported");
+  const bool full_roi = info.roi_width == 0 || (info.roi_width == info.width && info.roi_height == info.height);
+  if (!full_roi) throw std::runtime_error(who + "a region of interest smaller than the image is not supported");
+
+  const Eigen::Matrix3d R = RectificationRotation(info);
+  const bool no_distortion = AllZero(info.d.data(), info.d.size());
+  if (no_distortion && R.isIdentity(1e-9)) return;  // already rectified
+
+  cv::Mat K(3, 3, CV_64F), Rm(3, 3, CV_64F), P(3, 3, CV_64F);
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      K.at<double>(i, j) = info.k[static_cast<size_t>(3 * i + j)];
+      Rm.at<double>(i, j) = info.r[static_cast<size_t>(3 * i + j)];
+      P.at<double>(i, j) = info.p[static_cast<size_t>(4 * i + j)];
+    }
+  cv::Mat D(1, static_cast<int>(info.d.size()), CV_64F);
+  for (size_t i = 0; i < info.d.size(); ++i) D.at<double>(0, static_cast<int>(i)) = info.d[i];
+  const cv::Size size(width_, height_);
+  const std::string& model = info.distortion_model;
+  if (model == "equidistant") {
+    if (info.d.size() != 4) throw std::runtime_error(who + "equidistant needs 4 coefficients, D has " +
+                                                     std::to_string(info.d.size()));
+    cv::fisheye::initUndistortRectifyMap(K, D, Rm, P, size, CV_16SC2, map1_, map2_);
+  } else if (model == "plumb_bob" || model == "rational_polynomial" || (model.empty() && no_distortion)) {
+    const size_t n = info.d.size();
+    if (!(n == 0 || n == 4 || n == 5 || n == 8 || n == 12 || n == 14))
+      throw std::runtime_error(who + model + " with " + std::to_string(n) + " coefficients");
+    if (model == "rational_polynomial" && n < 8)
+      throw std::runtime_error(who + "rational_polynomial needs 8 coefficients, D has " + std::to_string(n));
+    cv::initUndistortRectifyMap(K, n == 0 ? cv::Mat() : D, Rm, P, size, CV_16SC2, map1_, map2_);
+  } else {
+    throw std::runtime_error(who + "distortion model '" + model +
+                             "' not supported (plumb_bob, rational_polynomial, equidistant)");
+  }
+}
+
+cv::Mat Rectifier::Rectify(const cv::Mat& raw) const {
+  if (raw.cols != width_ || raw.rows != height_) {
+    throw std::runtime_error("image size " + std::to_string(raw.cols) + "x" + std::to_string(raw.rows) +
+                             " disagrees with its camera_info (" + std::to_string(width_) + "x" +
+                             std::to_string(height_) + ")");
+  }
+  if (passthrough()) return raw;
+  cv::Mat rect;
+  cv::remap(raw, rect, map1_, map2_, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+  return rect;
+}
+
+Eigen::Matrix3d RectificationRotation(const ros::CameraInfo& info) {
+  Eigen::Matrix3d R;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) R(i, j) = info.r[static_cast<size_t>(3 * i + j)];
+  // An all-zero R (some drivers for a monocular camera) means no rotation.
+  if (R.isZero(0)) return Eigen::Matrix3d::Identity();
+  return R;
+}
+
+StereoCamera StereoFromCameraInfo(const ros::CameraInfo& left, const ros::CameraInfo& right) {
+  if (left.width != right.width || left.height != right.height) {
+    throw std::runtime_error("left and right camera_info sizes differ (" + std::to_string(left.width) + "x" +
+                             std::to_string(left.height) + " vs " + std::to_string(right.width) + "x" +
+                             std::to_string(right.height) + ")");
+  }
+  StereoCamera cam;
+  cam.fx = left.p[0];
+  cam.fy = left.p[5];
+  cam.cx = left.p[2];
+  cam.cy = left.p[6];
+  cam.width = static_cast<int>(left.width);
+  cam.height = static_cast<int>(left.height);
+  if (!(cam.fx > 0 && cam.fy > 0)) throw std::runtime_error("left camera_info: P has no focal length");
+  const double tol = 1e-6 * cam.fx + 1e-9;
+  if (std::abs(right.p[0] - cam.fx) > tol || std::abs(right.p[5] - cam.fy) > tol ||
+      std::abs(right.p[2] - cam.cx) > tol || std::abs(right.p[6] - cam.cy) > tol) {
+    throw std::runtime_error("left and right camera_info P disagree on the rectified intrinsics (fx, fy, cx, cy): "
+                             "not a rectified stereo pair");
+  }
+  cam.baseline_m = -(right.p[3] - left.p[3]) / cam.fx;
+  if (!(cam.baseline_m > 0)) {
+    throw std::runtime_error("right camera_info: P[3] = " + std::to_string(right.p[3]) +
+                             " gives no positive baseline (expected -fx * baseline)");
+  }
+  return cam;
+}
+
+}  // namespace locaid::bag

@@ -1,0 +1,55 @@
+// From ROS 2 image messages to the rectified 8-bit gray images VO reads:
+// decoding (raw encodings and png/jpeg) and rectification from CameraInfo as
+// image_proc does it (the output keeps CameraInfo's size; the rectified
+// camera is P's left 3x3).
+#pragma once
+
+#include "bag/ros_messages.hpp"
+#include "core/stereo_camera.hpp"
+
+#include <opencv2/core.hpp>
+
+#include <Eigen/Geometry>
+
+#include <string>
+
+namespace locaid::bag {
+
+// 8-bit gray of an Image: mono8 as is, mono16 (either byte order) scaled by
+// 1/256, rgb8 / bgr8 / rgba8 / bgra8 to gray, bayer_{rggb,bggr,gbrg,grbg}8
+// demosaiced to gray. Throws std::runtime_error naming the encoding, or the
+// size that disagrees with step * height.
+cv::Mat ToGray(const ros::Image& image);
+// png or jpeg (by the format string, else by the data's signature).
+cv::Mat ToGray(const ros::CompressedImage& image);
+
+// Rectifies the raw images of one camera. When D is all zero and R the
+// identity the images are taken as already rectified (no remap). Throws
+// std::runtime_error for a CameraInfo that cannot rectify: all-zero K or P,
+// an unknown distortion model, D of the wrong length, binning or a partial
+// ROI (not supported).
+class Rectifier {
+ public:
+  explicit Rectifier(const ros::CameraInfo& info);
+  // `raw` must have CameraInfo's width x height (throws otherwise).
+  cv::Mat Rectify(const cv::Mat& raw) const;
+  bool passthrough() const { return map1_.empty(); }
+  int width() const { return width_; }
+  int height() const { return height_; }
+
+ private:
+  int width_ = 0, height_ = 0;
+  cv::Mat map1_, map2_;
+};
+
+// The rectified stereo pair of the left and right CameraInfo: fx, fy, cx, cy
+// from the left P, the baseline from the right P's Tx = -fx * baseline.
+// Throws when the two sizes or intrinsics disagree or the baseline is not
+// positive.
+StereoCamera StereoFromCameraInfo(const ros::CameraInfo& left, const ros::CameraInfo& right);
+
+// The rotation from the left camera's optical frame into its rectified frame
+// (CameraInfo's R).
+Eigen::Matrix3d RectificationRotation(const ros::CameraInfo& info);
+
+}  // namespace locaid::bag

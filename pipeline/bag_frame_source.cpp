@@ -1,0 +1,362 @@
+#include "pipeline/bag_frame_source.hpp"
+
+#include "bag/cdr.hpp"
+#include "bag/tf_tree.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+#include <utility>
+
+namespace locaid::pipeline {
+namespace {
+
+// The body (x forward, y left, z up) in the rectified left camera (x right,
+// y down, z forward) when there is no IMU to define it.
+Eigen::Isometry3d CameraBodyWithoutImu() {
+  Eigen::Matrix3d R;
+  R << 0, -1, 0,  //
+      0, 0, -1,   //
+      1, 0, 0;
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = R;
+  return T;
+}
+
+int64_t StampOfHeader(std::string_view data) {
+  bag::CdrReader r(data);
+  const int32_t sec = r.I32();
+  const uint32_t nanosec = r.U32();
+  return static_cast<int64_t>(sec) * 1'000'000'000 + nanosec;
+}
+
+std::string Seconds(int64_t ns) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6f", static_cast<double>(ns) * 1e-9);
+  return buf;
+}
+
+std::string Millis(double s) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g ms", s * 1e3);
+  return buf;
+}
+
+bool Finite(const Eigen::Vector3d& v) { return v.allFinite(); }
+
+}  // namespace
+
+BagFrameSource::BagFrameSource(const std::filesystem::path& path, BagSourceOptions options)
+    : options_(std::move(options)) {
+  if (!(options_.stereo_tolerance_s >= 0) || !(options_.reorder_window_s >= 0) || options_.max_buffered_messages < 2)
+    throw std::invalid_argument("bag source: tolerances must be >= 0 and the buffer at least 2 messages");
+  {
+    bag::RosBag preview(path);
+    const bag::BagInventory inv =
+        bag::ScanBag(preview, static_cast<uint64_t>(options_.preview_s * 1e9));
+    topics_ = bag::ChooseTopics(inv, options_.topics);
+    const auto info = [&](const std::string& topic) -> const bag::ros::CameraInfo& {
+      const auto it = inv.topics.find(topic);
+      if (it == inv.topics.end() || !it->second.camera_info) {
+        throw std::runtime_error(path.string() + ": no camera_info message on " + topic + " in the first " +
+                                 std::to_string(options_.preview_s) + " s of the bag");
+      }
+      return *it->second.camera_info;
+    };
+    const bag::ros::CameraInfo& left = info(topics_.left_info);
+    const bag::ros::CameraInfo& right = info(topics_.right_info);
+    rect_left_.emplace(left);
+    rect_right_.emplace(right);
+    camera_ = bag::StereoFromCameraInfo(left, right);
+
+    // T_rect_cam: the left camera's optical frame into its rectified frame.
+    Eigen::Isometry3d T_rect_cam = Eigen::Isometry3d::Identity();
+    T_rect_cam.linear() = bag::RectificationRotation(left);
+    const std::string& cam_frame = left.header.frame_id;
+    if (!topics_.imu.empty()) {
+      const std::string imu_frame = inv.topics.count(topics_.imu) ? inv.topics.at(topics_.imu).frame_id : "";
+      if (imu_frame.empty()) {
+        throw std::runtime_error(path.string() + ": no message on " + topics_.imu + " in the first " +
+                                 std::to_string(options_.preview_s) + " s: cannot tell the IMU's frame");
+      }
+      const auto T_imu_cam = bag::FindTransform(inv.static_transforms, imu_frame, cam_frame);
+      if (!T_imu_cam) {
+        throw std::runtime_error(path.string() + ": /tf_static does not connect the IMU frame '" + imu_frame +
+                                 "' and the left camera frame '" + cam_frame +
+                                 "' (the camera-IMU extrinsic); record /tf_static or run without the IMU "
+                                 "(imu: none in --bag-topics FILE)");
+      }
+      T_cam0_imu_ = T_rect_cam * T_imu_cam->inverse();
+      setup_notes_.push_back("camera-IMU extrinsic from /tf_static: " + imu_frame + " -> " + cam_frame);
+    } else {
+      T_cam0_imu_ = CameraBodyWithoutImu();
+      setup_notes_.push_back("no IMU topic: the body frame is the rectified left camera turned x forward");
+    }
+    if (!topics_.gps.empty() && inv.topics.count(topics_.gps)) {
+      const std::string gps_frame = inv.topics.at(topics_.gps).frame_id;
+      const auto T_cam_gps = bag::FindTransform(inv.static_transforms, cam_frame, gps_frame);
+      if (T_cam_gps) {
+        lever_arm_ = (T_cam0_imu_.inverse() * T_rect_cam * *T_cam_gps).translation();
+      } else {
+        setup_notes_.push_back("no /tf_static transform to the GPS frame '" + gps_frame +
+                               "': antenna lever arm taken as zero");
+      }
+    }
+    if (inv.complete && inv.topics.count(topics_.left_image)) {
+      const auto& s = inv.topics.at(topics_.left_image);
+      frames_hint_ = static_cast<int64_t>(s.count);
+      duration_hint_s_ = static_cast<double>(s.last_stamp_ns - s.first_stamp_ns) * 1e-9;
+    }
+  }
+  bag_ = std::make_unique<bag::RosBag>(path);
+}
+
+std::vector<std::string> BagFrameSource::notes() const {
+  std::vector<std::string> out = setup_notes_;
+  for (auto& n : bag_->notes()) out.push_back(std::move(n));
+  return out;
+}
+
+bool BagFrameSource::Fill() {
+  const auto window_ns = static_cast<int64_t>(options_.reorder_window_s * 1e9);
+  bag::BagMessage m;
+  while (!bag_done_ && buffer_.size() < options_.max_buffered_messages &&
+         (buffer_.empty() || buffer_.top().stamp_ns > newest_stamp_ns_ - window_ns)) {
+    if (!bag_->Next(m)) {
+      bag_done_ = true;
+      break;
+    }
+    Role role;
+    if (m.topic == topics_.left_image) {
+      role = Role::kLeft;
+    } else if (m.topic == topics_.right_image) {
+      role = Role::kRight;
+    } else if (!topics_.imu.empty() && m.topic == topics_.imu) {
+      role = Role::kImu;
+    } else if (!topics_.gps.empty() && m.topic == topics_.gps) {
+      role = Role::kGps;
+    } else if (!topics_.speed.empty() && m.topic == topics_.speed) {
+      role = Role::kSpeed;
+    } else {
+      continue;
+    }
+    Pending p;
+    try {
+      p.stamp_ns = StampOfHeader(m.data);
+    } catch (const bag::CdrError& e) {
+      ++stats_.undecodable;
+      pending_error_ = m.Where() + ": " + e.what();
+      continue;
+    }
+    if (p.stamp_ns < released_stamp_ns_) {
+      ++stats_.late;
+      pending_error_ = m.Where() + ": stamp " + Seconds(p.stamp_ns) + " s is older than messages already used (" +
+                       Seconds(released_stamp_ns_) + " s): dropped (a larger reorder window keeps it)";
+      continue;
+    }
+    p.order = order_++;
+    p.role = role;
+    p.type = std::string(m.type);
+    p.data = std::string(m.data);
+    p.where = m.Where();
+    newest_stamp_ns_ = std::max(newest_stamp_ns_, p.stamp_ns);
+    buffer_.push(std::move(p));
+  }
+  return !buffer_.empty();
+}
+
+SourceItem BagFrameSource::Next() {
+  while (ready_.empty()) {
+    if (!Fill()) {
+      // The end: images without a partner, then the last sensor data.
+      for (auto* side : {&left_, &right_}) {
+        if (!*side) continue;
+        SourceItem s;
+        s.kind = SourceItem::Kind::kSkipped;
+        s.index = next_index_++;
+        s.t_ns = (*side)->stamp_ns;
+        s.error = (*side)->where + ": the bag ends before its stereo partner";
+        ++stats_.unpaired_images;
+        side->reset();
+        ready_.push_back(std::move(s));
+      }
+      if (!sensors_.empty()) {
+        SourceItem s;
+        s.kind = SourceItem::Kind::kSensors;
+        s.t_ns = newest_stamp_ns_;
+        s.sensors = std::exchange(sensors_, {});
+        ready_.push_back(std::move(s));
+      }
+      SourceItem end;
+      end.kind = SourceItem::Kind::kEnd;
+      ready_.push_back(std::move(end));
+      break;
+    }
+    Pending p = buffer_.top();
+    buffer_.pop();
+    released_stamp_ns_ = std::max(released_stamp_ns_, p.stamp_ns);
+    Handle(std::move(p));
+  }
+  SourceItem item = std::move(ready_.front());
+  ready_.pop_front();
+  if (item.kind != SourceItem::Kind::kEnd && item.error.empty() && !pending_error_.empty())
+    item.error = std::exchange(pending_error_, {});
+  if (item.kind == SourceItem::Kind::kEnd) {
+    ready_.push_back(item);  // Next() after the end keeps saying so
+  }
+  return item;
+}
+
+void BagFrameSource::Handle(Pending p) {
+  if (p.role != Role::kLeft && p.role != Role::kRight) {
+    AddSensor(p);
+    return;
+  }
+  auto& mine = p.role == Role::kLeft ? left_ : right_;
+  if (mine) {  // the previous image of this side never found a partner
+    SourceItem s;
+    s.kind = SourceItem::Kind::kSkipped;
+    s.index = next_index_++;
+    s.t_ns = mine->stamp_ns;
+    s.error = mine->where + ": no " + (p.role == Role::kLeft ? "right" : "left") + " image within " + Millis(options_.stereo_tolerance_s);
+    ++stats_.unpaired_images;
+    ready_.push_back(std::move(s));
+  }
+  mine = std::move(p);
+  TryPair();
+}
+
+void BagFrameSource::TryPair() {
+  if (!left_ || !right_) return;
+  const auto tol_ns = static_cast<int64_t>(options_.stereo_tolerance_s * 1e9);
+  if (std::llabs(left_->stamp_ns - right_->stamp_ns) <= tol_ns) {
+    Pending l = std::move(*left_), r = std::move(*right_);
+    left_.reset();
+    right_.reset();
+    ready_.push_back(MakeFrame(std::move(l), std::move(r)));
+    return;
+  }
+  // The older one has no partner any more (messages come in stamp order).
+  auto& older = left_->stamp_ns < right_->stamp_ns ? left_ : right_;
+  SourceItem s;
+  s.kind = SourceItem::Kind::kSkipped;
+  s.index = next_index_++;
+  s.t_ns = older->stamp_ns;
+  s.error = older->where + ": no stereo partner within " + Millis(options_.stereo_tolerance_s);
+  ++stats_.unpaired_images;
+  older.reset();
+  ready_.push_back(std::move(s));
+}
+
+cv::Mat BagFrameSource::Decode(const Pending& image, const bag::Rectifier& rectifier) const {
+  const cv::Mat raw = image.type == bag::ros::kImage ? bag::ToGray(bag::ros::DecodeImage(image.data))
+                                                     : bag::ToGray(bag::ros::DecodeCompressedImage(image.data));
+  return rectifier.Rectify(raw);
+}
+
+SourceItem BagFrameSource::MakeFrame(Pending left, Pending right) {
+  SourceItem item;
+  item.index = next_index_++;
+  item.t_ns = left.stamp_ns;
+  sensors_.MoveUpTo(item.t_ns, item.sensors);
+  if (item.t_ns <= last_frame_ns_) {
+    item.kind = SourceItem::Kind::kCorrupt;
+    item.error = left.where + ": frame time " + Seconds(item.t_ns) + " s is not after the previous frame's";
+    return item;
+  }
+  try {
+    item.left = Decode(left, *rect_left_);
+    try {
+      item.right = Decode(right, *rect_right_);
+    } catch (const std::exception& e) {
+      throw std::runtime_error(right.where + ": " + e.what());
+    }
+  } catch (const std::exception& e) {
+    item.kind = SourceItem::Kind::kCorrupt;
+    item.error = std::string(item.left.empty() ? left.where + ": " : "") + e.what();
+    item.left.release();
+    ++stats_.bad_images;
+    return item;
+  }
+  item.kind = SourceItem::Kind::kFrame;
+  last_frame_ns_ = item.t_ns;
+  ++stats_.frames;
+  return item;
+}
+
+void BagFrameSource::AddSensor(const Pending& p) {
+  try {
+    if (p.role == Role::kImu) {
+      const auto imu = bag::ros::DecodeImu(p.data);
+      if (imu.header.stamp_ns <= last_imu_ns_ || !Finite(imu.linear_acceleration) || !Finite(imu.angular_velocity)) {
+        ++stats_.late;
+        pending_error_ = p.where + ": IMU sample not after the previous one or not finite: dropped";
+        return;
+      }
+      last_imu_ns_ = imu.header.stamp_ns;
+      fusion::ImuSample s;
+      s.t_ns = imu.header.stamp_ns;
+      s.accel_mps2 = imu.linear_acceleration;
+      s.gyro_radps = imu.angular_velocity;
+      sensors_.imu.push_back(s);
+      ++stats_.imu;
+    } else if (p.role == Role::kGps) {
+      const auto nav = bag::ros::DecodeNavSatFix(p.data);
+      if (nav.header.stamp_ns <= last_gps_ns_) {
+        ++stats_.late;
+        pending_error_ = p.where + ": fix not after the previous one: dropped";
+        return;
+      }
+      last_gps_ns_ = nav.header.stamp_ns;
+      const bool position = std::isfinite(nav.latitude) && std::isfinite(nav.longitude) &&
+                            std::isfinite(nav.altitude) && std::abs(nav.latitude) <= 90 &&
+                            std::abs(nav.longitude) <= 180;
+      if (nav.status <= bag::ros::NavSatFix::kNoFix || !position) {
+        sensors_.receiver_has_fix = false;
+        ++stats_.no_fix;
+        return;
+      }
+      ArrivedFix a;
+      a.fix.t_ns = nav.header.stamp_ns;
+      a.fix.lat_deg = nav.latitude;
+      a.fix.lon_deg = nav.longitude;
+      a.fix.alt_m = nav.altitude;
+      a.fix.sigma_h_m = options_.gps_sigma_h_m;
+      a.fix.sigma_v_m = options_.gps_sigma_v_m;
+      const auto& c = nav.position_covariance;
+      const bool known = nav.position_covariance_type != bag::ros::NavSatFix::kCovUnknown &&
+                         std::all_of(c.begin(), c.end(), [](double v) { return std::isfinite(v); }) && c[0] > 0 &&
+                         c[4] > 0 && c[8] > 0;
+      if (known) {
+        Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j)
+            if (i == j || nav.position_covariance_type != bag::ros::NavSatFix::kCovDiagonalKnown)
+              cov(i, j) = c[static_cast<size_t>(3 * i + j)];
+        a.fix.cov_enu_m2 = 0.5 * (cov + cov.transpose());
+      }
+      sensors_.gps.push_back(a);
+      sensors_.receiver_has_fix = true;
+      ++stats_.fixes;
+    } else {
+      const auto twist = bag::ros::DecodeTwistStamped(p.data);
+      if (twist.header.stamp_ns <= last_speed_ns_ || !std::isfinite(twist.linear.x())) {
+        ++stats_.late;
+        pending_error_ = p.where + ": speed reading not after the previous one or not finite: dropped";
+        return;
+      }
+      last_speed_ns_ = twist.header.stamp_ns;
+      fusion::SpeedSample s;
+      s.t_ns = twist.header.stamp_ns;
+      s.speed_mps = twist.linear.x();
+      sensors_.speed.push_back(s);
+      ++stats_.speed;
+    }
+  } catch (const bag::CdrError& e) {
+    ++stats_.undecodable;
+    pending_error_ = p.where + ": " + e.what();
+  }
+}
+
+}  // namespace locaid::pipeline
