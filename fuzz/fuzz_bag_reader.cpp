@@ -5,6 +5,7 @@
 // Each message's data goes through CdrReader, which reads or throws CdrError.
 #include "bag/cdr.hpp"
 #include "bag/mcap_reader.hpp"
+#include "bag/ros_messages.hpp"
 #include "fuzz/fuzz_support.hpp"
 
 #include <memory>
@@ -41,12 +42,25 @@ void ReadAsCdr(std::string_view data) {
   }
 }
 
-// One message through the decoders. The ROS 2 message decoders go here too:
-// choose by the channel's schema name (reader.schemas().at(channel.schema_id).name).
+// One message through the decoders: the generic CDR walk, then the ROS 2
+// decoder of its schema's type, and of every type the bag source reads (a
+// lying schema name must not matter either).
 void FuzzMessage(const McapReader& reader, const McapChannel& channel, const McapMessage& message) {
-  (void)reader;
   if (channel.message_encoding != "cdr") return;
   ReadAsCdr(message.data);
+  const auto schema = reader.schemas().find(channel.schema_id);
+  std::vector<std::string_view> types = {locaid::bag::ros::kImage,     locaid::bag::ros::kCompressedImage,
+                                         locaid::bag::ros::kCameraInfo, locaid::bag::ros::kImu,
+                                         locaid::bag::ros::kNavSatFix,  locaid::bag::ros::kTfMessage,
+                                         locaid::bag::ros::kTwistStamped};
+  if (schema != reader.schemas().end()) types.insert(types.begin(), schema->second.name);
+  for (const auto type : types) {
+    try {
+      locaid::bag::ros::DecodeAny(type, message.data);
+    } catch (const locaid::bag::CdrError&) {
+      // a precise error is the expected outcome for bytes that are not this type
+    }
+  }
 }
 
 }  // namespace
