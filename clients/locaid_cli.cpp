@@ -3,7 +3,7 @@
 //   locaid health [--service NAME] [--wait S]
 //   locaid session start --kitti PATH | --synthetic SEED [--scenario NAME|--scenario-file F] [--vo M] [--rate R]
 //   locaid session list | get ID | stop ID [--remove]
-//   locaid subscribe ID [--from-start] [--format print|tum|kitti|csv|geojson|mcap] [--out FILE] [--max N]
+//   locaid subscribe ID [--from-start] [--format print|tum|kitti|csv|geojson|mcap|ros2-mcap] [--out FILE] [--max N]
 //   locaid outage start ID [--duration S] | stop ID | window ID --start S --duration S
 //   locaid camera-fault start ID --kind K [--duration S] [--gain G] [--noise-dn N] [--blur-px S]
 //                     | stop ID | window ID --kind K --start S --duration S [...]
@@ -15,6 +15,7 @@
 #include "clients/cli_print.hpp"
 #include "clients/recorder.hpp"
 #include "output/mcap_recording.hpp"
+#include "output/ros2_recording.hpp"
 #include "locaid/v1/localization.grpc.pb.h"
 
 #include <CLI/CLI.hpp>
@@ -230,10 +231,12 @@ int StartSession(const Common& c, v1::Localization::Stub& stub, const StartOptio
 
 // Streams a session's poses into the chosen format until the stream ends,
 // --max poses, or SIGINT/SIGTERM. MCAP: the Foxglove bridge's channels in
-// one indexed file, closed (summary and footer written) also on a signal.
+// one indexed file, closed (summary and footer written) also on a signal;
+// ros2-mcap likewise, as a ROS 2 bag (camera mount: the KITTI 2011_09_26 rig).
 int Subscribe(const Common& c, v1::Localization::Stub& stub, const SubscribeOptions& o) {
   // Usage first: it needs no server.
-  if (o.format == "mcap" && o.out_path.empty()) throw std::runtime_error("--out is required for --format mcap");
+  if ((o.format == "mcap" || o.format == "ros2-mcap") && o.out_path.empty())
+    throw std::runtime_error("--out is required for --format " + o.format);
   {  // An unknown id fails here, before a record file exists.
     grpc::ClientContext ctx;
     Prepare(c, &ctx, c.timeout_s);
@@ -244,8 +247,12 @@ int Subscribe(const Common& c, v1::Localization::Stub& stub, const SubscribeOpti
   }
   std::optional<Recorder> recorder;
   std::unique_ptr<locaid::output::McapRecording> mcap;
+  std::unique_ptr<locaid::output::Ros2Recording> bag;
   if (o.format == "mcap") {
     mcap = std::make_unique<locaid::output::McapRecording>(o.out_path);
+  } else if (o.format == "ros2-mcap") {
+    bag = std::make_unique<locaid::output::Ros2Recording>(
+        o.out_path, locaid::output::Ros2RecordingOptions{{}, locaid::output::KittiRigTBodyCam0()});
   } else {
     recorder.emplace(o.format, o.out_path);
   }
@@ -268,6 +275,8 @@ int Subscribe(const Common& c, v1::Localization::Stub& stub, const SubscribeOpti
     try {
       if (mcap) {
         mcap->Add(pose);
+      } else if (bag) {
+        bag->Add(pose);
       } else {
         recorder->Add(pose, delay_ms);
       }
@@ -292,6 +301,8 @@ int Subscribe(const Common& c, v1::Localization::Stub& stub, const SubscribeOpti
   try {
     if (mcap) {
       mcap->Close();
+    } else if (bag) {
+      bag->Close();
     } else {
       recorder->Close();
     }
@@ -360,8 +371,9 @@ int main(int argc, char** argv) {
   SubscribeOptions sub;
   subscribe->add_option("id", sub.session_id)->required();
   subscribe->add_flag("--from-start", sub.from_start, "begin with the session's history");
-  subscribe->add_option("--format", sub.format, "print|tum|kitti|csv|geojson|mcap (Foxglove channels, see docs/api.md)")
-      ->check(CLI::IsMember({"print", "tum", "kitti", "csv", "geojson", "mcap"}))
+  subscribe->add_option("--format", sub.format,
+                        "print|tum|kitti|csv|geojson|mcap (Foxglove channels)|ros2-mcap (ROS 2 bag); see docs/api.md")
+      ->check(CLI::IsMember({"print", "tum", "kitti", "csv", "geojson", "mcap", "ros2-mcap"}))
       ->capture_default_str();
   subscribe->add_option("--out", sub.out_path, "record file (formats other than print)");
   subscribe->add_option("--max", sub.max_poses, "stop after N poses (0 = until the stream ends)");

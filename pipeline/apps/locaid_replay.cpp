@@ -94,6 +94,7 @@ void ApplyEkfSetting(fusion::EkfConfig& c, const std::string& setting) {
 int main(int argc, char** argv) {
   CLI::App app{"locaid-replay: VO + GPS/IMU fusion over a recorded drive, with outage metrics"};
   std::string drive_dir, scenario_arg = "open-sky", out_tum, out_csv, out_mcap, vo_method = "default";
+  std::string out_bag;
   bool json = false, no_imu = false;
   std::string vehicle_constraints = "auto";
   int max_frames = 0;
@@ -106,6 +107,8 @@ int main(int argc, char** argv) {
   app.add_option("--out-csv", out_csv, "per-frame CSV for clients/plot_outage.py");
   app.add_option("--out-mcap", out_mcap,
                  "the poses as an MCAP recording (the Foxglove channels of `locaid subscribe --format mcap`)");
+  app.add_option("--out-bag", out_bag,
+                 "the poses as a ROS 2 bag (MCAP, ros2msg/CDR: odometry, fix, tf; see docs/api.md \"ROS 2 output\")");
   app.add_flag("--json", json, "print metrics as JSON on stdout");
   app.add_flag("--no-imu", no_imu, "VO + GPS only (no IMU)");
   app.add_option("--vehicle-constraints", vehicle_constraints,
@@ -163,6 +166,8 @@ int main(int argc, char** argv) {
 
     std::optional<pipeline::ReplayMcap> mcap;
     if (!out_mcap.empty()) mcap.emplace(out_mcap);
+    std::optional<pipeline::ReplayBag> out_bag_recording;
+    if (!out_bag.empty()) out_bag_recording.emplace(out_bag, dataset.T_cam0_imu());
     pipeline::VoResults vo_computed;
     const auto wall0 = std::chrono::steady_clock::now();
     for (;;) {
@@ -173,6 +178,7 @@ int main(int argc, char** argv) {
       run.Add(step);
       if (!vo_cache) vo_computed.emplace(step.frame_index, step.frame.vo);
       if (mcap) mcap->Add(step);
+      if (out_bag_recording) out_bag_recording->Add(step);
       if (step.frame_index % 50 == 0)
         std::cerr << "\rframe " << step.frame_index << "/" << n_frames << " mode "
                   << fusion::ToString(step.frame.pose.mode) << "      " << std::flush;
@@ -184,6 +190,10 @@ int main(int argc, char** argv) {
     if (mcap) {
       mcap->Close();
       std::cerr << "locaid-replay: " << mcap->poses() << " poses -> " << out_mcap << "\n";
+    }
+    if (out_bag_recording) {
+      out_bag_recording->Close();
+      std::cerr << "locaid-replay: " << out_bag_recording->poses() << " poses -> " << out_bag << " (ROS 2 bag)\n";
     }
     if (!out_csv.empty()) run.WriteCsv(out_csv);
     if (!out_tum.empty()) run.WriteTum(out_tum);

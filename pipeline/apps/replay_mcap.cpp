@@ -4,12 +4,12 @@
 
 namespace locaid::pipeline {
 
-void ReplayMcap::Add(const StepResult& step) {
+locaid::v1::PoseUpdate ReplayPoseUpdate(const StepResult& step, uint64_t sequence) {
   locaid::v1::PoseUpdate msg;
   output::FillPoseUpdate(step, step.frame.vo_ms + step.frame.fusion_ms, &msg);
   msg.set_session_id("replay");
-  msg.set_sequence(sequence_++);
-  recording_.Add(msg);
+  msg.set_sequence(sequence);
+  return msg;
 }
 
 }  // namespace locaid::pipeline
