@@ -66,9 +66,14 @@ BagFrameSource::BagFrameSource(const std::filesystem::path& path, BagSourceOptio
     };
     const bag::ros::CameraInfo& left = info(topics_.left_info);
     const bag::ros::CameraInfo& right = info(topics_.right_info);
-    rect_left_.emplace(left);
-    rect_right_.emplace(right);
-    camera_ = bag::StereoFromCameraInfo(left, right);
+    try {
+      rect_left_.emplace(left);
+      rect_right_.emplace(right);
+      camera_ = bag::StereoFromCameraInfo(left, right);
+    } catch (const std::runtime_error& e) {
+      throw std::runtime_error(path.string() + ": " + topics_.left_info + " / " + topics_.right_info + ": " +
+                               e.what());
+    }
 
     // T_rect_cam: the left camera's optical frame into its rectified frame.
     Eigen::Isometry3d T_rect_cam = Eigen::Isometry3d::Identity();

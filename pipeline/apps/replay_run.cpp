@@ -20,10 +20,10 @@ void ReplayRun::Add(const StepResult& step) {
   vo_ms_total_ += r.vo_ms;
   const bool vo_lost = r.vo.status == vo::Status::kLost;
   if (vo_lost) ++lost_frames_;
-  if (!gt_enu_ && localizer_.enu().has_origin()) {
+  if (dataset_ && !gt_enu_ && localizer_.enu().has_origin()) {
     const auto& e = localizer_.enu();
     gt_enu_.emplace(e.origin_lat_deg(), e.origin_lon_deg(), e.origin_alt_m());
-    for (const auto& s : dataset_.oxts()) gt_poses_.push_back({s.t_ns, kitti::OxtsToEnuPose(s.record, *gt_enu_)});
+    for (const auto& s : dataset_->oxts()) gt_poses_.push_back({s.t_ns, kitti::OxtsToEnuPose(s.record, *gt_enu_)});
   }
   if (!vo_lost && step.frame_index > 0) {
     const auto g0 = TruthAt(r.vo_body.t_prev_ns), g1 = TruthAt(r.vo_body.t_ns);
@@ -34,7 +34,8 @@ void ReplayRun::Add(const StepResult& step) {
   vo_motion_.push_back(vo_lost ? Eigen::Isometry3d::Identity() : r.vo_body.T_prev_curr);
 
   ReplaySample s;
-  s.t_s = static_cast<double>(step.t_ns - dataset_.time_ns(0)) * 1e-9;
+  if (!t0_ns_) t0_ns_ = dataset_ ? dataset_->time_ns(0) : step.t_ns;
+  s.t_s = static_cast<double>(step.t_ns - *t0_ns_) * 1e-9;
   s.initialized = ekf.initialized();
   s.mode = r.pose.mode;
   s.in_outage = r.in_outage;
@@ -50,6 +51,7 @@ void ReplayRun::Add(const StepResult& step) {
   ++vo_health_counts_[extra.vo_health];
   ++mode_counts_[fusion::ToString(r.pose.mode)];
   for (const auto& f : r.gps_feeds) {
+    fixes_.push_back(f.fix);
     extra.p_enu_gps_m = f.p_enu_m;
     extra.gps_rejected = extra.gps_rejected || f.update.rejected;
     if (f.update.buffered) continue;  // before initialisation
@@ -64,16 +66,25 @@ void ReplayRun::Add(const StepResult& step) {
   }
   extras_.push_back(extra);
   frame_index_.push_back(step.frame_index);
+  t_ns_.push_back(step.t_ns);
   T_enu_body_.push_back(r.pose.T_enu_body);
   last_ = r;
 }
 
 void ReplayRun::WriteCsv(const std::string& path) const {
   // VO-only track: the raw VO chained in ENU from the ground-truth pose of frame 0.
-  const auto& oxts = dataset_.oxts();
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  if (gt_enu_ && !oxts.empty())
-    T = TruthAt(std::max(dataset_.time_ns(0), oxts.front().t_ns)).value_or(Eigen::Isometry3d::Identity());
+  if (dataset_ && gt_enu_ && !dataset_->oxts().empty()) {
+    T = TruthAt(std::max(dataset_->time_ns(0), dataset_->oxts().front().t_ns)).value_or(Eigen::Isometry3d::Identity());
+  } else if (!T_enu_body_.empty()) {
+    // Without ground truth: from the first initialised fused pose.
+    for (size_t k = 0; k < samples_.size(); ++k) {
+      if (samples_[k].initialized) {
+        T = T_enu_body_[k];
+        break;
+      }
+    }
+  }
   std::vector<PlotExtras> extras = extras_;
   for (size_t k = 0; k < extras.size(); ++k) {
     if (k > 0) T = T * vo_motion_[k];
@@ -90,11 +101,24 @@ void ReplayRun::WriteTum(const std::string& path) const {
     if (!samples_[k].initialized) continue;  // a pose without ground truth is still written
     const Eigen::Isometry3d& T = T_enu_body_[k];
     const Eigen::Quaterniond q(T.linear());
-    tum << dataset_.tum_time_s(static_cast<size_t>(frame_index_[k])) << ' ' << T.translation().x() << ' '
+    const double t_s = dataset_ ? dataset_->tum_time_s(static_cast<size_t>(frame_index_[k]))
+                                : static_cast<double>(t_ns_[k]) * 1e-9;
+    tum << t_s << ' ' << T.translation().x() << ' '
         << T.translation().y() << ' ' << T.translation().z() << ' ' << q.x() << ' ' << q.y() << ' ' << q.z() << ' '
         << q.w() << '\n';
   }
   if (!tum.flush()) throw std::runtime_error(path + ": write failed");
+}
+
+void ReplayRun::WriteFixes(const std::string& path) const {
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error(path + ": cannot write");
+  out << "t_ns,lat_deg,lon_deg,alt_m,sigma_h_m,sigma_v_m\n" << std::setprecision(12);
+  for (const auto& f : fixes_) {
+    out << f.t_ns << ',' << f.lat_deg << ',' << f.lon_deg << ',' << f.alt_m << ',' << f.horizontal_sigma_m() << ','
+        << f.vertical_sigma_m() << '\n';
+  }
+  if (!out.flush()) throw std::runtime_error(path + ": write failed");
 }
 
 nlohmann::json ReplayRun::Summary(const ReplayMetrics& metrics, double wall_s) const {

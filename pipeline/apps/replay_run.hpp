@@ -24,8 +24,9 @@ namespace locaid::pipeline {
 
 class ReplayRun {
  public:
-  // `dataset` and `localizer` must outlive the run.
-  ReplayRun(const kitti::StereoDataset& dataset, const Localizer& localizer, const fusion::Scenario& scenario)
+  // `dataset` (nullptr: a source without ground truth, e.g. a ROS 2 bag) and
+  // `localizer` must outlive the run.
+  ReplayRun(const kitti::StereoDataset* dataset, const Localizer& localizer, const fusion::Scenario& scenario)
       : dataset_(dataset), localizer_(localizer), scenario_(scenario) {}
 
   // One pose of the frame loop (kind kPose).
@@ -38,11 +39,15 @@ class ReplayRun {
   void WriteCsv(const std::string& path) const;
   // Initialised poses only; time = the frame's TUM time.
   void WriteTum(const std::string& path) const;
+  // The fixes the filter saw (after the scenario), one per line:
+  // t_ns,lat_deg,lon_deg,alt_m,sigma_h_m,sigma_v_m (the sigmas the filter used).
+  void WriteFixes(const std::string& path) const;
 
  private:
   std::optional<Eigen::Isometry3d> TruthAt(int64_t t_ns) const;
 
-  const kitti::StereoDataset& dataset_;
+  const kitti::StereoDataset* dataset_;
+  std::optional<int64_t> t0_ns_;  // time of the first pose (no dataset)
   const Localizer& localizer_;
   const fusion::Scenario scenario_;
   // Ground truth: every OXTS record in the filter's ENU frame, once it has one.
@@ -50,7 +55,8 @@ class ReplayRun {
   std::vector<TimedPose> gt_poses_;
 
   std::vector<ReplaySample> samples_;
-  std::vector<int64_t> frame_index_;
+  std::vector<fusion::GpsFix> fixes_;  // every fix fed to the filter
+  std::vector<int64_t> frame_index_, t_ns_;
   std::vector<Eigen::Isometry3d> T_enu_body_;
   std::vector<Eigen::Isometry3d> vo_motion_;  // raw VO (body axes) per pose, identity when lost
   std::vector<PlotExtras> extras_;            // p_enu_vo_m filled at the end

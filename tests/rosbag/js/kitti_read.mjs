@@ -3,6 +3,8 @@
 // int64 ns since 1970 UTC (kitti/timestamps.cpp, exact: BigInt digits), OXTS
 // records of 30 fields, and T_cam0_imu = R_rect_00 * T_cam0_velo * T_velo_imu
 // with the rotation projected onto SO(3) (kitti/calib.cpp ComputeT_cam0_imu).
+// The bag's /tf_static carries the raw (unrectified) camera frame, as ROS
+// does: CameraInfo's R (= R_rect_00) turns it into the rectified one.
 import fs from "node:fs";
 import path from "node:path";
 
@@ -99,8 +101,9 @@ export function quatFromRollPitchYaw(roll, pitch, yaw) {
   };
 }
 
-// Calibration of the drive's date folder: cameras 0 and 1, T_cam0_imu and
-// its inverse T_imu_cam0 (4x4 row arrays), baseline from the P matrices.
+// Calibration of the drive's date folder: cameras 0 and 1, T_cam0_imu (to
+// the rectified camera 0), T_imu_cam0 (the raw camera 0 in the IMU frame;
+// 4x4 row arrays), baseline from the P matrices.
 export function readCalib(dateDir) {
   const c2cFile = path.join(dateDir, "calib_cam_to_cam.txt");
   const c2c = readKeyValues(c2cFile);
@@ -117,12 +120,16 @@ export function readCalib(dateDir) {
   const T_cam0_velo = rigidOf("calib_velo_to_cam.txt");
   const T_velo_imu = rigidOf("calib_imu_to_velo.txt");
   const T_rect0 = rigid(rows(cams[0].R_rect, 3), [0, 0, 0]);
-  const T = matMul(matMul(T_rect0, T_cam0_velo), T_velo_imu);
-  const R = projectToRotation(T.map((r) => r.slice(0, 3)).slice(0, 3));
-  const t = [T[0][3], T[1][3], T[2][3]];
-  const T_cam0_imu = rigid(R, t);
-  const Rt = transpose(R);
-  const T_imu_cam0 = rigid(Rt, Rt.map((r) => -(r[0] * t[0] + r[1] * t[1] + r[2] * t[2])));
+  const inverse = (T) => {
+    const R = projectToRotation(T.map((r) => r.slice(0, 3)).slice(0, 3));
+    const t = [T[0][3], T[1][3], T[2][3]];
+    const Rt = transpose(R);
+    return { T: rigid(R, t), inv: rigid(Rt, Rt.map((r) => -(r[0] * t[0] + r[1] * t[1] + r[2] * t[2]))) };
+  };
+  const rectified = inverse(matMul(matMul(T_rect0, T_cam0_velo), T_velo_imu));
+  const raw = inverse(matMul(T_cam0_velo, T_velo_imu));
+  const T_cam0_imu = rectified.T;
+  const T_imu_cam0 = raw.inv;  // the raw camera frame: what /tf_static holds
   const P1 = cams[1].P_rect;
   const baseline = P1[0] !== 0 ? -P1[3] / P1[0] : 0;
   return { cams, T_cam0_imu, T_imu_cam0, baseline };

@@ -16,9 +16,11 @@
 //   P/gps/fix                               sensor_msgs/msg/NavSatFix (gps_link) from OXTS or --gps-csv
 //   P/vehicle/speed                         geometry_msgs/msg/TwistStamped (base_link), --speed only
 //   P/tf_static                             tf2_msgs/msg/TFMessage, once, stamp = first image:
-//     imu_link -> camera_left:  T_imu_cam0 = inverse(R_rect_00 * T_cam0_velo * T_velo_imu), the
-//                               rectified camera-0 frame as kitti/calib.cpp ComputeT_cam0_imu
-//     camera_left -> camera_right: (baseline, 0, 0), identity rotation (the rectified right camera)
+//     imu_link -> camera_left:  T_imu_cam0 = inverse(T_cam0_velo * T_velo_imu), the raw camera-0
+//                               optical frame as ROS has it (CameraInfo's R = R_rect_00 rectifies it;
+//                               R_rect_00 * that = kitti/calib.cpp ComputeT_cam0_imu)
+//     camera_left -> camera_right: (baseline, 0, 0), identity rotation (the rectified pair's offset,
+//                               an approximation of the raw right camera; readers use P, not this)
 //     imu_link -> gps_link:      identity (OXTS reports the IMU position)
 // Log and publish time = stamp + a seeded pseudo-random 5..60 ms receive delay (--log-time stamp: none),
 // raised to 1 us after the topic's previous message where needed (a topic arrives in stamp order);
