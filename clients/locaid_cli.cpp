@@ -1,7 +1,7 @@
 // locaid: command-line client of locaid-server.
 //
 //   locaid health [--service NAME] [--wait S]
-//   locaid session start --kitti PATH | --synthetic SEED [--scenario NAME|--scenario-file F] [--vo M] [--rate R]
+//   locaid session start --kitti PATH | --bag PATH [--bag-topics F] | --synthetic SEED [--scenario NAME|--scenario-file F] [--vo M] [--rate R]
 //   locaid session list | get ID | stop ID [--remove]
 //   locaid subscribe ID [--from-start] [--format print|tum|kitti|csv|geojson|mcap|ros2-mcap] [--out FILE] [--max N]
 //   locaid outage start ID [--duration S] | stop ID | window ID --start S --duration S
@@ -10,6 +10,7 @@
 //   locaid scenario ID (--name NAME | --file YAML)
 //   locaid stats ID
 // Every call carries a deadline (--timeout-s; subscribe: --stream-timeout-s).
+#include "bag/bag_topics.hpp"
 #include "client/connection.hpp"
 #include "clients/cli_camera_fault.hpp"
 #include "clients/cli_print.hpp"
@@ -126,6 +127,7 @@ void OnSignal(int) {
 struct StartOptions {
   std::string kitti_path;
   int64_t first_frame = 0, last_frame = -1;
+  std::string bag_path, bag_topics_file;  // a ROS 2 bag on the server; its topics as locaid-replay reads them
   bool synthetic = false;
   uint64_t synth_seed = 0;
   uint32_t synth_frames = 0, history = 0;
@@ -214,11 +216,18 @@ int StartSession(const Common& c, v1::Localization::Stub& stub, const StartOptio
     req.mutable_kitti()->set_path(std::filesystem::absolute(o.kitti_path).lexically_normal().string());
     req.mutable_kitti()->set_first_frame(o.first_frame);
     req.mutable_kitti()->set_last_frame(o.last_frame);
+  } else if (!o.bag_path.empty()) {
+    req.mutable_bag()->set_path(std::filesystem::absolute(o.bag_path).lexically_normal().string());
+    const auto t = o.bag_topics_file.empty() ? locaid::bag::BagTopics{} : locaid::bag::LoadBagTopics(o.bag_topics_file);
+    v1::BagTopics* topics = req.mutable_bag()->mutable_topics();
+    topics->set_left_image(t.left_image); topics->set_left_info(t.left_info); topics->set_imu(t.imu);
+    topics->set_right_image(t.right_image); topics->set_right_info(t.right_info); topics->set_gps(t.gps);
+    topics->set_speed(t.speed);
   } else if (o.synthetic) {
     req.mutable_synthetic()->set_seed(o.synth_seed);
     req.mutable_synthetic()->set_frames(o.synth_frames);
   } else {
-    std::cerr << "error: session start needs --kitti PATH or --synthetic SEED\n";
+    std::cerr << "error: session start needs --kitti PATH, --bag PATH or --synthetic SEED\n";
     return 2;
   }
   FillScenario(o.scenario_name, o.scenario_file, req.mutable_scenario());
@@ -349,6 +358,11 @@ int main(int argc, char** argv) {
                                     "KITTI raw drive or odometry sequence folder, opened by the server (a relative "
                                     "path is made absolute from this command's working directory)");
   auto* o_synth = start->add_option("--synthetic", so.synth_seed, "render a synthetic drive with this seed");
+  auto* o_bag = start->add_option("--bag", so.bag_path, "ROS 2 bag (.mcap file or rosbag2 directory), opened by the server; "
+                                                       "a relative path is made absolute as --kitti's");
+  o_bag->excludes(o_kitti)->excludes(o_synth);
+  start->add_option("--bag-topics", so.bag_topics_file, "bag: YAML naming its topics (the keys of locaid-replay --bag-topics)")
+      ->check(CLI::ExistingFile)->needs(o_bag);
   o_kitti->excludes(o_synth);
   start->add_option("--frames", so.synth_frames, "synthetic: number of frames");
   start->add_option("--first", so.first_frame, "kitti: first frame");

@@ -7,6 +7,7 @@
 #include "kitti/dataset.hpp"
 #include "kitti/raw_drive.hpp"
 #include "pipeline/live_frame_source.hpp"
+#include "server/bag_source_request.hpp"
 #include "server/gps_receiver.hpp"
 #include "server/status.hpp"
 #include "server/synthetic_drive.hpp"
@@ -156,20 +157,9 @@ std::unique_ptr<pipeline::FrameLoop> MakeFrameLoop(const EstimatorFactory& make,
 // A KITTI drive on the server: opened and checked (frames in range, at least
 // one stereo pair), or the status that says why not.
 Status OpenKittiSource(const v1::KittiSource& k, std::unique_ptr<pipeline::FrameSource>* out, std::string* name) {
-  if (k.path().empty()) return Invalid("kitti.path: required");
-  if (k.path().size() > PATH_MAX) {
-    return Invalid("kitti.path: " + std::to_string(k.path().size()) + " bytes, longer than PATH_MAX (" +
-                   std::to_string(PATH_MAX) + ")");
-  }
+  if (Status s = RequireServerPath("kitti.path", k.path(), "a drive or sequence folder on the server"); !s.ok())
+    return s;
   std::error_code ec;
-  if (!std::filesystem::exists(k.path(), ec)) {
-    // A relative path is the server's, not the client's: say from where.
-    const std::string from = std::filesystem::path(k.path()).is_relative()
-                                 ? " (a relative path is resolved from the server's working directory " +
-                                       Quoted(std::filesystem::current_path(ec).string()) + ")"
-                                 : "";
-    return Invalid("kitti.path " + Quoted(k.path()) + ": does not exist on the server" + from);
-  }
   if (!std::filesystem::is_directory(k.path(), ec)) {
     return Invalid("kitti.path " + Quoted(k.path()) + ": not a directory");
   }
@@ -290,6 +280,9 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
       case v1::StartSessionRequest::kKitti:
         if (Status s = OpenKittiSource(req.kitti(), &source, &options.source); !s.ok()) return s;
         break;
+      case v1::StartSessionRequest::kBag:
+        if (Status s = OpenBagSource(req.bag(), &setup, &source, &options.source); !s.ok()) return s;
+        break;
       case v1::StartSessionRequest::kSynthetic:
         return StartSynthetic(req.synthetic(), std::move(options), std::move(setup), id);
       case v1::StartSessionRequest::kLive: {
@@ -300,7 +293,7 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
         break;
       }
       case v1::StartSessionRequest::SOURCE_NOT_SET:
-        return Invalid("source: one of kitti, synthetic or live is required");
+        return Invalid("source: one of kitti, bag, synthetic or live is required");
     }
   } catch (const kitti::Error& e) {
     return {StatusCode::FAILED_PRECONDITION, std::string("cannot open input: ") + e.what()};

@@ -2,8 +2,10 @@
 
 #include "locaid/v1/localization.grpc.pb.h"
 
+#include <climits>
 #include <cstdint>
 #include <cstdio>
+#include <filesystem>
 #include <mutex>
 #include <random>
 
@@ -28,6 +30,22 @@ std::string Quoted(const std::string& input) {
   out.append(input, 0, kMax);
   out += input.size() <= kMax ? "'" : "...' (" + std::to_string(input.size()) + " bytes)";
   return out;
+}
+
+Status RequireServerPath(const std::string& field, const std::string& path, const std::string& what) {
+  if (path.empty()) return Invalid(field + ": required (" + what + ")");
+  if (path.size() > PATH_MAX) {
+    return Invalid(field + ": " + std::to_string(path.size()) + " bytes, longer than PATH_MAX (" +
+                   std::to_string(PATH_MAX) + ")");
+  }
+  std::error_code ec;
+  if (std::filesystem::exists(path, ec)) return Status::OK;
+  // A relative path is the server's, not the client's: say from where.
+  const std::string from = std::filesystem::path(path).is_relative()
+                               ? " (a relative path is resolved from the server's working directory " +
+                                     Quoted(std::filesystem::current_path(ec).string()) + ")"
+                               : "";
+  return Invalid(field + " " + Quoted(path) + ": does not exist on the server" + from);
 }
 
 Status RequireActive(const Session& session, const char* rpc) {

@@ -25,6 +25,11 @@ grpc::Status Bounded(const grpc::Status& s);
 grpc::Status Invalid(const std::string& msg);
 // An input echoed in a message: quoted, cut to 200 bytes (with its size).
 std::string Quoted(const std::string& input);
+// A path a request names on the server's file system (`field`, e.g.
+// "kitti.path"): OK when it exists there, else INVALID_ARGUMENT naming the
+// field: empty ("required"; `what` says what it should be), longer than
+// PATH_MAX, or absent (a relative one: from which folder it was resolved).
+grpc::Status RequireServerPath(const std::string& field, const std::string& path, const std::string& what);
 // Controls of a session's pipeline apply only while it runs (or starts).
 grpc::Status RequireActive(const Session& session, const char* rpc);
 // Finishes a unary call with Bounded(status).
