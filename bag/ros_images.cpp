@@ -47,6 +47,28 @@ std::string Lower(std::string s) {
   return s;
 }
 
+// Shrinks the rectified image's rectangle, one row or column at a time from
+// the side with the most border pixels, until no pixel in it is border.
+cv::Rect ValidRegion(const cv::Mat& map1, const cv::Mat& map2, cv::Size size) {
+  cv::Mat ones(size, CV_8UC1, cv::Scalar(255)), valid;
+  cv::remap(ones, valid, map1, map2, cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
+  int x0 = 0, y0 = 0, x1 = size.width, y1 = size.height;  // [x0, x1) x [y0, y1)
+  const auto border = [&](int xa, int ya, int xb, int yb) {
+    return xb > xa && yb > ya ? (xb - xa) * (yb - ya) - cv::countNonZero(valid(cv::Rect(xa, ya, xb - xa, yb - ya))) : 0;
+  };
+  while (x1 - x0 > 1 && y1 - y0 > 1) {
+    const int sides[4] = {border(x0, y0, x1, y0 + 1), border(x0, y1 - 1, x1, y1), border(x0, y0, x0 + 1, y1),
+                          border(x1 - 1, y0, x1, y1)};
+    const int worst = static_cast<int>(std::max_element(sides, sides + 4) - sides);
+    if (sides[worst] == 0) break;
+    if (worst == 0) ++y0;
+    if (worst == 1) --y1;
+    if (worst == 2) ++x0;
+    if (worst == 3) --x1;
+  }
+  return {x0, y0, x1 - x0, y1 - y0};
+}
+
 bool AllZero(const double* v, size_t n) {
   return std::all_of(v, v + n, [](double x) { return x == 0; });
 }
@@ -123,6 +145,7 @@ Rectifier::Rectifier(const ros::CameraInfo& info)
   const bool full_roi = info.roi_width == 0 || (info.roi_width == info.width && info.roi_height == info.height);
   if (!full_roi) throw std::runtime_error(who + "a region of interest smaller than the image is not supported");
 
+  valid_ = cv::Rect(0, 0, width_, height_);
   const Eigen::Matrix3d R = RectificationRotation(info);
   const bool no_distortion = AllZero(info.d.data(), info.d.size());
   if (no_distortion && R.isIdentity(1e-9)) return;  // already rectified
@@ -152,6 +175,11 @@ Rectifier::Rectifier(const ros::CameraInfo& info)
   } else {
     throw std::runtime_error(who + "distortion model '" + model +
                              "' not supported (plumb_bob, rational_polynomial, equidistant)");
+  }
+  valid_ = ValidRegion(map1_, map2_, size);
+  if (valid_.width < width_ / 4 || valid_.height < height_ / 4) {
+    throw std::runtime_error(who + "rectification leaves a valid region of only " + std::to_string(valid_.width) +
+                             "x" + std::to_string(valid_.height) + " pixels: K, D, R and P do not fit together");
   }
 }
 

@@ -1,7 +1,7 @@
 // From ROS 2 image messages to the rectified 8-bit gray images VO reads:
 // decoding (raw encodings and png/jpeg) and rectification from CameraInfo as
-// image_proc does it (the output keeps CameraInfo's size; the rectified
-// camera is P's left 3x3).
+// image_proc does it (the rectified camera is P's left 3x3, the output has
+// CameraInfo's size; Rectifier::valid_region() is the part without border).
 #pragma once
 
 #include "bag/ros_messages.hpp"
@@ -34,12 +34,17 @@ class Rectifier {
   // `raw` must have CameraInfo's width x height (throws otherwise).
   cv::Mat Rectify(const cv::Mat& raw) const;
   bool passthrough() const { return map1_.empty(); }
+  // The largest rectangle of the rectified image whose every pixel comes from
+  // inside the raw image (no black border): the whole image when passing
+  // through.
+  cv::Rect valid_region() const { return valid_; }
   int width() const { return width_; }
   int height() const { return height_; }
 
  private:
   int width_ = 0, height_ = 0;
   cv::Mat map1_, map2_;
+  cv::Rect valid_;
 };
 
 // The rectified stereo pair of the left and right CameraInfo: fx, fy, cx, cy

@@ -70,6 +70,18 @@ BagFrameSource::BagFrameSource(const std::filesystem::path& path, BagSourceOptio
       rect_left_.emplace(left);
       rect_right_.emplace(right);
       camera_ = bag::StereoFromCameraInfo(left, right);
+      // Both images keep only the part every pixel of which has a source in
+      // both raw images (KITTI's rectified size, for its drives): no border
+      // edge for VO to track.
+      crop_ = rect_left_->valid_region() & rect_right_->valid_region();
+      camera_.cx -= crop_.x;
+      camera_.cy -= crop_.y;
+      camera_.width = crop_.width;
+      camera_.height = crop_.height;
+      setup_notes_.push_back("rectified images cropped to " + std::to_string(crop_.width) + "x" +
+                             std::to_string(crop_.height) + " at (" + std::to_string(crop_.x) + ", " +
+                             std::to_string(crop_.y) + ") of " + std::to_string(left.width) + "x" +
+                             std::to_string(left.height) + " (no border)");
     } catch (const std::runtime_error& e) {
       throw std::runtime_error(path.string() + ": " + topics_.left_info + " / " + topics_.right_info + ": " +
                                e.what());
@@ -257,7 +269,7 @@ void BagFrameSource::TryPair() {
 cv::Mat BagFrameSource::Decode(const Pending& image, const bag::Rectifier& rectifier) const {
   const cv::Mat raw = image.type == bag::ros::kImage ? bag::ToGray(bag::ros::DecodeImage(image.data))
                                                      : bag::ToGray(bag::ros::DecodeCompressedImage(image.data));
-  return rectifier.Rectify(raw);
+  return rectifier.Rectify(raw)(crop_).clone();
 }
 
 SourceItem BagFrameSource::MakeFrame(Pending left, Pending right) {

@@ -7,7 +7,8 @@
 // within `reorder_window_s` (a message later than that is counted and
 // dropped). Left and right images pair when their stamps are within
 // `stereo_tolerance_s`; an image without a partner is a skipped frame.
-// Raw images are rectified from their CameraInfo (bag/ros_images.hpp); the
+// Raw images are rectified from their CameraInfo (bag/ros_images.hpp) and
+// cropped to the region without border both cameras share; the
 // camera-IMU extrinsic and the GPS antenna lever arm come from /tf_static.
 //
 // The IMU's frame is the body frame (x forward, y left, z up, REP-103); with
@@ -105,6 +106,7 @@ class BagFrameSource : public FrameSource {
   bag::BagTopics topics_;
   StereoCamera camera_;
   std::optional<bag::Rectifier> rect_left_, rect_right_;
+  cv::Rect crop_;  // of the rectified images: the part both cameras see without border
   Eigen::Isometry3d T_cam0_imu_ = Eigen::Isometry3d::Identity();
   Eigen::Vector3d lever_arm_ = Eigen::Vector3d::Zero();
   std::vector<std::string> setup_notes_;
