@@ -145,7 +145,7 @@ Rectifier::Rectifier(const ros::CameraInfo& info)
   const bool full_roi = info.roi_width == 0 || (info.roi_width == info.width && info.roi_height == info.height);
   if (!full_roi) throw std::runtime_error(who + "a region of interest smaller than the image is not supported");
 
-  valid_ = cv::Rect(0, 0, width_, height_);
+  valid_ = crop_ = cv::Rect(0, 0, width_, height_);
   const Eigen::Matrix3d R = RectificationRotation(info);
   const bool no_distortion = AllZero(info.d.data(), info.d.size());
   if (no_distortion && R.isIdentity(1e-9)) return;  // already rectified
@@ -189,10 +189,25 @@ cv::Mat Rectifier::Rectify(const cv::Mat& raw) const {
                              " disagrees with its camera_info (" + std::to_string(width_) + "x" +
                              std::to_string(height_) + ")");
   }
-  if (passthrough()) return raw;
+  if (passthrough()) return crop_.size() == raw.size() ? raw : raw(crop_).clone();
   cv::Mat rect;
   cv::remap(raw, rect, map1_, map2_, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
   return rect;
+}
+
+void Rectifier::Crop(const cv::Rect& region) {
+  if (region.empty() || (region & crop_) != region) {
+    throw std::runtime_error("rectifier: crop " + std::to_string(region.width) + "x" + std::to_string(region.height) +
+                             " at (" + std::to_string(region.x) + ", " + std::to_string(region.y) +
+                             ") is not inside the image (or a crop before)");
+  }
+  // The maps of the region only: remap then writes just those pixels.
+  if (!passthrough()) {
+    const cv::Rect in_maps = region - crop_.tl();  // the maps may be cropped already
+    map1_ = map1_(in_maps).clone();
+    map2_ = map2_(in_maps).clone();
+  }
+  crop_ = region;
 }
 
 Eigen::Matrix3d RectificationRotation(const ros::CameraInfo& info) {

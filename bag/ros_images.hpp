@@ -38,13 +38,17 @@ class Rectifier {
   // inside the raw image (no black border): the whole image when passing
   // through.
   cv::Rect valid_region() const { return valid_; }
+  // From now on Rectify() returns only `region` of the rectified image
+  // (computed directly, no full-size image in between). Throws when
+  // `region` is not inside the image (or inside the previous crop).
+  void Crop(const cv::Rect& region);
   int width() const { return width_; }
   int height() const { return height_; }
 
  private:
   int width_ = 0, height_ = 0;
   cv::Mat map1_, map2_;
-  cv::Rect valid_;
+  cv::Rect valid_, crop_;  // crop_: the part Rectify() returns
 };
 
 // The rectified stereo pair of the left and right CameraInfo: fx, fy, cx, cy

@@ -74,6 +74,8 @@ BagFrameSource::BagFrameSource(const std::filesystem::path& path, BagSourceOptio
       // both raw images (KITTI's rectified size, for its drives): no border
       // edge for VO to track.
       crop_ = rect_left_->valid_region() & rect_right_->valid_region();
+      rect_left_->Crop(crop_);
+      rect_right_->Crop(crop_);
       camera_.cx -= crop_.x;
       camera_.cy -= crop_.y;
       camera_.width = crop_.width;
@@ -269,7 +271,7 @@ void BagFrameSource::TryPair() {
 cv::Mat BagFrameSource::Decode(const Pending& image, const bag::Rectifier& rectifier) const {
   const cv::Mat raw = image.type == bag::ros::kImage ? bag::ToGray(bag::ros::DecodeImage(image.data))
                                                      : bag::ToGray(bag::ros::DecodeCompressedImage(image.data));
-  return rectifier.Rectify(raw)(crop_).clone();
+  return rectifier.Rectify(raw);
 }
 
 SourceItem BagFrameSource::MakeFrame(Pending left, Pending right) {

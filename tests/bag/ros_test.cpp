@@ -100,6 +100,16 @@ TEST(Rectifier, RectifiedInputPassesThroughAndRawIsRemapped) {
   EXPECT_EQ(raw.Rectify(img).size(), img.size());
   EXPECT_NE(ErrorOf([&] { raw.Rectify(cv::Mat(10, 10, CV_8UC1)); }).find("disagrees with its camera_info"),
             std::string::npos);
+  // A crop gives exactly that part of the full rectified image.
+  cv::Mat texture(48, 64, CV_8UC1);
+  cv::randu(texture, 0, 255);
+  const cv::Mat full = Rectifier(Info(0, {0.3, 0.1, 0, 0, 0})).Rectify(texture);
+  Rectifier cropped(Info(0, {0.3, 0.1, 0, 0, 0}));  // corners map outside the raw image
+  const cv::Rect region = cropped.valid_region();
+  ASSERT_LT(region.area(), 64 * 48);
+  cropped.Crop(region);
+  EXPECT_EQ(cv::norm(cropped.Rectify(texture), full(region), cv::NORM_INF), 0);
+  EXPECT_NE(ErrorOf([&] { cropped.Crop(cv::Rect(0, 0, 64, 48)); }).find("not inside"), std::string::npos);
   EXPECT_FALSE(Rectifier(Info(0, {0.1, 0.01, 0, 0}, "equidistant")).passthrough());
   EXPECT_FALSE(Rectifier(Info(0, {0.1, 0.01, 0, 0, 0, 0, 0, 0}, "rational_polynomial")).passthrough());
 }
