@@ -71,6 +71,11 @@ struct Scenario {
   // Where the simulated receiver's antenna sits in the body (IMU) frame, m:
   // the degraded fix is of that point (needs the attitude, see Apply).
   Eigen::Vector3d gps_antenna_body_m = Eigen::Vector3d::Zero();
+  // Measured fixes (a ROS 2 bag's, a client's): false, fused as recorded
+  // (outages still apply); true, also through the receiver model above
+  // (rate, noise, bias, jumps) on top of the recorded position, with the
+  // model's sigma added to the recorded one.
+  bool degrade_measured_gps = false;
   // IMU.
   ImuGrade imu_grade = ImuGrade::kAsRecorded;
   double imu_accel_bias_sigma_mps2 = 0.05;      // kMems: turn-on bias, 1-sigma per axis

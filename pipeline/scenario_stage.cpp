@@ -52,8 +52,21 @@ Measurements ScenarioStage::Apply(const SensorBatch& batch) {
   for (; next_imu < batch.reference_imu.size(); ++next_imu) out.imu.push_back(imu_->Apply(batch.reference_imu[next_imu]));
   // Measured data: IMU as it is, fixes unless GPS is out at their time.
   out.imu.insert(out.imu.end(), batch.imu.begin(), batch.imu.end());
-  for (const ArrivedFix& f : batch.gps)
-    if (!gps_->InOutage(f.fix.t_ns)) out.gps.push_back(f.fix);
+  for (const ArrivedFix& f : batch.gps) {
+    if (gps_->InOutage(f.fix.t_ns)) continue;
+    if (!gps_->scenario().degrade_measured_gps) {
+      out.gps.push_back(f.fix);
+      continue;
+    }
+    // The scenario's receiver on top of the recorded fix: its noise adds to
+    // the recorded uncertainty.
+    auto fix = gps_->Apply(f.fix.t_ns, f.fix.lat_deg, f.fix.lon_deg, f.fix.alt_m);
+    if (!fix) continue;  // decimated to the scenario's rate
+    fix->sigma_h_m = std::hypot(f.fix.horizontal_sigma_m(), fix->sigma_h_m);
+    fix->sigma_v_m = std::hypot(f.fix.vertical_sigma_m(), fix->sigma_v_m);
+    fix->has_altitude = f.fix.has_altitude;
+    out.gps.push_back(*fix);
+  }
   out.speed.insert(out.speed.end(), batch.speed.begin(), batch.speed.end());
   auto by_time = [](const auto& a, const auto& b) { return a.t_ns < b.t_ns; };
   std::stable_sort(out.imu.begin(), out.imu.end(), by_time);

@@ -160,7 +160,13 @@ fusion::Scenario ParseScenarioYaml(const std::string& text, const std::string& w
   }
   if (const auto g = root["gps"]) {
     c.CheckKeys(g, "gps", {"rate_hz", "sigma_h_m", "sigma_v_m", "bias_sigma_m", "bias_tau_s",
-                           "jump_probability", "jump_size_m", "jump_duration_s", "antenna_body_m"});
+                           "jump_probability", "jump_size_m", "jump_duration_s", "antenna_body_m", "measured"});
+    if (g["measured"]) {
+      const std::string m = g["measured"].IsScalar() ? g["measured"].Scalar() : "";
+      if (m == "as-recorded") s.degrade_measured_gps = false;
+      else if (m == "degraded") s.degrade_measured_gps = true;
+      else c.Fail(g["measured"], "gps.measured", "expected 'as-recorded' or 'degraded', got '" + m + "'");
+    }
     if (g["antenna_body_m"]) {
       const auto a = g["antenna_body_m"];
       if (!a.IsSequence() || a.size() != 3) c.Fail(a, "gps.antenna_body_m", "expected [x, y, z] in metres (body frame)");

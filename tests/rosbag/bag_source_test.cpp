@@ -238,6 +238,41 @@ TEST(BagSource, NoFixWindowsAndOtherTopicNamesAreHandled) {
   EXPECT_LT(j["gps_used"].get<int>(), all["gps_used"].get<int>());
 }
 
+// The shipped scenario for a bag: its fixes at 1 Hz with more noise, and a
+// 10 s outage in the middle; as-recorded only the outage would apply.
+TEST(BagSource, AScenarioDegradesTheBagsOwnFixesOnRequest) {
+  REQUIRE_DATA_AND_NODE();
+  ScopedTempDir dir("bag_scenario");
+  const fs::path bag = Convert(dir.path() / "all.mcap");
+  const std::string scenario = std::string(LOCAID_SOURCE_DIR) + "/scenarios/bag-fixes-degraded.yaml";
+  const auto recorded = ReplayJson("--bag " + bag.string());
+  const fs::path fixes = dir.path() / "fixes.csv";
+  const auto degraded =
+      ReplayJson("--bag " + bag.string() + " --scenario " + scenario + " --out-fixes " + fixes.string());
+  ASSERT_EQ(degraded["outages"].size(), 1u);
+  const int used = recorded["gps_used"].get<int>(), worse = degraded["gps_used"].get<int>();
+  std::cout << "fixes fused: as recorded " << used << ", degraded " << worse << "\n";
+  EXPECT_GT(used, 100);
+  EXPECT_LT(worse, used / 5) << "1 Hz instead of the bag's rate, and an outage";
+  EXPECT_GT(worse, 3);
+  // The filter is told: the model's 3 m on top of the recorded sigma.
+  std::ifstream in(fixes);
+  std::string line;
+  std::getline(in, line);
+  int rows = 0;
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    for (std::stringstream ss(line); std::getline(ss, f.emplace_back(), ',');) {
+    }
+    f.pop_back();
+    ASSERT_EQ(f.size(), 6u) << line;  // t_ns, lat, lon, alt, sigma_h, sigma_v
+    const double sigma_h = std::stod(f[4]);
+    EXPECT_GT(sigma_h, 3.0) << line;
+    ++rows;
+  }
+  EXPECT_EQ(rows, worse);
+}
+
 TEST(BagSource, InspectListsTopicsAndTheChoice) {
   REQUIRE_DATA_AND_NODE();
   ScopedTempDir dir("bag_inspect");
