@@ -2,7 +2,8 @@
 // here (record::McapWriter, output::CdrWriter): a fix with status FIX but a
 // NaN position, NO_FIX, an IMU sample whose stamp goes back, a cut CDR
 // message, an image whose size disagrees with its camera_info, a channel
-// without a schema, log times out of stamp order. The source skips and
+// without a schema, log times out of stamp order; and an antenna lever arm
+// in /tf_static. The source skips and
 // counts each; nothing stops the run. (Bags from the official libraries:
 // bag_source_test.cpp.)
 #include "output/cdr_writer.hpp"
@@ -91,12 +92,16 @@ std::string Fix(int64_t t, int8_t status, double lat) {
 
 std::string TfStatic(int64_t t) {
   CdrWriter w;
-  w.SequenceLength(1);
+  w.SequenceLength(2);
   Header(w, t, "imu");
   w.String("cam_l");
   for (double v : {0.0, 0.0, 0.0}) w.Float64(v);
   // The optical frame (z forward, x right) in a body frame x forward, y left.
   for (double v : {-0.5, 0.5, -0.5, 0.5}) w.Float64(v);
+  Header(w, t, "imu");
+  w.String("gps");  // the antenna: 1.2 m ahead, 0.3 m left, 0.9 m up
+  for (double v : {1.2, 0.3, 0.9}) w.Float64(v);
+  for (double v : {0.0, 0.0, 0.0, 1.0}) w.Float64(v);
   return w.data();
 }
 
@@ -149,6 +154,9 @@ TEST(BagFaults, EachFaultIsSkippedAndCountedAndTheRunGoesOn) {
   pipeline::BagFrameSource source(path, {});
   EXPECT_EQ(source.topics().imu, "/imu");
   EXPECT_NEAR(source.camera().baseline_m, 0.5, 1e-12);
+  // The lever arm from /tf_static, in the body (IMU) frame, through the camera.
+  EXPECT_TRUE(source.gps_lever_arm_body_m().isApprox(Eigen::Vector3d(1.2, 0.3, 0.9), 1e-9))
+      << source.gps_lever_arm_body_m().transpose();
   int frames = 0, corrupt = 0;
   std::string errors;
   for (;;) {
