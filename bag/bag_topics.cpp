@@ -26,16 +26,11 @@ ros::Header HeaderOf(std::string_view type, std::string_view data) {
     const auto tf = ros::DecodeTfMessage(data);
     return tf.empty() ? ros::Header{} : tf.front().header;
   }
-  ros::Header h;
   if (type == ros::kImage || type == ros::kCompressedImage || type == ros::kCameraInfo || type == ros::kImu ||
       type == ros::kNavSatFix || type == ros::kTwistStamped) {
-    CdrReader r(data);  // every one of them starts with a std_msgs/Header
-    const int32_t sec = r.I32();
-    const uint32_t nanosec = r.U32();
-    h.stamp_ns = static_cast<int64_t>(sec) * 1'000'000'000 + nanosec;
-    h.frame_id = r.String();
+    return ros::DecodeHeader(data);
   }
-  return h;
+  return {};
 }
 
 // "/cam/left/image_raw/compressed" -> "/cam/left": the camera namespace of an

@@ -45,6 +45,11 @@ Eigen::Quaterniond Normalized(const Eigen::Quaterniond& q) {
 
 }  // namespace
 
+Header DecodeHeader(std::string_view cdr) {
+  CdrReader r(cdr);
+  return ReadHeader(r);
+}
+
 Image DecodeImage(std::string_view cdr) {
   CdrReader r(cdr);
   Image m;

@@ -90,6 +90,8 @@ struct TwistStamped {
 };
 
 // Each takes a whole CDR message (encapsulation header included).
+// The std_msgs/Header every stamped type above starts with (not TFMessage).
+Header DecodeHeader(std::string_view cdr);
 Image DecodeImage(std::string_view cdr);
 CompressedImage DecodeCompressedImage(std::string_view cdr);
 CameraInfo DecodeCameraInfo(std::string_view cdr);

@@ -24,13 +24,6 @@ Eigen::Isometry3d CameraBodyWithoutImu() {
   return T;
 }
 
-int64_t StampOfHeader(std::string_view data) {
-  bag::CdrReader r(data);
-  const int32_t sec = r.I32();
-  const uint32_t nanosec = r.U32();
-  return static_cast<int64_t>(sec) * 1'000'000'000 + nanosec;
-}
-
 std::string Seconds(int64_t ns) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.6f", static_cast<double>(ns) * 1e-9);
@@ -162,7 +155,7 @@ bool BagFrameSource::Fill() {
     }
     Pending p;
     try {
-      p.stamp_ns = StampOfHeader(m.data);
+      p.stamp_ns = bag::ros::DecodeHeader(m.data).stamp_ns;
     } catch (const bag::CdrError& e) {
       ++stats_.undecodable;
       pending_error_ = m.Where() + ": " + e.what();
@@ -305,15 +298,23 @@ SourceItem BagFrameSource::MakeFrame(Pending left, Pending right) {
 }
 
 void BagFrameSource::AddSensor(const Pending& p) {
+  // A reading older than its topic's last one, or not finite, is dropped and
+  // counted; otherwise `last` moves on to it.
+  const auto in_order = [&](int64_t stamp_ns, int64_t& last, bool finite, const char* what) {
+    if (stamp_ns > last && finite) {
+      last = stamp_ns;
+      return true;
+    }
+    ++stats_.late;
+    pending_error_ = p.where + ": " + what + " not after the previous one or not finite: dropped";
+    return false;
+  };
   try {
     if (p.role == Role::kImu) {
       const auto imu = bag::ros::DecodeImu(p.data);
-      if (imu.header.stamp_ns <= last_imu_ns_ || !Finite(imu.linear_acceleration) || !Finite(imu.angular_velocity)) {
-        ++stats_.late;
-        pending_error_ = p.where + ": IMU sample not after the previous one or not finite: dropped";
+      if (!in_order(imu.header.stamp_ns, last_imu_ns_,
+                    Finite(imu.linear_acceleration) && Finite(imu.angular_velocity), "IMU sample"))
         return;
-      }
-      last_imu_ns_ = imu.header.stamp_ns;
       fusion::ImuSample s;
       s.t_ns = imu.header.stamp_ns;
       s.accel_mps2 = imu.linear_acceleration;
@@ -322,12 +323,7 @@ void BagFrameSource::AddSensor(const Pending& p) {
       ++stats_.imu;
     } else if (p.role == Role::kGps) {
       const auto nav = bag::ros::DecodeNavSatFix(p.data);
-      if (nav.header.stamp_ns <= last_gps_ns_) {
-        ++stats_.late;
-        pending_error_ = p.where + ": fix not after the previous one: dropped";
-        return;
-      }
-      last_gps_ns_ = nav.header.stamp_ns;
+      if (!in_order(nav.header.stamp_ns, last_gps_ns_, true, "fix")) return;
       const bool position = std::isfinite(nav.latitude) && std::isfinite(nav.longitude) &&
                             std::isfinite(nav.altitude) && std::abs(nav.latitude) <= 90 &&
                             std::abs(nav.longitude) <= 180;
@@ -360,12 +356,7 @@ void BagFrameSource::AddSensor(const Pending& p) {
       ++stats_.fixes;
     } else {
       const auto twist = bag::ros::DecodeTwistStamped(p.data);
-      if (twist.header.stamp_ns <= last_speed_ns_ || !std::isfinite(twist.linear.x())) {
-        ++stats_.late;
-        pending_error_ = p.where + ": speed reading not after the previous one or not finite: dropped";
-        return;
-      }
-      last_speed_ns_ = twist.header.stamp_ns;
+      if (!in_order(twist.header.stamp_ns, last_speed_ns_, std::isfinite(twist.linear.x()), "speed reading")) return;
       fusion::SpeedSample s;
       s.t_ns = twist.header.stamp_ns;
       s.speed_mps = twist.linear.x();
