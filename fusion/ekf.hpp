@@ -245,6 +245,12 @@ class Ekf {
   // is a standstill (vehicle_constraints): the whole velocity is fused as 0.
   SpeedUpdate UpdateSpeed(const SpeedSample& reading);
   FusedPose Output(int64_t t_ns, bool vo_ok) const;
+  // Whether the vehicle surely moves faster than speed_mps at t_ns: a speed
+  // reading at most 0.5 s old says so, or, without one, the filter's own
+  // speed (IMU mode, initialised) exceeds it by 3 sigma along its direction.
+  // What VO reporting a standstill is checked against (a frozen camera whose
+  // repeated frames still differ).
+  bool SurelyMovingFasterThan(int64_t t_ns, double speed_mps) const;
 
   const EkfConfig& config() const { return config_; }
   bool initialized() const { return s_.initialized; }
@@ -331,6 +337,7 @@ class Ekf {
   ImuStillness stillness_;
   double zupt_gate_ = 0;                  // chi-square (3 dof) of a standstill speed reading
   std::optional<int64_t> last_speed_ns_;  // newest speed reading taken
+  double last_speed_mps_ = 0;             // and its value
   double gps_period_s_ = 1.0;
   double gps_lag_s_ = 0;  // how late fixes reach the filter after their frames (recent worst), s
 };

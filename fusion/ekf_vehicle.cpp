@@ -67,6 +67,7 @@ SpeedUpdate Ekf::UpdateSpeed(const SpeedSample& reading) {
   }
   model_->PropagateTo(s_, reading.t_ns);
   last_speed_ns_ = reading.t_ns;
+  last_speed_mps_ = reading.speed_mps;
   std::optional<VehicleGate> gate;
   if (config_.vehicle_constraints && std::abs(reading.speed_mps) < config_.zupt_speed_mps) {
     // Gated: a sensor stuck at 0 must not stop a car the filter knows is moving.
@@ -97,6 +98,18 @@ bool Ekf::Standstill(int64_t t_ns) const {
   const StillnessThresholds thresholds{config_.zupt_window_s, config_.zupt_gyro_radps, config_.zupt_accel_mps2,
                                        config_.zupt_min_samples};
   return s_.x.v_enu_mps.norm() < config_.zupt_max_estimated_speed_mps && stillness_.Still(thresholds);
+}
+
+bool Ekf::SurelyMovingFasterThan(int64_t t_ns, double speed_mps) const {
+  constexpr double kSpeedReadingFreshS = 0.5;
+  if (last_speed_ns_ && Seconds(t_ns, *last_speed_ns_) <= kSpeedReadingFreshS)
+    return std::abs(last_speed_mps_) > speed_mps;
+  if (!config_.use_imu || !s_.initialized) return false;
+  const double v = s_.x.v_enu_mps.norm();
+  if (!(v > speed_mps)) return false;
+  const Vec3 along = s_.x.v_enu_mps / v;
+  const double sigma = std::sqrt(std::max(0.0, along.dot(s_.P.block<3, 3>(kV, kV) * along)));
+  return v - 3 * sigma > speed_mps;
 }
 
 bool Ekf::VehicleConstraintsActive() const {

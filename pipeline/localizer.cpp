@@ -12,6 +12,13 @@ double MsSince(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
+// VO slower than kVoStillMps while the car surely moves faster than
+// kMovingMps (fusion::Ekf::SurelyMovingFasterThan): a frozen camera whose
+// repeated frames still differ (fresh sensor noise, a re-encoded buffer), so
+// the image guard's same-content check cannot see it.
+constexpr double kVoStillMps = 0.2;
+constexpr double kMovingMps = 1.5;
+
 }  // namespace
 
 fusion::EkfConfig EkfConfigForScenario(fusion::EkfConfig c, const fusion::Scenario& s) {
@@ -71,11 +78,21 @@ vo::RelativeMotion Localizer::TrackVo(const vo::StereoFrame& frame) {
   return m;
 }
 
+bool Localizer::VoContradictsVehicle(const vo::RelativeMotion& m) const {
+  if (m.status == vo::Status::kLost || m.t_ns <= m.t_prev_ns) return false;
+  const double dt_s = static_cast<double>(m.t_ns - m.t_prev_ns) * 1e-9;
+  return m.T_prev_curr.translation().norm() / dt_s < kVoStillMps && ekf_.SurelyMovingFasterThan(m.t_ns, kMovingMps);
+}
+
 FrameResult Localizer::Process(const vo::StereoFrame& frame) {
   FrameResult r;
   const auto t_vo = std::chrono::steady_clock::now();
   r.vo = TrackVo(frame);
   r.vo_ms = MsSince(t_vo);
+  if (VoContradictsVehicle(r.vo)) {
+    r.vo.status = vo::Status::kLost;  // never a standstill: the filter dead-reckons instead
+    r.vo.health = vo::Health::kFrozen;
+  }
   const auto t0 = std::chrono::steady_clock::now();
   const int64_t t_ns = r.vo.t_ns;
   // VO: cam0 motion -> body motion (the filter works in body axes), from the

@@ -83,6 +83,9 @@ class Localizer final : public Estimator {
 
  private:
   vo::RelativeMotion TrackVo(const vo::StereoFrame& frame);
+  // VO says the car stands still while the filter (speed reading or IMU)
+  // knows it moves: the frame is taken as frozen, not as a standstill.
+  bool VoContradictsVehicle(const vo::RelativeMotion& m) const;
   void FeedGps(const fusion::GpsFix& fix);
 
   Eigen::Isometry3d T_cam0_imu_;

@@ -31,6 +31,7 @@ class ExactOdometry : public vo::StereoOdometry {
     m.covariance = Eigen::Matrix<double, 6, 6>::Identity() * 1e-6;
     m.inliers = 200;
     m.status = vo::Status::kOk;
+    m.health = vo::Health::kTracking;
     last_ns_ = frame.t_ns;
     return m;
   }
@@ -38,6 +39,23 @@ class ExactOdometry : public vo::StereoOdometry {
 
  private:
   std::optional<int64_t> last_ns_;
+};
+
+// Exact until from_ns, then what a frozen camera whose repeated frames still
+// differ (fresh sensor noise) gives: no motion, reported as tracked.
+class StuckOdometry : public vo::StereoOdometry {
+ public:
+  explicit StuckOdometry(int64_t from_ns) : from_ns_(from_ns) {}
+  vo::RelativeMotion Track(const vo::StereoFrame& frame) override {
+    vo::RelativeMotion m = exact_.Track(frame);
+    if (frame.t_ns >= from_ns_) m.T_prev_curr = Eigen::Isometry3d::Identity();
+    return m;
+  }
+  void Reset() override { exact_.Reset(); }
+
+ private:
+  ExactOdometry exact_;
+  int64_t from_ns_;
 };
 
 struct Drive {
@@ -70,15 +88,19 @@ struct Step {
   double horizontal_error_m = 0;
 };
 
-// Runs 12 s of the drive; `fix_for(frame)` says what fix (if any) comes with it.
+// Runs 12 s of the drive; `fix_for(frame)` says what fix (if any) comes with
+// it; with speed_reading_mps, a speed sensor reads it at 50 Hz from 2 s on.
 template <typename FixFor>
-std::vector<Step> Drive12s(Localizer& localizer, const Drive& drive, FixFor fix_for) {
+std::vector<Step> Drive12s(Localizer& localizer, const Drive& drive, FixFor fix_for,
+                           std::optional<double> speed_reading_mps = std::nullopt) {
   std::vector<Step> steps;
   int64_t t_prev = 0;
   for (int i = 1; i <= 120; ++i) {
     const int64_t t = i * kFrameNs;
     Measurements m;
     m.imu = Drive::ImuBetween(t_prev, t);
+    for (int64_t ts = t_prev + 20'000'000; speed_reading_mps && t >= 20 * kFrameNs && ts <= t; ts += 20'000'000)
+      m.speed.push_back(fusion::SpeedSample{ts, *speed_reading_mps, 0.05});
     if (std::optional<fusion::GpsFix> fix = fix_for(i, t)) m.gps.push_back(*fix);
     localizer.Fuse(m);
     Step s;
@@ -149,6 +171,48 @@ TEST(Localizer, AFixFarOffIsRejectedAndSaidSoOnItsPose) {
   EXPECT_EQ(steps[70].result.pose.mode, fusion::Mode::kGpsDegraded);
   EXPECT_EQ(steps[95].result.pose.mode, fusion::Mode::kGpsFused);
   EXPECT_EQ(localizer.ekf().stats().gps_rejected, 1);
+}
+
+TEST(Localizer, VoStandingStillWhileTheImuSaysTheCarMovesIsAFrozenCameraNotAStop) {
+  // GPS out and the camera stuck from 6.0 s: VO reports no motion as if
+  // tracked. Believed, it would stop the car (the filter accepts a run of
+  // VO it first gates) and the estimate would fall ~60 m behind.
+  const Drive drive;
+  Localizer localizer(Eigen::Isometry3d::Identity(), {}, std::make_unique<StuckOdometry>(60 * kFrameNs));
+  const auto steps = Drive12s(localizer, drive, [&](int i, int64_t t) -> std::optional<fusion::GpsFix> {
+    if (i >= 60) return std::nullopt;
+    return drive.FixAt(t);
+  });
+  EXPECT_EQ(steps[58].result.vo.health, vo::Health::kTracking);
+  for (int i = 60; i < 120; ++i) {
+    const FrameResult& r = steps[static_cast<size_t>(i)].result;
+    EXPECT_EQ(r.vo.health, vo::Health::kFrozen) << "frame " << i + 1;
+    EXPECT_EQ(r.vo.status, vo::Status::kLost) << "frame " << i + 1;
+    EXPECT_FALSE(r.vo_update.used) << "frame " << i + 1;
+    EXPECT_EQ(r.pose.mode, fusion::Mode::kDeadReckoning) << "frame " << i + 1;
+  }
+  EXPECT_LT(steps[119].horizontal_error_m, 3.0);
+  EXPECT_GT(steps[119].result.pose.v_enu_mps.norm(), 9.0);
+}
+
+TEST(Localizer, AFreshSpeedReadingDecidesWhetherVoStandingStillIsFrozen) {
+  // The same stuck camera with a speed sensor: reading the true 10 m/s, the
+  // frames are frozen; reading 0 (the car stopped: the sensor outranks the
+  // filter's belief), VO's standstill is a measurement again.
+  const Drive drive;
+  const auto no_fix_after_6s = [&](int i, int64_t t) -> std::optional<fusion::GpsFix> {
+    if (i >= 60) return std::nullopt;
+    return drive.FixAt(t);
+  };
+  Localizer moving(Eigen::Isometry3d::Identity(), {}, std::make_unique<StuckOdometry>(60 * kFrameNs));
+  const auto a = Drive12s(moving, drive, no_fix_after_6s, kSpeedMps);
+  for (int i = 60; i < 120; ++i) EXPECT_EQ(a[static_cast<size_t>(i)].result.vo.health, vo::Health::kFrozen) << i + 1;
+  EXPECT_LT(a[119].horizontal_error_m, 3.0);
+  EXPECT_GT(moving.ekf().stats().speed_used, 0);
+
+  Localizer stopped(Eigen::Isometry3d::Identity(), {}, std::make_unique<StuckOdometry>(60 * kFrameNs));
+  const auto b = Drive12s(stopped, drive, no_fix_after_6s, 0.0);
+  for (int i = 60; i < 120; ++i) EXPECT_EQ(b[static_cast<size_t>(i)].result.vo.health, vo::Health::kTracking) << i + 1;
 }
 
 TEST(Localizer, WithoutVoTheFilterNeverStartsAndSaysLost) {
