@@ -230,13 +230,14 @@ def sweep_values(out, prefix, c, seeds):
     out[f"{prefix}.vo_gated"] = c["vo_rejected_per_run"]
 
 
-def outage_sweep(ctx, run_name, drive, scenarios, seeds, no_imu_too, ekf=()):
+def outage_sweep(ctx, run_name, drive, scenarios, seeds, no_imu_too, ekf=(), options=()):
     cmd = ["/usr/bin/python3", os.path.join(HERE, "fusion", "outage_sweep.py"), "--drive", drive]
     for s in scenarios:
         cmd += ["--scenario", s]
     cmd += ["--seeds", str(seeds)] + (["--no-imu-too"] if no_imu_too else [])
     for e in ekf:
         cmd += ["--ekf", e]
+    cmd += list(options)
     cmd += ["--replay", ctx.exe("locaid-replay"), "--cache-dir", ctx.work, "--jobs", str(ctx.jobs), "--json"]
     return ctx.json(cmd, run_name)
 
@@ -258,6 +259,102 @@ def sweep_synth(ctx):
     out = {}
     for c in r["cases"]:
         sweep_values(out, f"{SCENARIO_KEY[c['scenario']]}.{'imu' if c['use_imu'] else 'noimu'}", c, r["seeds"])
+    return out
+
+
+def tunnel_values(out, prefix, c):
+    """The Tunnel table's columns: end and added error (median / p90 / max), speed scale error."""
+    for name, key in (("end", "end_error_pct"), ("added", "added_error_pct")):
+        for q in ("median", "p90", "max"):
+            out[f"{prefix}.{name}_{q}"] = c[key][q] if c[key] else math.nan
+    speed = c.get("speed_scale_error")
+    out[f"{prefix}.speed_median"] = speed["median"] if speed else math.nan
+    out[f"{prefix}.speed_max"] = speed["max"] if speed else math.nan
+    out[f"{prefix}.speed_p90"] = speed["p90"] if speed else math.nan
+
+
+TUNNEL_KEY = {"frozen-speed": "frozen_speed", "blind-mems-speed": "dark_speed", "frozen": "frozen",
+              "blind-mems": "dark"}
+
+
+def tunnel_real(ctx):
+    """The real-excerpt Tunnel table: camera faults change what VO sees, so no VO cache (20 seeds x 4)."""
+    out = {}
+    for scenarios, options in ((["frozen-speed", "blind-mems-speed"], ()),
+                               (["frozen", "blind-mems"], ("--vehicle-constraints", "on"))):
+        paths = [f"scenarios/tunnel-10s-late-{s}.yaml" for s in scenarios]
+        r = outage_sweep(ctx, "tunnel_real", ctx.real(), paths, 20, False, options=options)
+        for c, name in zip(r["cases"], scenarios):
+            tunnel_values(out, TUNNEL_KEY[name], c)
+        out["runs"] = r["seeds"]
+    return out
+
+
+def tunnel_bound(ctx):
+    """Perfect dead reckoning on the same 20 GPS draws as the frozen + speed row: the causal least-squares
+    fit of the true track to the fixes before the outage (bench/fusion/causal_bound.py), carried to its end."""
+    sys.path.insert(0, os.path.join(HERE, "fusion"))
+    from outage_sweep import summary
+    bound, filt = [], []
+    for seed in range(1, 21):
+        csv_path = os.path.join(ctx.work, f"tunnel-bound-s{seed}.csv")
+        ctx.json([ctx.exe("locaid-replay"), "--drive", ctx.real(), "--scenario",
+                  "scenarios/tunnel-10s-late-frozen-speed.yaml", "--seed", str(seed), "--json", "--out-csv", csv_path],
+                 "tunnel_bound")
+        b = ctx.json(["/usr/bin/python3", os.path.join(HERE, "fusion", "causal_bound.py"), "--json", csv_path],
+                     "tunnel_bound")
+        bound.append(b["outages"][0]["bound_end_error_pct"])
+        filt.append(b["outages"][0]["filter_end_error_pct"])
+    out = {"runs": 20, "over_1": sum(v > 1.0 for v in bound), "over_2": sum(v > 2.0 for v in bound),
+           "over_3": sum(v > 3.0 for v in bound)}
+    for name, values in (("bound", bound), ("filter", filt)):
+        for q, v in summary(values).items():
+            if q != "values":
+                out[f"{name}.{q}"] = v
+    return out
+
+
+def tunnel_gps(ctx):
+    """The frozen + speed row with better fixes: the outage's error follows the GPS before it."""
+    with open(os.path.join(ROOT, "scenarios", "tunnel-10s-late-frozen-speed.yaml")) as f:
+        base = f.read()
+    out = {}
+    for name, sigma in (("s05", "0.5"), ("s015", "0.15")):
+        path = os.path.join(ctx.work, f"tunnel-gps-{sigma}.yaml")
+        with open(path, "w") as f:
+            f.write(base.replace("base: open-sky\n", f"base: open-sky\ngps: {{sigma_h_m: {sigma}}}\n", 1))
+        r = outage_sweep(ctx, "tunnel_gps", ctx.real(), [path], 20, False)
+        tunnel_values(out, name, r["cases"][0])
+    return out
+
+
+def tunnel_synth(ctx):
+    r = outage_sweep(ctx, "tunnel_synth", ctx.synth(2000, 3, "tunnel_synth"),
+                     ["scenarios/tunnel-30s-blind-mems-speed.yaml"], 20, False)
+    out = {"runs": r["seeds"]}
+    tunnel_values(out, "dark_speed", r["cases"][0])
+    return out
+
+
+DARK_GAINS = (("g100", None), ("g25", "0.25"), ("g12", "0.12"), ("g06", "0.06"), ("g03", "0.03"), ("g02", "0.02"))
+
+
+def dark_real(ctx):
+    """VO on dark frames: a dark fault of gain G (3 DN noise) over the whole real excerpt."""
+    out = {}
+    for name, gain in DARK_GAINS:
+        scenario = "open-sky"
+        if gain:
+            scenario = os.path.join(ctx.work, f"dark-{gain}.yaml")
+            with open(scenario, "w") as f:
+                f.write(f"base: open-sky\ncamera: [{{start_s: 0, duration_s: 1000, fault: dark, gain: {gain}, "
+                        "noise_dn: 3}]\n")
+        j = ctx.json([ctx.exe("locaid-replay"), "--drive", ctx.real(), "--scenario", scenario, "--json"], "dark_real")
+        out[f"{name}.lost"] = j["vo_lost_frames"]
+        out[f"{name}.dark"] = j["vo_health"].get("dark", 0)
+        err = j.get("vo_error") or {}
+        out[f"{name}.err_along"] = err["rms_error_t_m_r_rad"][0] if err.get("frames") else math.nan
+    out["frames"] = j["frames"]
     return out
 
 
@@ -348,11 +445,16 @@ RUNS = {
     "vo_real": (True, vo_real),
     "vo_real_velocity": (True, vo_real_velocity),
     "sweep_real": (True, sweep_real),
+    "dark_real": (True, dark_real),
+    "tunnel_real": (True, tunnel_real),
+    "tunnel_bound": (True, tunnel_bound),
     "replay_urban": (False, replay_urban),
     "urban_bound": (False, urban_bound),
     "urban_2drms": (False, urban_2drms),
     "lever_arm": (False, lever_arm),
     "sweep_synth": (False, sweep_synth),
+    "tunnel_synth": (False, tunnel_synth),
+    "tunnel_gps": (False, tunnel_gps),
     "vo_synth": (False, vo_synth),
     "vo_motorway": (False, vo_motorway),
 }
