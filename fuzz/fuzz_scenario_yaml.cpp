@@ -1,16 +1,18 @@
 // libFuzzer target: scenario YAML (pipeline/scenario_yaml.hpp), every key
 // it reads today: name, base (the built-ins), gps.{rate_hz, sigma_h_m,
 // sigma_v_m, bias_sigma_m, bias_tau_s, jump_probability, jump_size_m,
-// jump_duration_s, antenna_body_m}, imu.{grade, accel_bias_sigma_mps2,
-// gyro_bias_sigma_radps, accel_noise_mps2_sqrt_hz, gyro_noise_radps_sqrt_hz},
-// outages[].{start_s, duration_s, end_s, centered}, camera[].{start_s,
-// duration_s, end_s, fault, gain, noise_dn, blur_sigma_px}, seed.
+// jump_duration_s, antenna_body_m, measured}, imu.{grade,
+// accel_bias_sigma_mps2, gyro_bias_sigma_radps, accel_noise_mps2_sqrt_hz,
+// gyro_noise_radps_sqrt_hz}, outages[].{start_s, duration_s, end_s,
+// centered}, camera[].{start_s, duration_s, end_s, fault, gain, noise_dn,
+// blur_sigma_px}, speed.{rate_hz, sigma_mps, scale_error}, seed.
 // Contract: ParseScenarioYaml returns a scenario or throws
 // pipeline::ScenarioError (no yaml-cpp or std exception escapes); an accepted
 // scenario passes fusion::ValidateScenario, its outages placed on a drive
 // (PlaceOutagesForDrive) and it drives a GpsScenario (with an attitude, so the
 // antenna lever arm is used) and an ImuDegrader over a short synthetic drive
-// without undefined behaviour, every fix and sample finite; its camera faults
+// without undefined behaviour, every fix, sample and speed reading finite
+// (readings in time order, within the drive); its camera faults
 // go through a CameraFaultStage over small stereo pairs of the same drive,
 // each image coming out empty or of its size and type.
 #include "fuzz/fuzz_support.hpp"
@@ -40,6 +42,8 @@ void Exercise(const locaid::fusion::Scenario& scenario) {
   }
   fusion::GpsScenario gps(placed);
   fusion::ImuDegrader imu(placed);
+  fusion::SpeedSimulator speed(placed);
+  int64_t last_reading_ns = 0;
   const Eigen::Matrix3d R_enu_body = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   for (int i = 0; i < kSamples; ++i) {
     const int64_t t_ns = kStartNs + i * kStepNs;
@@ -59,6 +63,13 @@ void Exercise(const locaid::fusion::Scenario& scenario) {
     const fusion::ImuSample degraded = imu.Apply(sample);
     LOCAID_FUZZ_CHECK(degraded.accel_mps2.allFinite() && degraded.gyro_radps.allFinite(),
                       "non-finite degraded IMU sample");
+    for (const fusion::SpeedSample& r : speed.Apply(t_ns, 10.0 + 0.05 * i)) {
+      LOCAID_FUZZ_CHECK(std::isfinite(r.speed_mps) && std::isfinite(r.sigma_mps) && r.sigma_mps >= 0,
+                        "non-finite simulated speed reading");
+      LOCAID_FUZZ_CHECK(r.t_ns > last_reading_ns && r.t_ns <= t_ns && r.t_ns >= kStartNs,
+                        "speed reading out of order or outside the drive");
+      last_reading_ns = r.t_ns;
+    }
   }
   // Camera faults over 20 s of 10 Hz frames (images small: a blur of 50 px
   // sigma is a 301 px kernel on them).
