@@ -17,12 +17,15 @@ constexpr double kNsPerS = 1e9;
   throw std::invalid_argument("scenario " + s.name + ": field " + field + ": " + why);
 }
 
+// A value as the user wrote it: 0.7, 5000, 1e+91 (std::to_string gives 0.700000).
+std::string Num(double v) {
+  std::ostringstream os;
+  os << v;
+  return os.str();
+}
+
 void RequireNonNegative(const Scenario& s, const char* field, double v) {
-  if (!std::isfinite(v) || v < 0) {
-    std::ostringstream os;
-    os << "must be a finite number >= 0, got " << v;
-    Bad(s, field, os.str());
-  }
+  if (!std::isfinite(v) || v < 0) Bad(s, field, "must be a finite number >= 0, got " + Num(v));
 }
 
 }  // namespace
@@ -87,19 +90,19 @@ void ValidateScenario(const Scenario& s) {
   // found rate_hz: 1e91 overflowing it, undefined behaviour).
   constexpr double kMaxRateHz = 1000;
   if (!(std::isfinite(s.gps_rate_hz) && s.gps_rate_hz > 0 && s.gps_rate_hz <= kMaxRateHz))
-    Bad(s, "gps.rate_hz", "must be in (0, 1000], got " + std::to_string(s.gps_rate_hz));
+    Bad(s, "gps.rate_hz", "must be in (0, 1000], got " + Num(s.gps_rate_hz));
   RequireNonNegative(s, "gps.sigma_h_m", s.gps_sigma_h_m);
   RequireNonNegative(s, "gps.sigma_v_m", s.gps_sigma_v_m);
   RequireNonNegative(s, "gps.bias_sigma_m", s.gps_bias_sigma_m);
   if (!(std::isfinite(s.gps_bias_tau_s) && s.gps_bias_tau_s > 0))
-    Bad(s, "gps.bias_tau_s", "must be > 0, got " + std::to_string(s.gps_bias_tau_s));
+    Bad(s, "gps.bias_tau_s", "must be > 0, got " + Num(s.gps_bias_tau_s));
   if (!(s.jump_probability >= 0 && s.jump_probability <= 1))
-    Bad(s, "gps.jump_probability", "must be in [0, 1], got " + std::to_string(s.jump_probability));
+    Bad(s, "gps.jump_probability", "must be in [0, 1], got " + Num(s.jump_probability));
   RequireNonNegative(s, "gps.jump_size_m", s.jump_size_m);
   RequireNonNegative(s, "gps.jump_duration_s", s.jump_duration_s);
   // Becomes int64 nanoseconds, like the outages below.
   if (s.jump_duration_s > 1e6)
-    Bad(s, "gps.jump_duration_s", "must be in [0, 1e6], got " + std::to_string(s.jump_duration_s));
+    Bad(s, "gps.jump_duration_s", "must be in [0, 1e6], got " + Num(s.jump_duration_s));
   RequireNonNegative(s, "imu.accel_bias_sigma_mps2", s.imu_accel_bias_sigma_mps2);
   RequireNonNegative(s, "imu.gyro_bias_sigma_radps", s.imu_gyro_bias_sigma_radps);
   RequireNonNegative(s, "imu.accel_noise_mps2_sqrt_hz", s.imu_accel_noise_mps2_sqrt_hz);
@@ -109,19 +112,19 @@ void ValidateScenario(const Scenario& s) {
     // Seconds become int64 nanoseconds: bounded at 1e6 s (11.6 days).
     constexpr double kMaxS = 1e6;
     if (!(std::isfinite(s.outages[i].start_s) && s.outages[i].start_s >= 0 && s.outages[i].start_s <= kMaxS))
-      Bad(s, f + ".start_s", "must be in [0, 1e6], got " + std::to_string(s.outages[i].start_s));
+      Bad(s, f + ".start_s", "must be in [0, 1e6], got " + Num(s.outages[i].start_s));
     if (!(std::isfinite(s.outages[i].duration_s) && s.outages[i].duration_s > 0 && s.outages[i].duration_s <= kMaxS))
       Bad(s, f + ".duration_s", "must be in (0, 1e6] (end after start), got " +
-                                    std::to_string(s.outages[i].duration_s));
+                                    Num(s.outages[i].duration_s));
   }
   ValidateCameraFaults(s);
   if (s.speed) {
     if (!(std::isfinite(s.speed->rate_hz) && s.speed->rate_hz > 0 && s.speed->rate_hz <= kMaxRateHz))
-      Bad(s, "speed.rate_hz", "must be in (0, 1000], got " + std::to_string(s.speed->rate_hz));
+      Bad(s, "speed.rate_hz", "must be in (0, 1000], got " + Num(s.speed->rate_hz));
     if (!(std::isfinite(s.speed->sigma_mps) && s.speed->sigma_mps > 0 && s.speed->sigma_mps <= 10))
-      Bad(s, "speed.sigma_mps", "must be in (0, 10], got " + std::to_string(s.speed->sigma_mps));
+      Bad(s, "speed.sigma_mps", "must be in (0, 10], got " + Num(s.speed->sigma_mps));
     if (!(std::isfinite(s.speed->scale_error) && std::abs(s.speed->scale_error) <= 0.5))
-      Bad(s, "speed.scale_error", "must be in [-0.5, 0.5], got " + std::to_string(s.speed->scale_error));
+      Bad(s, "speed.scale_error", "must be in [-0.5, 0.5], got " + Num(s.speed->scale_error));
   }
 }
 
