@@ -71,7 +71,7 @@ int main(int argc, char** argv) {
   app.add_option("--default-vo", cli.default_vo_method, "VO method when a session names none")->capture_default_str();
   app.add_option("--shutdown-grace-s", cli.shutdown_grace_s, "streams still open this long after SIGTERM are cancelled")
       ->capture_default_str();
-  app.add_option("--port-file", cli.port_file, "write the bound port to this file once listening");
+  app.add_option("--port-file", cli.port_file, "write the bound port to this file once listening (after the startup line)");
   app.add_option("--metrics-listen", cli.metrics_listen,
                  "serve Prometheus metrics on host:port (GET /metrics; off by default; no token)");
   CLI11_PARSE(app, argc, argv);
@@ -127,6 +127,7 @@ int main(int argc, char** argv) {
                                                   std::to_string(server.metrics_port()) + "/metrics"
                                             : "")
               << std::endl;
+    server.WritePortFile();  // after the line: whoever waits for the file finds it in the log
     const int sig = WaitForSignal();
     std::cout << "locaid-server: signal " << sig << ", shutting down" << std::endl;
     server.Shutdown();

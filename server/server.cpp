@@ -167,9 +167,19 @@ LocalizationServer::LocalizationServer(ServerConfig config, EstimatorFactory est
     LocalizationService* service = service_.get();
     metrics_ = std::make_unique<MetricsExporter>(config_.metrics_listen, [service] { return service->CollectMetrics(); });
   }
-  if (!config_.port_file.empty()) {
-    std::ofstream(config_.port_file) << port_ << "\n";
+}
+
+void LocalizationServer::WritePortFile() const {
+  if (config_.port_file.empty()) return;
+  const std::string tmp = config_.port_file + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::trunc);
+    out << port_ << "\n";
+    if (!out.flush()) throw std::runtime_error("--port-file " + tmp + ": cannot write: " + std::strerror(errno));
   }
+  if (std::rename(tmp.c_str(), config_.port_file.c_str()) != 0)
+    throw std::runtime_error("--port-file " + config_.port_file + ": cannot rename " + tmp + " to it: " +
+                             std::strerror(errno));
 }
 
 LocalizationServer::~LocalizationServer() { Shutdown(); }

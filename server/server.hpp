@@ -38,6 +38,12 @@ class LocalizationServer {
   std::string unix_target() const { return config_.listen_unix.empty() ? "" : "unix:" + config_.listen_unix; }
   // True when a stale socket file was at listen_unix and was replaced.
   bool replaced_stale_socket() const { return replaced_stale_socket_; }
+  // Writes the bound port to config.port_file (nothing when unset), through a
+  // temporary file renamed into place so a reader never sees it half written.
+  // locaid-server calls it after its startup line: a script (or test) that
+  // waits for the file finds that line already in the log. Throws
+  // std::runtime_error naming the file when it cannot be written.
+  void WritePortFile() const;
   // Port of the /metrics endpoint (0: metrics_listen not set).
   int metrics_port() const { return metrics_ ? metrics_->port() : 0; }
   // Health NOT_SERVING, sessions stopped, streams ended with UNAVAILABLE,
