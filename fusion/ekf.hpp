@@ -307,6 +307,8 @@ class Ekf {
   void ApplyVehicleConstraints(int64_t t_ns);
   bool VehicleConstraintsActive() const;
   bool Standstill(int64_t t_ns) const;
+  // The newest speed reading when it is at most max_age_s older than t_ns.
+  std::optional<double> FreshSpeedReading(int64_t t_ns, double max_age_s) const;
   // Start-up (ekf_init.cpp).
   struct InitFix { int64_t t_ns; Vec3 p_enu; double sigma_h; Eigen::Isometry3d T_start_body; };
   struct HeadingFit { double psi = 0; Eigen::Vector2d p_mean, q_mean; double z_off = 0, spread2 = 0; int used = 0; };

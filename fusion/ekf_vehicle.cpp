@@ -94,16 +94,21 @@ bool Ekf::Standstill(int64_t t_ns) const {
   // without one, the IMU still while the filter already believes the car
   // (nearly) stopped.
   constexpr double kSpeedReadingFreshS = 0.2;
-  if (last_speed_ns_ && Seconds(t_ns, *last_speed_ns_) <= kSpeedReadingFreshS) return false;
+  if (FreshSpeedReading(t_ns, kSpeedReadingFreshS)) return false;
   const StillnessThresholds thresholds{config_.zupt_window_s, config_.zupt_gyro_radps, config_.zupt_accel_mps2,
                                        config_.zupt_min_samples};
   return s_.x.v_enu_mps.norm() < config_.zupt_max_estimated_speed_mps && stillness_.Still(thresholds);
 }
 
+std::optional<double> Ekf::FreshSpeedReading(int64_t t_ns, double max_age_s) const {
+  if (!last_speed_ns_ || Seconds(t_ns, *last_speed_ns_) > max_age_s) return std::nullopt;
+  return last_speed_mps_;
+}
+
 bool Ekf::SurelyMovingFasterThan(int64_t t_ns, double speed_mps) const {
-  constexpr double kSpeedReadingFreshS = 0.5;
-  if (last_speed_ns_ && Seconds(t_ns, *last_speed_ns_) <= kSpeedReadingFreshS)
-    return std::abs(last_speed_mps_) > speed_mps;
+  constexpr double kSpeedReadingFreshS = 0.5;  // a few readings of a CAN speed sensor
+  if (const std::optional<double> reading = FreshSpeedReading(t_ns, kSpeedReadingFreshS))
+    return std::abs(*reading) > speed_mps;
   if (!config_.use_imu || !s_.initialized) return false;
   const double v = s_.x.v_enu_mps.norm();
   if (!(v > speed_mps)) return false;

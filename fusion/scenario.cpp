@@ -66,15 +66,10 @@ void ValidateCameraFaults(const Scenario& s) {
   for (size_t i = 0; i < s.camera_faults.size(); ++i) {
     const CameraFaultWindow& w = s.camera_faults[i];
     const std::string f = "camera[" + std::to_string(i) + "]";
-    std::ostringstream os;
-    if (!(std::isfinite(w.start_s) && w.start_s >= 0 && w.start_s <= kMaxS)) {
-      os << "must be in [0, 1e6], got " << w.start_s;
-      Bad(s, f + ".start_s", os.str());
-    }
-    if (!(std::isfinite(w.duration_s) && w.duration_s > 0 && w.duration_s <= kMaxS)) {
-      os << "must be in (0, 1e6] (end after start), got " << w.duration_s;
-      Bad(s, f + ".duration_s", os.str());
-    }
+    if (!(std::isfinite(w.start_s) && w.start_s >= 0 && w.start_s <= kMaxS))
+      Bad(s, f + ".start_s", "must be in [0, 1e6], got " + Num(w.start_s));
+    if (!(std::isfinite(w.duration_s) && w.duration_s > 0 && w.duration_s <= kMaxS))
+      Bad(s, f + ".duration_s", "must be in (0, 1e6] (end after start), got " + Num(w.duration_s));
     const std::string problem = CameraFaultParameterProblem(w);
     if (!problem.empty()) {
       const size_t colon = problem.find(':');
