@@ -46,6 +46,14 @@ void PrintStats(const v1::SessionStats& s) {
               << g.fix_latency_median_ms() << " fix_latency_max_ms=" << g.fix_latency_max_ms() << "\n";
     if (!g.last_error().empty()) std::cout << "gpsd_last_error " << g.last_error() << "\n";
   }
+  if (s.has_noise()) {
+    const auto& n = s.noise();
+    std::cout << "noise vo_scale=";
+    for (int i = 0; i < n.vo_scale_size(); ++i) std::cout << (i ? "," : "") << n.vo_scale(i);
+    std::cout << " gps_horizontal_scale=" << n.gps_horizontal_scale()
+              << " gps_vertical_scale=" << n.gps_vertical_scale()
+              << " vo_learning=" << (n.vo_learning() ? "true" : "false") << "\n";
+  }
   for (const auto& sub : s.subscriber()) {
     std::cout << "subscriber " << sub.id() << " peer=" << sub.peer() << " delivered=" << sub.delivered()
               << " dropped=" << sub.dropped() << " queued=" << sub.queued() << "\n";

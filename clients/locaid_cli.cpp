@@ -119,9 +119,7 @@ int Fail(const grpc::Status& s) {
 
 std::unique_ptr<grpc::ClientContext> g_stream_ctx;
 
-void OnSignal(int) {
-  if (g_stream_ctx) g_stream_ctx->TryCancel();
-}
+void OnSignal(int) { if (g_stream_ctx) g_stream_ctx->TryCancel(); }
 
 // What `session start` sends.
 struct StartOptions {
@@ -133,6 +131,7 @@ struct StartOptions {
   uint32_t synth_frames = 0, history = 0;
   std::string scenario_name, scenario_file, vo_method;
   double rate = 0;
+  bool fixed_vo_noise = false, fixed_gps_noise = false;  // StartSessionRequest.noise
 };
 
 struct SubscribeOptions {
@@ -234,6 +233,8 @@ int StartSession(const Common& c, v1::Localization::Stub& stub, const StartOptio
   req.set_vo_method(o.vo_method);
   req.set_playback_rate(o.rate);
   req.set_history_size(o.history);
+  req.mutable_noise()->set_fixed_vo_noise(o.fixed_vo_noise);
+  req.mutable_noise()->set_fixed_gps_noise(o.fixed_gps_noise);
   return Unary(c, stub, &v1::Localization::Stub::StartSession, req,
                [](const v1::Session& s) { std::cout << s.id() << "\n"; });
 }
@@ -372,6 +373,8 @@ int main(int argc, char** argv) {
   start->add_option("--vo", so.vo_method, "VO method");
   start->add_option("--rate", so.rate, "playback: 0 = as fast as possible, 1 = real time, N = N x")->capture_default_str();
   start->add_option("--history", so.history, "poses kept for --from-start subscribers");
+  start->add_flag("--fixed-vo-noise", so.fixed_vo_noise, "the fixed VO noise model, not learnt (docs/api.md)");
+  start->add_flag("--fixed-gps-noise", so.fixed_gps_noise, "the fixes' stated sigmas as they are, not learnt");
   auto* list = session->add_subcommand("list", "list sessions");
   auto* get = session->add_subcommand("get", "show one session");
   auto* stop = session->add_subcommand("stop", "stop a session");

@@ -9,7 +9,13 @@
 namespace locaid::fusion {
 using namespace detail;
 
-Ekf::Ekf(EkfConfig config) : config_(config), model_(MakeProcessModel(config_)) {
+Ekf::Ekf(EkfConfig config)
+    : config_(config),
+      model_(MakeProcessModel(config_)),
+      gps_noise_(2, {.prior_samples = 2 * config_.gps_noise_prior_fixes,  // E and N: 2 samples per fix
+                     .window_samples = 2 * config_.gps_noise_window_fixes,
+                     .min_scale = config_.gps_noise_scale_min,
+                     .max_scale = config_.gps_noise_scale_max}) {
   gate_h_ = ChiSquareQuantile(config_.gps_gate_probability, 2);
   gate_v_ = ChiSquareQuantile(config_.gps_gate_probability, 1);
   zupt_gate_ = ChiSquareQuantile(config_.speed_gate_probability, 3);
@@ -113,6 +119,7 @@ VoUpdate Ekf::ApplyVoUpdate(const VoMeasurement& m, const VoPlan& plan, VoUpdate
   vo.R_vo = model_->VoNoise(m.covariance, plan.motion);
   vo.dt_s = plan.dt_s;
   vo.vo_velocity_body_mps = last_vo_velocity_body_mps_;
+  vo.learn_noise = LearningVoNoise(m.t_ns);
   if (const std::optional<VoGate> gate = model_->ApplyVo(s_, vo)) {
     stats_.last_vo_nis = out.nis = gate->nis;
     out.rejected = gate->rejected;
@@ -121,6 +128,13 @@ VoUpdate Ekf::ApplyVoUpdate(const VoMeasurement& m, const VoPlan& plan, VoUpdate
   out.used = plan.vo_ok && !out.rejected;
   ApplyVehicleConstraints(m.t_ns);
   return out;
+}
+
+bool Ekf::LearningVoNoise(int64_t t_ns) const {
+  // GPS holds the state: the last accepted fix is no older than the mode's
+  // VO_ONLY threshold (Output).
+  return config_.learn_vo_noise && config_.use_imu && s_.initialized && last_gps_accepted_ns_ &&
+         Seconds(t_ns, *last_gps_accepted_ns_) <= config_.vo_only_after_periods * gps_period_s_ + 2 * gps_lag_s_;
 }
 
 // ------------------------------------------------------------------ output
@@ -156,6 +170,10 @@ FusedPose Ekf::Output(int64_t t_ns, bool vo_ok) const {
   // for the jitter of that lag).
   out.speed_scale_error = model_->speed_scale_error();
   out.speed_used = stats_.speed_used;
+  out.vo_noise_scale = model_->vo_noise_scale();
+  out.gps_noise_scale_h = gps_noise_.scale(0);
+  out.gps_noise_scale_v = gps_noise_.scale(1);
+  out.vo_noise_learning = LearningVoNoise(t_ns);
   if (out.seconds_since_gps > config_.vo_only_after_periods * gps_period_s_ + 2 * gps_lag_s_) {
     // Without GPS: VO, else the IMU while its samples keep coming.
     const bool imu_alive = config_.use_imu && last_imu_ns_ && Seconds(t_ns, *last_imu_ns_) <= config_.max_imu_gap_s;

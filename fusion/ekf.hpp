@@ -19,6 +19,7 @@
 #include "fusion/ekf_models.hpp"
 #include "fusion/geodesy.hpp"
 #include "fusion/imu_stillness.hpp"
+#include "fusion/noise_scale.hpp"
 #include "fusion/process_model.hpp"
 #include "fusion/types.hpp"
 
@@ -42,20 +43,34 @@ struct EkfConfig {
   double accel_bias_walk_mps3_sqrt_hz = 0.001;
   double gyro_bias_walk_radps2_sqrt_hz = 1e-5;
   double max_imu_gap_s = 0.5;  // longer IMU gaps: propagate with extra noise
-  // Innovation-adaptive VO rotation noise (IMU mode): when the VO's
-  // frame-to-frame rotation disagrees with the IMU's more than their
-  // covariances say (running mean of the normalised squared rotation
-  // innovation per body axis above 1), that axis' VO rotation variance is
-  // scaled up, at most adaptive_vo_rotation_noise_max_scale times, never below
-  // the model (Ekf::VoNoise). On the real excerpt the sparse OXTS records
-  // (30-250 ms apart) predict the roll/pitch over a frame 2-7 mrad away from
-  // the VO: the scale settles at ~5 / 8 / 1 (roll / pitch / yaw) and the VO
-  // updates the gate refuses drop from 47 to ~4 per run; synthetic drives
-  // leave it at 1. Blaming the gyro instead (same adaptation on its noise)
-  // frees roll/pitch from gravity and raised the median end-of-outage error
-  // from 1.6 to 2.0 %.
-  bool adaptive_vo_rotation_noise = true;
-  double adaptive_vo_rotation_noise_max_scale = 400.0;
+  // Learned measurement noise (fusion/noise_scale.hpp, covariance matching on
+  // the filter's own innovations): the VO noise model below is multiplied per
+  // axis ([dt x, y, z, dtheta x, y, z], body axes) by a scale learned from the
+  // VO innovations against the IMU (IMU mode), only while GPS holds the state
+  // (in an outage it would learn its own drift); the fixes' stated covariance
+  // by a scale learned per component (horizontal, vertical) from the GPS
+  // innovations of the fixes the gate passes, while the prediction is not
+  // looser than 4x the fix. The model is the prior (scale 1, worth
+  // *_prior_* samples); then an exponential average over about *_window_*
+  // samples. false: the fixed model (scale 1).
+  // The VO scale does not go below vo_noise_scale_min = 1 by default: VO's
+  // frame-to-frame errors are correlated in time (synthetic 2.2 km drive: the
+  // along-track error summed over 200 frames is 3.9x what white errors of the
+  // same per-frame size give), so noise matched to single frames (scale 0.01
+  // to 0.05 there) makes the fused track overconfident: open-sky RMSE 0.29 ->
+  // 0.76 m, NEES 2.2 -> 29 (docs/benchmarks.md, "Learned noise"). Upwards it
+  // takes a camera worse than the model, and the sparse OXTS records of the
+  // real excerpt, whose roll / pitch over a frame the model under-states.
+  bool learn_vo_noise = true;
+  double vo_noise_prior_frames = 5;
+  double vo_noise_window_frames = 300;
+  double vo_noise_scale_min = 1.0;
+  double vo_noise_scale_max = 400;
+  bool learn_gps_noise = true;
+  double gps_noise_prior_fixes = 5;
+  double gps_noise_window_fixes = 30;
+  double gps_noise_scale_min = 0.25;
+  double gps_noise_scale_max = 100;
   // Initial uncertainty.
   double init_velocity_sigma_mps = 0.5;
   double init_roll_pitch_sigma_rad = 0.03;
@@ -89,8 +104,7 @@ struct EkfConfig {
   //    so the model is conservative there (NEES 0.3).
   //  6-dof NEES with this model: real 7.2, synthetic 0.3 (session 14's
   //  isotropic 3 %/m, scale 5: 5.8 / 0.2; its lateral and vertical sigmas were
-  //  3x and 1.7x the real errors). Roll / pitch beyond the model on real data
-  //  are taken up by adaptive_vo_rotation_noise.
+  //  3x and 1.7x the real errors). It is the prior of learn_vo_noise.
   double vo_cov_scale = 9.0;
   double vo_sigma_t_per_m = 0.03;
   double vo_sigma_lateral_per_m = 0.01;
@@ -263,8 +277,13 @@ class Ekf {
   double vo_scale_error() const { return model_->vo_scale_error(); }
   // Estimated speed sensor scale error (IMU mode; 0 otherwise).
   double speed_scale_error() const { return model_->speed_scale_error(); }
-  // adaptive_vo_rotation_noise: VO rotation variance scale per body axis (x, y, z).
-  const Vec3& vo_rotation_noise_scale() const { return model_->vo_rotation_noise_scale(); }
+  // Learned noise scales (learn_vo_noise / learn_gps_noise; 1 where fixed):
+  // VO per body axis [dt x, y, z, dtheta x, y, z], GPS horizontal / vertical.
+  const Vec6& vo_noise_scale() const { return model_->vo_noise_scale(); }
+  double gps_noise_scale_horizontal() const { return gps_noise_.scale(0); }
+  double gps_noise_scale_vertical() const { return gps_noise_.scale(1); }
+  // Whether the VO noise is being learnt now: GPS holds the state (else frozen).
+  bool LearningVoNoise(int64_t t_ns) const;
   double gps_period_s() const { return gps_period_s_; }
   double gps_gate() const { return gate_h_; }  // horizontal (2 dof)
   double gps_gate_vertical() const { return gate_v_; }
@@ -273,7 +292,8 @@ class Ekf {
   // GPS (ekf_gps.cpp).
   struct GpsModel {   // the antenna's predicted position and the update's matrices
     Vec3 predicted;
-    Mat3 R;
+    Mat3 R;       // the fix's covariance with the learned scale
+    Mat3 R_stated;  // as the fix states it
     Eigen::MatrixXd H;
     double late_s = 0;  // how much older than the state the fix is
   };
@@ -289,6 +309,7 @@ class Ekf {
   GpsModel PredictGps(const GpsFix& fix) const;
   GpsGateResult GateGps(const Vec3& y, const Mat3& R, const Eigen::MatrixXd& H) const;
   GpsUpdate GateAndFuse(const GpsFix& fix, const Vec3& y, const GpsModel& m);
+  void LearnGpsNoise(const Vec3& y, const GpsModel& m, bool horizontal, bool vertical);
   GpsUpdate CountGpsOutcome(const GpsFix& fix, const GpsGateResult& gate, bool use_h, bool use_v, bool reset);
   void FuseGpsVelocity(const GpsFix& fix, double late_s);
   void ResetPositionToGps(const Vec3& y, const Mat3& R, bool horizontal, bool vertical);
@@ -311,7 +332,13 @@ class Ekf {
   std::optional<double> FreshSpeedReading(int64_t t_ns, double max_age_s) const;
   // Start-up (ekf_init.cpp).
   struct InitFix { int64_t t_ns; Vec3 p_enu; double sigma_h; Eigen::Isometry3d T_start_body; };
-  struct HeadingFit { double psi = 0; Eigen::Vector2d p_mean, q_mean; double z_off = 0, spread2 = 0; int used = 0; };
+  struct HeadingFit {
+    double psi = 0;
+    Eigen::Vector2d p_mean, q_mean;
+    double z_off = 0, spread2 = 0;
+    int used = 0;
+    double residual_var = 0;  // per axis, of the fixes used (m^2)
+  };
   void TryInitialize(int64_t t_ns);
   std::vector<const InitFix*> ChainedInitFixes() const;
   bool InitBaselineReached(const std::vector<const InitFix*>& fixes, double min_baseline) const;
@@ -340,6 +367,7 @@ class Ekf {
   double zupt_gate_ = 0;                  // chi-square (3 dof) of a standstill speed reading
   std::optional<int64_t> last_speed_ns_;  // newest speed reading taken
   double last_speed_mps_ = 0;             // and its value
+  NoiseScaleEstimator gps_noise_;  // axes: horizontal (E and N samples), vertical
   double gps_period_s_ = 1.0;
   double gps_lag_s_ = 0;  // how late fixes reach the filter after their frames (recent worst), s
 };

@@ -82,6 +82,9 @@ Ekf::GpsModel Ekf::PredictGps(const GpsFix& fix) const {
     m.R.diagonal() << fix.sigma_h_m * fix.sigma_h_m, fix.sigma_h_m * fix.sigma_h_m, fix.sigma_v_m * fix.sigma_v_m;
   }
   model_->ExtrapolateGps(s_, fix.t_ns, m.predicted, m.R);
+  m.R_stated = m.R;
+  const Vec3 d(std::sqrt(gps_noise_.scale(0)), std::sqrt(gps_noise_.scale(0)), std::sqrt(gps_noise_.scale(1)));
+  m.R = d.asDiagonal() * m.R * d.asDiagonal();
   m.H = model_->GpsJacobian(s_, GpsAntennaJacobian(s_.x.R_enu_body, config_.gps_lever_arm_body_m, latency_s));
   return m;
 }
@@ -91,6 +94,7 @@ GpsUpdate Ekf::GateAndFuse(const GpsFix& fix, const Vec3& y, const GpsModel& m) 
   // vertical disagreement does not throw away the horizontal information. A
   // 2-D fix has no altitude to fuse (not a rejection either).
   const GpsGateResult gate = GateGps(y, m.R, m.H);
+  LearnGpsNoise(y, m, gate.h_ok, gate.v_ok && fix.has_altitude);
   const bool fuse_v = fix.has_altitude;
   const bool use_h = gate.h_ok, use_v = gate.v_ok && fuse_v;
   // A run of rejections means the filter, not the GPS, is off (an open-sky
@@ -105,6 +109,25 @@ GpsUpdate Ekf::GateAndFuse(const GpsFix& fix, const Vec3& y, const GpsModel& m) 
   if (reset_h || reset_v) ResetPositionToGps(y, m.R, reset_h, reset_v);
   if ((use_h && !reset_h) || (use_v && !reset_v)) ApplyGpsUpdate(y, m.R, m.H, use_h && !reset_h, use_v && !reset_v);
   return CountGpsOutcome(fix, gate, use_h || reset_h, fuse_v ? use_v || reset_v : true, reset_h || reset_v);
+}
+
+void Ekf::LearnGpsNoise(const Vec3& y, const GpsModel& m, bool horizontal, bool vertical) {
+  // A component the gate passed teaches its scale (a multipath jump the gate
+  // refuses is not the receiver's noise: urban-canyon's 3 % of 20 m jumps
+  // took the horizontal scale to 1.21 and the RMSE from 1.34 to 1.38 m when
+  // they did), while the prediction is at most 4x looser than the fix (else
+  // the sample is mostly the filter's own uncertainty: after an outage, at
+  // start-up). E and N are two samples of the horizontal scale. A receiver
+  // that understates its noise still teaches it: the fixes it gets through
+  // the gate grow the scale, which lets more through (3x: scale ~9).
+  if (!config_.learn_gps_noise) return;
+  const Vec3 hph = (m.H * s_.P * m.H.transpose()).diagonal();
+  for (int i = 0; i < 3; ++i) {
+    if (!(i < 2 ? horizontal : vertical)) continue;
+    const int axis = i < 2 ? 0 : 1;
+    const double r0 = m.R_stated(i, i);
+    if (hph[i] <= 4 * gps_noise_.scale(axis) * r0) gps_noise_.Add(axis, y[i], hph[i], r0);
+  }
 }
 
 GpsUpdate Ekf::CountGpsOutcome(const GpsFix& fix, const GpsGateResult& gate, bool use_h, bool use_v, bool reset) {

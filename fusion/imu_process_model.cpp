@@ -3,6 +3,7 @@
 // at the VO anchor, and the VO's boresight / scale as random constants.
 #include "fusion/ekf.hpp"
 #include "fusion/ekf_internal.hpp"
+#include "fusion/noise_scale.hpp"
 #include "fusion/process_model.hpp"
 
 #include <algorithm>
@@ -22,7 +23,11 @@ class ImuProcessModel final : public ProcessModel {
       : config_(config),
         vo_gate_(ChiSquareQuantile(config.vo_gate_probability, 6)),
         gate_vel_(ChiSquareQuantile(config.gps_gate_probability, 3)),
-        speed_gate_(ChiSquareQuantile(config.speed_gate_probability, 1)) {}
+        speed_gate_(ChiSquareQuantile(config.speed_gate_probability, 1)),
+        vo_noise_(6, {.prior_samples = config.vo_noise_prior_frames,
+                      .window_samples = config.vo_noise_window_frames,
+                      .min_scale = config.vo_noise_scale_min,
+                      .max_scale = config.vo_noise_scale_max}) {}
 
   int StateSize() const override { return kImuStates + kCloneStates + kVoCalibStates + kSpeedStates; }
   int AttitudeIndex() const override { return kTh; }
@@ -30,7 +35,9 @@ class ImuProcessModel final : public ProcessModel {
   Mat6 VoNoise(const Mat6& reported, const Eigen::Isometry3d& motion) const override {
     // The per-metre term: VO is a measurement checked against the IMU here.
     const Vec3 per_m(config_.vo_sigma_t_per_m, config_.vo_sigma_lateral_per_m, config_.vo_sigma_vertical_per_m);
-    return ScaledVoNoise(config_, reported, per_m * motion.translation().norm());
+    const Mat6 model = ScaledVoNoise(config_, reported, per_m * motion.translation().norm());
+    const Vec6 d = vo_noise_scale_.cwiseSqrt();
+    return d.asDiagonal() * model * d.asDiagonal();
   }
 
   bool AddImu(FilterState& s, const ImuSample& sample) override {
@@ -129,12 +136,9 @@ class ImuProcessModel final : public ProcessModel {
   }
 
   std::optional<VoGate> ApplyVo(FilterState& s, const VoStep& vo) override {
-    Mat6 Rvo = vo.R_vo;
-    if (config_.adaptive_vo_rotation_noise)
-      for (int i = 0; i < 3; ++i) Rvo(3 + i, 3 + i) *= vo_rotation_noise_scale_[i];
     PropagateTo(s, vo.t_ns);
     std::optional<VoGate> gate;
-    if (vo.vo_ok) gate = UpdateVo(s, vo.motion, Rvo);
+    if (vo.vo_ok) gate = UpdateVo(s, vo.motion, vo.R_vo, vo.learn_noise);
     if (vo.reanchor) Clone(s);  // else the clone stays at the anchor the next motion starts from
     return gate;
   }
@@ -222,7 +226,7 @@ class ImuProcessModel final : public ProcessModel {
   const Mat3& vo_boresight() const override { return R_boresight_; }
   double speed_scale_error() const override { return speed_scale_error_; }
   double vo_scale_error() const override { return vo_scale_error_; }
-  const Vec3& vo_rotation_noise_scale() const override { return vo_rotation_noise_scale_; }
+  const Vec6& vo_noise_scale() const override { return vo_noise_scale_; }
 
  private:
   void BoxPlus(FilterState& s, const Eigen::VectorXd& dx) override {
@@ -242,7 +246,7 @@ class ImuProcessModel final : public ProcessModel {
   }
 
   // The VO motion since the clone, with the estimated boresight and scale removed.
-  VoGate UpdateVo(FilterState& s, const Eigen::Isometry3d& motion, const Mat6& Rvo) {
+  VoGate UpdateVo(FilterState& s, const Eigen::Isometry3d& motion, const Mat6& Rvo, bool learn_noise) {
     Eigen::Isometry3d corrected = motion;
     corrected.translation() = CorrectVoTranslation(motion.translation(), R_boresight_, vo_scale_error_);
     const Vec6 r = VoResidual(s.x.p_enu_m, s.x.R_enu_body, p_clone_, R_clone_, corrected);
@@ -257,7 +261,7 @@ class ImuProcessModel final : public ProcessModel {
         VoCalibrationJacobian(motion.linear(), motion.translation(), R_boresight_, vo_scale_error_);
     const Mat6 S = H * P * H.transpose() + Rvo;
     const double nis = r.dot(S.ldlt().solve(r));
-    AdaptVoRotationNoise(r.tail<3>(), S.bottomRightCorner<3, 3>());
+    if (learn_noise) LearnVoNoise(r, S, Rvo);
     const bool gate_ok = std::isfinite(nis) && nis < vo_gate_;
     // A run of rejections means the prediction, not the VO, is off: accept.
     if (gate_ok || (std::isfinite(nis) && ++vo_consecutive_rejections_ > 2)) {
@@ -272,19 +276,11 @@ class ImuProcessModel final : public ProcessModel {
     return {nis, !gate_ok};
   }
 
-  void AdaptVoRotationNoise(const Vec3& r_rot, const Mat3& S_rot) {
-    if (!config_.adaptive_vo_rotation_noise) return;
-    // Per body axis: mean normalised squared rotation innovation (1 when
-    // consistent); one outlier moves it by at most 10 x the rate.
-    constexpr double kRate = 0.05;
-    const double max_scale = std::max(1.0, config_.adaptive_vo_rotation_noise_max_scale);
-    for (int i = 0; i < 3; ++i) {
-      const double q = r_rot[i] * r_rot[i] / S_rot(i, i);
-      if (!std::isfinite(q)) return;
-      rot_nis_mean_[i] = (1 - kRate) * rot_nis_mean_[i] + kRate * std::min(q, 10.0);
-      vo_rotation_noise_scale_[i] =
-          std::clamp(vo_rotation_noise_scale_[i] * std::pow(rot_nis_mean_[i], kRate), 1.0, max_scale);
-    }
+  void LearnVoNoise(const Vec6& r, const Mat6& S, const Mat6& Rvo) {
+    // Rvo carries the scale learnt so far: the model's own variance is Rvo / scale.
+    if (!config_.learn_vo_noise) return;
+    for (int i = 0; i < 6; ++i) vo_noise_.Add(i, r[i], S(i, i) - Rvo(i, i), Rvo(i, i) / vo_noise_scale_[i]);
+    vo_noise_scale_ = vo_noise_.scale();
   }
 
   void Clone(FilterState& s) {
@@ -317,7 +313,8 @@ class ImuProcessModel final : public ProcessModel {
   double vo_scale_error_ = 0;
   double speed_scale_error_ = 0;  // speed sensor: reads (1 + error) x true speed
   int vo_consecutive_rejections_ = 0;
-  Vec3 vo_rotation_noise_scale_ = Vec3::Ones(), rot_nis_mean_ = Vec3::Ones();  // adaptive_vo_rotation_noise
+  NoiseScaleEstimator vo_noise_;          // learn_vo_noise
+  Vec6 vo_noise_scale_ = Vec6::Ones();    // its scale, applied by VoNoise
 };
 
 }  // namespace

@@ -71,8 +71,8 @@ class OdometryProcessModel final : public ProcessModel {
     return kIdentity;
   }
   double vo_scale_error() const override { return 0.0; }
-  const Vec3& vo_rotation_noise_scale() const override {
-    static const Vec3 kOnes = Vec3::Ones();
+  const Vec6& vo_noise_scale() const override {  // no innovation to learn from: the fixed model
+    static const Vec6 kOnes = Vec6::Ones();
     return kOnes;
   }
   double speed_scale_error() const override { return 0.0; }

@@ -46,6 +46,7 @@ struct VoStep {
   Mat6 R_vo = Mat6::Identity();  // VoNoise of `motion`
   double dt_s = 0;               // span of `motion` (vo_ok) or of the frame
   Vec3 vo_velocity_body_mps = Vec3::Zero();  // last VO velocity
+  bool learn_noise = false;  // GPS holds the state: the VO innovation may teach the noise scale
 };
 
 // What a VO measurement update did (models that gate it).
@@ -65,7 +66,8 @@ class ProcessModel {
   virtual int StateSize() const = 0;
   virtual int AttitudeIndex() const = 0;
 
-  // The filter's VO noise (body axes, [dt, dtheta]) for one motion.
+  // The filter's VO noise (body axes, [dt, dtheta]) for one motion: the
+  // model times the learned scale (EkfConfig::learn_vo_noise).
   virtual Mat6 VoNoise(const Mat6& reported, const Eigen::Isometry3d& motion) const = 0;
 
   // ---- Before initialisation
@@ -115,7 +117,7 @@ class ProcessModel {
   // ---- Estimates shown to users (identity / 0 / 1 where the model has none)
   virtual const Mat3& vo_boresight() const = 0;
   virtual double vo_scale_error() const = 0;
-  virtual const Vec3& vo_rotation_noise_scale() const = 0;
+  virtual const Vec6& vo_noise_scale() const = 0;
   virtual double speed_scale_error() const = 0;
 
  private:

@@ -89,6 +89,8 @@ void ValidateScenario(const Scenario& s) {
   RequireNonNegative(s, "gps.sigma_h_m", s.gps_sigma_h_m);
   RequireNonNegative(s, "gps.sigma_v_m", s.gps_sigma_v_m);
   RequireNonNegative(s, "gps.bias_sigma_m", s.gps_bias_sigma_m);
+  if (!(std::isfinite(s.gps_stated_sigma_scale) && s.gps_stated_sigma_scale > 0 && s.gps_stated_sigma_scale <= 100))
+    Bad(s, "gps.stated_sigma_scale", "must be in (0, 100], got " + Num(s.gps_stated_sigma_scale));
   if (!(std::isfinite(s.gps_bias_tau_s) && s.gps_bias_tau_s > 0))
     Bad(s, "gps.bias_tau_s", "must be > 0, got " + Num(s.gps_bias_tau_s));
   if (!(s.jump_probability >= 0 && s.jump_probability <= 1))
@@ -271,9 +273,10 @@ std::optional<GpsFix> GpsScenario::Apply(int64_t t_ns, double lat, double lon, d
   fix.t_ns = t_ns;
   lc.Reverse(err.x() + antenna.x(), err.y() + antenna.y(), err.z() + antenna.z(), fix.lat_deg, fix.lon_deg,
              fix.alt_m);
-  // The receiver claims its white noise plus the bias it cannot see.
-  fix.sigma_h_m = std::hypot(scenario_.gps_sigma_h_m, scenario_.gps_bias_sigma_m);
-  fix.sigma_v_m = std::hypot(scenario_.gps_sigma_v_m, scenario_.gps_bias_sigma_m);
+  // The receiver claims its white noise plus the bias it cannot see (times
+  // the scenario's misstatement).
+  fix.sigma_h_m = scenario_.gps_stated_sigma_scale * std::hypot(scenario_.gps_sigma_h_m, scenario_.gps_bias_sigma_m);
+  fix.sigma_v_m = scenario_.gps_stated_sigma_scale * std::hypot(scenario_.gps_sigma_v_m, scenario_.gps_bias_sigma_m);
   return fix;
 }
 

@@ -68,6 +68,9 @@ struct Scenario {
   double jump_probability = 0.0;     // per fix: probability that a multipath jump starts
   double jump_size_m = 0.0;          // horizontal size of a jump (random direction)
   double jump_duration_s = 0.0;      // how long a jump lasts (0: one fix)
+  // The sigma the receiver states, as a multiple of the one it has (a
+  // receiver that claims 1 m and delivers 3 m: 1/3). In (0, 100].
+  double gps_stated_sigma_scale = 1.0;
   // Where the simulated receiver's antenna sits in the body (IMU) frame, m:
   // the degraded fix is of that point (needs the attitude, see Apply).
   Eigen::Vector3d gps_antenna_body_m = Eigen::Vector3d::Zero();

@@ -95,6 +95,14 @@ struct FusedPose {
   // (1 + error) x true speed) and the readings fused so far (cumulative).
   double speed_scale_error = 0;
   int speed_used = 0;
+  // Learned noise (EkfConfig::learn_vo_noise / learn_gps_noise): variance
+  // multiples of the VO noise model per body axis [dt x, y, z, dtheta x, y, z]
+  // and of the fixes' stated covariance (horizontal, vertical); 1 = the model.
+  // vo_noise_learning: the VO noise is being learnt (GPS holds the state);
+  // false: frozen (outage, no IMU, or the fixed model).
+  Eigen::Matrix<double, 6, 1> vo_noise_scale = Eigen::Matrix<double, 6, 1>::Ones();
+  double gps_noise_scale_h = 1, gps_noise_scale_v = 1;
+  bool vo_noise_learning = false;
 };
 
 }  // namespace locaid::fusion

@@ -1,7 +1,7 @@
 // libFuzzer target: scenario YAML (pipeline/scenario_yaml.hpp), every key
 // it reads today: name, base (the built-ins), gps.{rate_hz, sigma_h_m,
 // sigma_v_m, bias_sigma_m, bias_tau_s, jump_probability, jump_size_m,
-// jump_duration_s, antenna_body_m, measured}, imu.{grade,
+// jump_duration_s, antenna_body_m, measured, stated_sigma_scale}, imu.{grade,
 // accel_bias_sigma_mps2, gyro_bias_sigma_radps, accel_noise_mps2_sqrt_hz,
 // gyro_noise_radps_sqrt_hz}, outages[].{start_s, duration_s, end_s,
 // centered}, camera[].{start_s, duration_s, end_s, fault, gain, noise_dn,

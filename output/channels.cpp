@@ -239,6 +239,10 @@ void StatusJson(const v1::PoseUpdate& p, json& body) {
   PutString(body, "vo_health", EnumName(v1::VoHealth_Name(p.vo_health()), "VO_HEALTH_"));
   PutUint(body, "speed_samples_used", p.speed_samples_used());
   Put(body, "speed_scale_error", p.speed_scale_error());
+  Member(body, "vo_noise_scale") = std::vector<double>(p.noise().vo_scale().begin(), p.noise().vo_scale().end());
+  Put(body, "gps_noise_scale_horizontal", p.noise().gps_horizontal_scale());
+  Put(body, "gps_noise_scale_vertical", p.noise().gps_vertical_scale());
+  PutBool(body, "vo_noise_learning", p.noise().vo_learning());
   PutFiniteOrNull(body, "seconds_since_gps", p.seconds_since_gps());
   PutBool(body, "gps_outage_active", p.gps_outage_active());
   PutUint(body, "gps_used", p.gps_used());

@@ -40,6 +40,14 @@ locaid::v1::VoHealth ToProtoHealth(vo::Health h) {
 
 }  // namespace
 
+void FillNoiseLearning(const fusion::FusedPose& p, locaid::v1::NoiseLearning* out) {
+  out->clear_vo_scale();
+  for (int i = 0; i < 6; ++i) out->add_vo_scale(p.vo_noise_scale[i]);
+  out->set_gps_horizontal_scale(p.gps_noise_scale_h);
+  out->set_gps_vertical_scale(p.gps_noise_scale_v);
+  out->set_vo_learning(p.vo_noise_learning);
+}
+
 void FillPoseUpdate(const pipeline::StepResult& r, double latency_ms, locaid::v1::PoseUpdate* out) {
   const fusion::FusedPose& p = r.frame.pose;
   out->set_frame_index(r.frame_index);
@@ -78,6 +86,7 @@ void FillPoseUpdate(const pipeline::StepResult& r, double latency_ms, locaid::v1
   out->set_gps_rejected(static_cast<uint32_t>(std::max(0, p.gps_rejected)));
   out->set_gps_resets(static_cast<uint32_t>(std::max(0, p.gps_resets)));
   out->set_gps_outage_active(r.frame.in_outage);
+  FillNoiseLearning(p, out->mutable_noise());
   out->set_processing_latency_ms(latency_ms);
   for (const pipeline::GpsFeed& f : r.frame.gps_feeds) {
     auto* g = out->add_gps_fixes();

@@ -9,5 +9,7 @@
 namespace locaid::output {
 
 void FillPoseUpdate(const pipeline::StepResult& r, double latency_ms, locaid::v1::PoseUpdate* out);
+// The learned noise of a pose (PoseUpdate.noise, SessionStats.noise).
+void FillNoiseLearning(const fusion::FusedPose& p, locaid::v1::NoiseLearning* out);
 
 }  // namespace locaid::output

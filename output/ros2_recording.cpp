@@ -168,6 +168,12 @@ std::vector<std::pair<std::string, std::string>> StatusValues(const v1::PoseUpda
                                  {"gps_last_fix_nis", Number(last.nis())},
                                  {"gps_last_fix_gate_threshold", Number(last.gate())}});
   }
+  std::string vo_scale;
+  for (double v : p.noise().vo_scale()) vo_scale += (vo_scale.empty() ? "" : " ") + Number(v);
+  values.insert(values.end(), {{"vo_noise_scale", vo_scale},
+                               {"gps_noise_scale_horizontal", Number(p.noise().gps_horizontal_scale())},
+                               {"gps_noise_scale_vertical", Number(p.noise().gps_vertical_scale())},
+                               {"vo_noise_learning", p.noise().vo_learning() ? "true" : "false"}});
   values.insert(values.end(), {{"speed_scale_error", Number(p.speed_scale_error())},
                                {"speed_samples_used", std::to_string(p.speed_samples_used())},
                                {"processing_latency_ms", Number(p.processing_latency_ms())}});

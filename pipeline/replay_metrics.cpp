@@ -4,6 +4,7 @@
 #include <cmath>
 #include <fstream>
 #include <iomanip>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <tuple>
@@ -13,19 +14,35 @@
 
 namespace locaid::pipeline {
 
+namespace {
+
+// 99 % bound of the mean of n 3-dof NEES values (Wilson-Hilferty: the
+// closed-form CDF does not reach thousands of dof); 0 for n = 0.
+double NeesBound99(int n) {
+  if (n <= 0) return 0;
+  const double k = 3.0 * n, z99 = 2.326347874;
+  const double c = 2.0 / (9.0 * k);
+  return k * std::pow(1.0 - c + z99 * std::sqrt(c), 3) / n;
+}
+
+}  // namespace
+
 ReplayMetrics ComputeReplayMetrics(const std::vector<ReplaySample>& s, double sigma_h) {
   ReplayMetrics m;
   m.frames = static_cast<int>(s.size());
   auto err_h = [&](size_t i) { return (s[i].p_enu_est_m - s[i].p_enu_gt_m).head<2>().norm(); };
   // A frame is scored only with a valid pose AND ground truth.
   auto scored = [&](size_t i) { return s[i].initialized && s[i].has_gt; };
-  double sum2 = 0, nees = 0;
+  double sum2 = 0, nees = 0, nees_late = 0;
   int n = 0;
+  std::optional<double> t_init;
   for (size_t i = 0; i < s.size(); ++i) {
     if (!scored(i)) continue;
+    if (!t_init) t_init = s[i].t_s;
     const Eigen::Vector3d e = s[i].p_enu_est_m - s[i].p_enu_gt_m;
     const double q = e.dot(s[i].P_pos_m2.ldlt().solve(e));
     if (std::isfinite(q)) { nees += q; ++m.nees_frames; }
+    if (std::isfinite(q) && s[i].t_s >= *t_init + 30.0) { nees_late += q; ++m.nees_frames_after_30s; }
     m.max_vertical_error_m = std::max(m.max_vertical_error_m, std::abs(e.z()));
     const bool gps_in_use = !s[i].in_outage &&
         (s[i].mode == fusion::Mode::kGpsFused || s[i].mode == fusion::Mode::kGpsDegraded);
@@ -33,12 +50,9 @@ ReplayMetrics ComputeReplayMetrics(const std::vector<ReplaySample>& s, double si
   }
   m.rmse_gps_m = n ? std::sqrt(sum2 / n) : std::nan("");
   m.nees_mean = m.nees_frames ? nees / m.nees_frames : std::nan("");
-  if (m.nees_frames > 0) {
-    // Wilson-Hilferty: the closed-form CDF does not reach thousands of dof.
-    const double k = 3.0 * m.nees_frames, z99 = 2.326347874;
-    const double c = 2.0 / (9.0 * k);
-    m.nees_bound_99 = k * std::pow(1.0 - c + z99 * std::sqrt(c), 3) / m.nees_frames;
-  }
+  m.nees_bound_99 = NeesBound99(m.nees_frames);
+  m.nees_mean_after_30s = m.nees_frames_after_30s ? nees_late / m.nees_frames_after_30s : std::nan("");
+  m.nees_bound_99_after_30s = NeesBound99(m.nees_frames_after_30s);
 
   for (size_t i = 0; i < s.size(); ++i) {
     if (!s[i].in_outage || (i > 0 && s[i - 1].in_outage)) continue;
@@ -130,7 +144,7 @@ std::pair<double, double> MeanAndMedian(std::vector<double>& v) {
 
 VoErrorStats ComputeVoErrorStats(const std::vector<VoErrorPair>& pairs) {
   VoErrorStats st;
-  std::vector<double> nees, nees_model;
+  std::vector<double> nees, nees_model, nees_model_outage;
   Eigen::Matrix<double, 6, 1> e2 = Eigen::Matrix<double, 6, 1>::Zero(), s2 = e2, m2 = e2;
   for (const auto& p : pairs) {
     const Eigen::Isometry3d E = p.T_prev_curr_gt.inverse() * p.T_prev_curr_vo;
@@ -144,7 +158,7 @@ VoErrorStats ComputeVoErrorStats(const std::vector<VoErrorPair>& pairs) {
     const double q = d.dot(p.covariance.ldlt().solve(d));
     if (std::isfinite(q)) nees.push_back(q);
     const double qm = d.dot(p.model_covariance.ldlt().solve(d));
-    if (std::isfinite(qm)) nees_model.push_back(qm);
+    if (std::isfinite(qm)) (p.in_outage ? nees_model_outage : nees_model).push_back(qm);
     ++st.frames;
   }
   if (st.frames == 0) return st;
@@ -152,6 +166,10 @@ VoErrorStats ComputeVoErrorStats(const std::vector<VoErrorPair>& pairs) {
   st.rms_sigma = (s2 / st.frames).cwiseSqrt();
   st.rms_model_sigma = (m2 / st.frames).cwiseSqrt();
   std::tie(st.nees_mean, st.nees_median) = MeanAndMedian(nees);
+  st.frames_in_outage = static_cast<int>(nees_model_outage.size());
+  st.nees_mean_model_in_outage = MeanAndMedian(nees_model_outage).first;
+  st.nees_mean_model_gps_good = MeanAndMedian(nees_model).first;
+  nees_model.insert(nees_model.end(), nees_model_outage.begin(), nees_model_outage.end());
   std::tie(st.nees_mean_model, st.nees_median_model) = MeanAndMedian(nees_model);
   return st;
 }

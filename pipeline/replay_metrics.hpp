@@ -46,6 +46,10 @@ struct ReplayMetrics {
   // 99 % bound of nees_mean for a consistent filter with independent errors:
   // chi2_0.99(3 n) / n over the n NEES frames.
   double nees_bound_99 = 0;
+  // The same from 30 s after the first initialised frame on (a filter that
+  // learns its noise has had time to), and its bound; NaN / 0 without frames.
+  double nees_mean_after_30s = 0, nees_bound_99_after_30s = 0;
+  int nees_frames_after_30s = 0;
   double max_vertical_error_m = 0;  // over initialised frames with ground truth
   std::vector<OutageStats> outages;
 };
@@ -58,7 +62,9 @@ struct VoErrorPair {
   Eigen::Isometry3d T_prev_curr_vo = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d T_prev_curr_gt = Eigen::Isometry3d::Identity();
   Eigen::Matrix<double, 6, 6> covariance = Eigen::Matrix<double, 6, 6>::Identity();  // as reported
-  Eigen::Matrix<double, 6, 6> model_covariance = Eigen::Matrix<double, 6, 6>::Identity();  // fusion::Ekf::VoNoise
+  // fusion::Ekf::VoNoise: the noise the filter used (model x learned scale).
+  Eigen::Matrix<double, 6, 6> model_covariance = Eigen::Matrix<double, 6, 6>::Identity();
+  bool in_outage = false;  // a GPS outage frame (the learned scale is frozen)
 };
 
 struct VoErrorStats {
@@ -69,6 +75,10 @@ struct VoErrorStats {
   double nees_median = 0;
   double nees_mean_model = 0;   // the same with the filter's noise model (model_covariance)
   double nees_median_model = 0;
+  // nees_mean_model apart for GPS outage frames (in_outage) and the others
+  // (GPS good: the learned scale is learning); 0 without such frames.
+  int frames_in_outage = 0;
+  double nees_mean_model_in_outage = 0, nees_mean_model_gps_good = 0;
   Eigen::Matrix<double, 6, 1> rms_model_sigma = Eigen::Matrix<double, 6, 1>::Zero();
 };
 

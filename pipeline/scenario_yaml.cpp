@@ -160,7 +160,8 @@ fusion::Scenario ParseScenarioYaml(const std::string& text, const std::string& w
   }
   if (const auto g = root["gps"]) {
     c.CheckKeys(g, "gps", {"rate_hz", "sigma_h_m", "sigma_v_m", "bias_sigma_m", "bias_tau_s",
-                           "jump_probability", "jump_size_m", "jump_duration_s", "antenna_body_m", "measured"});
+                           "jump_probability", "jump_size_m", "jump_duration_s", "antenna_body_m", "measured",
+                           "stated_sigma_scale"});
     if (g["measured"]) {
       const std::string m = g["measured"].IsScalar() ? g["measured"].Scalar() : "";
       if (m == "as-recorded") s.degrade_measured_gps = false;
@@ -177,6 +178,7 @@ fusion::Scenario ParseScenarioYaml(const std::string& text, const std::string& w
     if (g["sigma_v_m"]) s.gps_sigma_v_m = c.NonNegative(g["sigma_v_m"], "gps.sigma_v_m");
     if (g["bias_sigma_m"]) s.gps_bias_sigma_m = c.NonNegative(g["bias_sigma_m"], "gps.bias_sigma_m");
     if (g["bias_tau_s"]) s.gps_bias_tau_s = c.Positive(g["bias_tau_s"], "gps.bias_tau_s");
+    if (g["stated_sigma_scale"]) s.gps_stated_sigma_scale = c.Positive(g["stated_sigma_scale"], "gps.stated_sigma_scale");
     if (g["jump_probability"]) {
       s.jump_probability = c.NonNegative(g["jump_probability"], "gps.jump_probability");
       if (s.jump_probability > 1)

@@ -4,7 +4,10 @@
 //   base: urban-canyon           # optional built-in to start from
 //   gps: {rate_hz: 1, sigma_h_m: 3, sigma_v_m: 5, bias_sigma_m: 0.3,
 //         bias_tau_s: 60, jump_probability: 0.02, jump_size_m: 15,
-//         jump_duration_s: 0}
+//         jump_duration_s: 0, stated_sigma_scale: 1}
+//     # stated_sigma_scale (0, 100]: the receiver states this multiple of
+//     # its sigma (1/3: claims 1 m, delivers 3 m); antenna_body_m [x, y, z]
+//     # and measured: as-recorded | degraded (fusion/scenario.hpp)
 //   imu: {grade: as-recorded | mems, accel_bias_sigma_mps2: 0.05,
 //         gyro_bias_sigma_radps: 0.002, accel_noise_mps2_sqrt_hz: 0.01,
 //         gyro_noise_radps_sqrt_hz: 0.0005}

@@ -2,6 +2,7 @@
 
 #include "fusion/types.hpp"
 
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -127,6 +128,15 @@ void AddSession(Families& f, const std::string& id, const Session::MetricsSnapsh
         sid, m.speed_used);
   f.Add("locaid_session_speed_scale_error", "Estimated speed sensor scale error (reads (1 + e) x true speed)",
         MetricType::Gauge, sid, m.speed_scale_error);
+  static constexpr std::array<const char*, 6> kVoAxes = {"tx", "ty", "tz", "rx", "ry", "rz"};
+  for (int i = 0; i < m.noise.vo_scale_size() && i < 6; ++i) {
+    f.Add("locaid_session_vo_noise_scale", "Learned VO noise: variance multiple of the model per body axis",
+          MetricType::Gauge, {{"session", id}, {"axis", kVoAxes[static_cast<size_t>(i)]}}, m.noise.vo_scale(i));
+  }
+  f.Add("locaid_session_gps_noise_scale", "Learned GPS noise: variance multiple of the fixes' stated covariance",
+        MetricType::Gauge, {{"session", id}, {"component", "horizontal"}}, m.noise.gps_horizontal_scale());
+  f.Add("locaid_session_gps_noise_scale", "Learned GPS noise: variance multiple of the fixes' stated covariance",
+        MetricType::Gauge, {{"session", id}, {"component", "vertical"}}, m.noise.gps_vertical_scale());
   f.Add("locaid_session_position_sigma_meters", "Horizontal position 1-sigma radius, sqrt(var_e + var_n)",
         MetricType::Gauge, sid, m.position_sigma_h_m);
 }

@@ -35,6 +35,7 @@ struct EstimatorSetup {
   Eigen::Vector3d gps_antenna_body_m = Eigen::Vector3d::Zero();  // lever arm (live sources)
   // VehicleOptions: the car's motion constraints and the IMU mounting.
   bool vehicle_constraints = true, vehicle_constraints_need_speed = true;
+  bool learn_vo_noise = true, learn_gps_noise = true;  // StartSessionRequest.noise
   Eigen::Matrix3d R_vehicle_body = Eigen::Matrix3d::Identity();
   // LiveSource.speed_sensor (0 = the filter's defaults).
   double speed_sigma_mps = 0, speed_scale_sigma = 0;

@@ -218,6 +218,8 @@ std::unique_ptr<pipeline::Estimator> MakeLocalizer(const EstimatorSetup& setup) 
   options.ekf.vehicle_constraints = setup.vehicle_constraints;
   options.ekf.vehicle_constraints_need_speed = setup.vehicle_constraints_need_speed;
   options.ekf.R_vehicle_body = setup.R_vehicle_body;
+  options.ekf.learn_vo_noise = setup.learn_vo_noise;
+  options.ekf.learn_gps_noise = setup.learn_gps_noise;
   if (setup.speed_sigma_mps > 0) options.ekf.speed_sigma_mps = setup.speed_sigma_mps;
   if (setup.speed_scale_sigma > 0) options.ekf.speed_scale_sigma = setup.speed_scale_sigma;
   options.ekf = pipeline::EkfConfigForScenario(options.ekf, setup.scenario);
@@ -265,6 +267,8 @@ Status LocalizationService::SessionOptionsFromRequest(const v1::StartSessionRequ
                                                    : std::min<size_t>(req.history_size(), config_.max_history_size);
   setup->vo_method = options->vo_method;
   if (Status s = ParseVehicleOptions(req.vehicle(), setup); !s.ok()) return s;
+  setup->learn_vo_noise = !req.noise().fixed_vo_noise();
+  setup->learn_gps_noise = !req.noise().fixed_gps_noise();
   return ResolveScenario(req.scenario(), &setup->scenario, &options->scenario);
 }
 
@@ -363,6 +367,7 @@ Status LocalizationService::StartLive(const v1::PushStart& start, std::shared_pt
   *req.mutable_live() = start.live();
   *req.mutable_scenario() = start.scenario();
   *req.mutable_vehicle() = start.vehicle();
+  *req.mutable_noise() = start.noise();
   req.set_vo_method(start.vo_method());
   req.set_history_size(start.history_size());
   std::string id;

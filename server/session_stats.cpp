@@ -1,5 +1,7 @@
 #include "server/session_stats.hpp"
 
+#include "output/pose_message.hpp"
+
 #include <algorithm>
 #include <cmath>
 
@@ -39,6 +41,8 @@ void SessionCounters::Record(const pipeline::StepResult& r, double latency_ms) {
   last_.vo_health = r.frame.vo.health;
   last_.speed_scale_error = r.frame.pose.speed_scale_error;
   last_.speed_used = r.frame.pose.speed_used;
+  output::FillNoiseLearning(p, &last_.noise);
+  *stats_.mutable_noise() = last_.noise;
   last_.gps_used = p.gps_used;
   last_.gps_rejected = p.gps_rejected;
   const double latency_s = latency_ms / 1000.0;

@@ -27,6 +27,7 @@ struct SessionMetricsSnapshot {
   vo::Health vo_health = vo::Health::kLost;
   double speed_scale_error = 0;
   int speed_used = 0;
+  locaid::v1::NoiseLearning noise;  // the newest pose's learned noise
   std::array<uint64_t, kLatencyBucketsS.size()> latency_le{};  // cumulative counts per bucket
   uint64_t latency_count = 0;
   double latency_sum_s = 0;

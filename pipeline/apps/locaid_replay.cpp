@@ -62,7 +62,14 @@ void ApplyEkfSetting(fusion::EkfConfig& c, const std::string& setting) {
       {"gps_lever_arm_y_m", &c.gps_lever_arm_body_m.y()},
       {"gps_lever_arm_z_m", &c.gps_lever_arm_body_m.z()},
       {"gps_latency_s", &c.gps_latency_s},
-      {"adaptive_vo_rotation_noise_max_scale", &c.adaptive_vo_rotation_noise_max_scale},
+      {"vo_noise_prior_frames", &c.vo_noise_prior_frames},
+      {"vo_noise_window_frames", &c.vo_noise_window_frames},
+      {"vo_noise_scale_min", &c.vo_noise_scale_min},
+      {"vo_noise_scale_max", &c.vo_noise_scale_max},
+      {"gps_noise_prior_fixes", &c.gps_noise_prior_fixes},
+      {"gps_noise_window_fixes", &c.gps_noise_window_fixes},
+      {"gps_noise_scale_min", &c.gps_noise_scale_min},
+      {"gps_noise_scale_max", &c.gps_noise_scale_max},
       {"no_imu_lost_sigma_mps", &c.no_imu_lost_sigma_mps},
       {"degraded_hold_s", &c.degraded_hold_s},
       {"vo_only_after_periods", &c.vo_only_after_periods},
@@ -97,7 +104,7 @@ int main(int argc, char** argv) {
   CLI::App app{"locaid-replay: VO + GPS/IMU fusion over a recorded drive, with outage metrics"};
   std::string drive_dir, scenario_arg = "open-sky", out_tum, out_csv, out_mcap, vo_method = "default";
   std::string out_bag;
-  bool json = false, no_imu = false;
+  bool json = false, no_imu = false, fixed_vo_noise = false, fixed_gps_noise = false;
   std::string vehicle_constraints = "auto";
   int max_frames = 0;
   int64_t seed = -1;
@@ -132,6 +139,9 @@ int main(int argc, char** argv) {
                  "the poses as a ROS 2 bag (MCAP, ros2msg/CDR: odometry, fix, tf; see docs/api.md \"ROS 2 output\")");
   app.add_flag("--json", json, "print metrics as JSON on stdout");
   app.add_flag("--no-imu", no_imu, "VO + GPS only (no IMU)");
+  app.add_flag("--fixed-vo-noise", fixed_vo_noise,
+               "the fixed VO noise model, not learnt from the innovations (docs/api.md \"Learned noise\")");
+  app.add_flag("--fixed-gps-noise", fixed_gps_noise, "the fixes' stated sigmas as they are, not a learnt multiple");
   app.add_option("--vehicle-constraints", vehicle_constraints,
                  "car motion constraints (non-holonomic, zero-velocity updates): auto (once a speed sensor "
                  "reports), on (always), off (a platform that slides)")
@@ -204,6 +214,8 @@ int main(int argc, char** argv) {
     pipeline::LocalizerOptions options;
     options.vo_method = vo_method;
     options.ekf.use_imu = !no_imu;
+    options.ekf.learn_vo_noise = !fixed_vo_noise;
+    options.ekf.learn_gps_noise = !fixed_gps_noise;
     options.ekf.vehicle_constraints = vehicle_constraints != "off";
     options.ekf.vehicle_constraints_need_speed = vehicle_constraints == "auto";
     if (bag_source) options.ekf.gps_lever_arm_body_m = bag_source->gps_lever_arm_body_m();

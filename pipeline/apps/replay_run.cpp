@@ -29,7 +29,7 @@ void ReplayRun::Add(const StepResult& step) {
     const auto g0 = TruthAt(r.vo_body.t_prev_ns), g1 = TruthAt(r.vo_body.t_ns);
     if (g0 && g1)
       vo_pairs_.push_back({r.vo_body.T_prev_curr, g0->inverse() * *g1, r.vo_body.covariance,
-                           ekf.VoNoise(r.vo_body.covariance, r.vo_body.T_prev_curr)});
+                           ekf.VoNoise(r.vo_body.covariance, r.vo_body.T_prev_curr), r.in_outage});
   }
   vo_motion_.push_back(vo_lost ? Eigen::Isometry3d::Identity() : r.vo_body.T_prev_curr);
 
@@ -129,6 +129,9 @@ nlohmann::json ReplayRun::Summary(const ReplayMetrics& metrics, double wall_s) c
   j["rmse_gps_m"] = metrics.rmse_gps_m;
   j["nees_mean"] = metrics.nees_mean;
   j["nees_bound_99"] = metrics.nees_bound_99;
+  j["nees_mean_after_30s"] = metrics.nees_frames_after_30s ? nlohmann::json(metrics.nees_mean_after_30s)
+                                                           : nlohmann::json(nullptr);
+  j["nees_bound_99_after_30s"] = metrics.nees_bound_99_after_30s;
   j["max_vertical_error_m"] = metrics.max_vertical_error_m;
   j["frames_per_s"] = frames / wall_s;
   j["vo_ms_mean"] = vo_ms_total_ / std::max(1.0, frames);
@@ -138,8 +141,10 @@ nlohmann::json ReplayRun::Summary(const ReplayMetrics& metrics, double wall_s) c
   j["gps_rejected"] = last_.pose.gps_rejected;
   j["gps_rejected_vertical"] = ekf.stats().gps_rejected_vertical;
   j["gps_resets"] = last_.pose.gps_resets;
-  const Eigen::Vector3d& rot_scale = ekf.vo_rotation_noise_scale();
-  j["vo_rotation_noise_scale"] = {rot_scale.x(), rot_scale.y(), rot_scale.z()};
+  const auto& vo_scale = ekf.vo_noise_scale();
+  j["noise"] = {{"vo_scale", std::vector<double>(vo_scale.data(), vo_scale.data() + 6)},
+                {"gps_scale_horizontal", ekf.gps_noise_scale_horizontal()},
+                {"gps_scale_vertical", ekf.gps_noise_scale_vertical()}};
   j["max_gps_rejection_run"] = max_rejection_run_;
   j["max_gps_rejection_run_vertical"] = max_rejection_run_v_;
   const auto vo_err = ComputeVoErrorStats(vo_pairs_);
@@ -151,7 +156,12 @@ nlohmann::json ReplayRun::Summary(const ReplayMetrics& metrics, double wall_s) c
                    {"nees6_median_reported_cov", vo_err.nees_median},
                    {"rms_model_sigma", vec6(vo_err.rms_model_sigma)},
                    {"nees6_mean_model", vo_err.nees_mean_model},
-                   {"nees6_median_model", vo_err.nees_median_model}};
+                   {"nees6_median_model", vo_err.nees_median_model},
+                   {"nees6_mean_model_gps_good", vo_err.nees_mean_model_gps_good},
+                   {"frames_in_outage", vo_err.frames_in_outage},
+                   {"nees6_mean_model_in_outage", vo_err.frames_in_outage > 0
+                                                      ? nlohmann::json(vo_err.nees_mean_model_in_outage)
+                                                      : nlohmann::json(nullptr)}};
   const fusion::EkfStats& st = ekf.stats();
   j["vehicle"] = {{"speed_used", st.speed_used},
                   {"speed_rejected", st.speed_rejected},

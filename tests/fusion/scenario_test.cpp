@@ -55,6 +55,22 @@ TEST(GpsScenario, RateNoiseAndRepeatability) {
   EXPECT_NE(RunScenario(c, 10).fixes[0].lat_deg, ca.fixes[0].lat_deg);
 }
 
+TEST(GpsScenario, AReceiverCanStateOtherNoiseThanItHas) {
+  Scenario s = BuiltinScenario("urban-canyon");
+  s.jump_probability = 0;
+  s.gps_stated_sigma_scale = 1.0 / 3.0;
+  GpsScenario gps(s);
+  const auto c = RunScenario(gps, 600);
+  ASSERT_FALSE(c.fixes.empty());
+  EXPECT_NEAR(c.fixes[0].sigma_h_m, s.gps_sigma_h_m / 3, 1e-9) << "it claims a third";
+  EXPECT_NEAR(c.fixes[0].sigma_v_m, s.gps_sigma_v_m / 3, 1e-9);
+  double s2 = 0;
+  for (const auto& e : c.errors) s2 += e.head<2>().squaredNorm() / 2;
+  EXPECT_NEAR(std::sqrt(s2 / c.errors.size()), s.gps_sigma_h_m, 0.1 * s.gps_sigma_h_m) << "and delivers all of it";
+  s.gps_stated_sigma_scale = 0;
+  EXPECT_THROW(ValidateScenario(s), std::invalid_argument);
+}
+
 TEST(GpsScenario, OutagesDropFixes) {
   Scenario s = BuiltinScenario("open-sky");
   s.outages = {{10.0, 5.0}};

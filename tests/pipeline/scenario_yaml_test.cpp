@@ -97,6 +97,8 @@ INSTANTIATE_TEST_SUITE_P(
         BadCase{"wrong_type", "gps: {sigma_h_m: three}\n", "gps.sigma_h_m", "expected a number"},
         BadCase{"negative_sigma", "gps: {sigma_h_m: -2}\n", "gps.sigma_h_m", ">= 0"},
         BadCase{"zero_rate", "gps: {rate_hz: 0}\n", "gps.rate_hz", "> 0"},
+        BadCase{"zero_stated", "gps: {stated_sigma_scale: 0}\n", "gps.stated_sigma_scale", "> 0"},
+        BadCase{"huge_stated", "gps: {stated_sigma_scale: 1000}\n", "gps.stated_sigma_scale", "(0, 100]"},
         BadCase{"probability", "gps: {jump_probability: 1.5}\n", "gps.jump_probability", "[0, 1]"},
         BadCase{"end_before_start", "outages: [{start_s: 20, end_s: 10}]\n", "outages[0].end_s", "before"},
         BadCase{"no_duration", "outages: [{start_s: 20}]\n", "outages[0].duration_s", "missing"},

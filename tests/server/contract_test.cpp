@@ -582,7 +582,9 @@ TEST(Contract, MetricsScrapePassesPromtoolAndCarriesTheSession) {
         "locaid_session_processing_latency_seconds_count{session=\"" + s.id() + "\"} 40",
         "locaid_session_mode{session=\"" + s.id() + "\",mode=\"gps_fused\"}",
         "locaid_session_gps_nis{session=\"" + s.id() + "\"}", "locaid_session_vo_inliers{session=\"",
-        "locaid_session_position_sigma_meters{", "locaid_render_queue 0", "locaid_resident_memory_bytes "};
+        "locaid_session_position_sigma_meters{", "locaid_render_queue 0", "locaid_resident_memory_bytes ",
+        "locaid_session_vo_noise_scale{session=\"" + s.id() + "\",axis=\"ry\"}",
+        "locaid_session_gps_noise_scale{session=\"" + s.id() + "\",component=\"horizontal\"}"};
   for (const std::string& expected : expected_lines) {
     EXPECT_NE(text.find(expected), std::string::npos) << "missing: " << expected << "\n" << text.substr(0, 3000);
   }
