@@ -12,10 +12,14 @@ using namespace detail;
 Ekf::Ekf(EkfConfig config)
     : config_(config),
       model_(MakeProcessModel(config_)),
-      gps_noise_(2, {.prior_samples = 2 * config_.gps_noise_prior_fixes,  // E and N: 2 samples per fix
-                     .window_samples = 2 * config_.gps_noise_window_fixes,
-                     .min_scale = config_.gps_noise_scale_min,
-                     .max_scale = config_.gps_noise_scale_max}) {
+      gps_noise_h_(1, {.prior_samples = 2 * config_.gps_noise_prior_fixes,  // E and N: 2 samples per fix
+                       .window_samples = 2 * config_.gps_noise_window_fixes,
+                       .min_scale = config_.gps_noise_scale_min,
+                       .max_scale = config_.gps_noise_scale_max}),
+      gps_noise_v_(1, {.prior_samples = config_.gps_noise_prior_fixes,
+                       .window_samples = config_.gps_noise_window_fixes,
+                       .min_scale = config_.gps_noise_scale_min,
+                       .max_scale = config_.gps_noise_scale_max}) {
   gate_h_ = ChiSquareQuantile(config_.gps_gate_probability, 2);
   gate_v_ = ChiSquareQuantile(config_.gps_gate_probability, 1);
   zupt_gate_ = ChiSquareQuantile(config_.speed_gate_probability, 3);
@@ -171,8 +175,8 @@ FusedPose Ekf::Output(int64_t t_ns, bool vo_ok) const {
   out.speed_scale_error = model_->speed_scale_error();
   out.speed_used = stats_.speed_used;
   out.vo_noise_scale = model_->vo_noise_scale();
-  out.gps_noise_scale_h = gps_noise_.scale(0);
-  out.gps_noise_scale_v = gps_noise_.scale(1);
+  out.gps_noise_scale_h = gps_noise_h_.scale(0);
+  out.gps_noise_scale_v = gps_noise_v_.scale(0);
   out.vo_noise_learning = LearningVoNoise(t_ns);
   if (out.seconds_since_gps > config_.vo_only_after_periods * gps_period_s_ + 2 * gps_lag_s_) {
     // Without GPS: VO, else the IMU while its samples keep coming.

@@ -31,7 +31,8 @@ GpsUpdate Ekf::UpdateGps(const GpsFix& fix) {
   if (!s_.initialized) {
     // The start-up fit weighs fixes by their horizontal sigma; the fix joins
     // the VO chain at the next frame (T_start_body NaN until then).
-    init_fixes_.push_back({fix.t_ns, z, fix.horizontal_sigma_m(), Eigen::Isometry3d::Identity()});
+    const double sigma_v = fix.has_altitude ? fix.vertical_sigma_m() : std::numeric_limits<double>::quiet_NaN();
+    init_fixes_.push_back({fix.t_ns, z, fix.horizontal_sigma_m(), sigma_v, Eigen::Isometry3d::Identity()});
     init_fixes_.back().T_start_body.matrix()(0, 0) = std::numeric_limits<double>::quiet_NaN();
     return {.buffered = true};
   }
@@ -83,7 +84,8 @@ Ekf::GpsModel Ekf::PredictGps(const GpsFix& fix) const {
   }
   model_->ExtrapolateGps(s_, fix.t_ns, m.predicted, m.R);
   m.R_stated = m.R;
-  const Vec3 d(std::sqrt(gps_noise_.scale(0)), std::sqrt(gps_noise_.scale(0)), std::sqrt(gps_noise_.scale(1)));
+  const double h = std::sqrt(gps_noise_h_.scale(0));
+  const Vec3 d(h, h, std::sqrt(gps_noise_v_.scale(0)));
   m.R = d.asDiagonal() * m.R * d.asDiagonal();
   m.H = model_->GpsJacobian(s_, GpsAntennaJacobian(s_.x.R_enu_body, config_.gps_lever_arm_body_m, latency_s));
   return m;
@@ -124,9 +126,9 @@ void Ekf::LearnGpsNoise(const Vec3& y, const GpsModel& m, bool horizontal, bool 
   const Vec3 hph = (m.H * s_.P * m.H.transpose()).diagonal();
   for (int i = 0; i < 3; ++i) {
     if (!(i < 2 ? horizontal : vertical)) continue;
-    const int axis = i < 2 ? 0 : 1;
+    NoiseScaleEstimator& est = i < 2 ? gps_noise_h_ : gps_noise_v_;
     const double r0 = m.R_stated(i, i);
-    if (hph[i] <= 4 * gps_noise_.scale(axis) * r0) gps_noise_.Add(axis, y[i], hph[i], r0);
+    if (hph[i] <= 4 * est.scale(0) * r0) est.Add(0, y[i], hph[i], r0);
   }
 }
 

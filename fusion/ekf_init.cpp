@@ -30,17 +30,25 @@ void Ekf::TryInitialize(int64_t t_ns) {
   if (fit.used < min_fixes || fit.spread2 < min_baseline * min_baseline / 4) return;
   // Fixes that scatter more than they state (a receiver that claims 1 m and
   // delivers 3 m) would give a heading fit trusted far beyond its error (0.9
-  // rad off with a 0.06 rad sigma, in a test): the start-up uses the larger
-  // of the stated sigma and the fit's residual sigma, and waits for the
-  // baseline that one needs.
-  const double sigma_eff = std::max(sigma_h, std::sqrt(fit.residual_var));
+  // rad off with a 0.06 rad sigma, in a test): the start-up then uses the
+  // fit's residual sigma, and waits for the baseline that one needs. Only a
+  // scatter beyond twice the stated sigma counts: a receiver stating its true sigma gets there with probability
+  // ~1e-5 over the fit's 9 degrees of freedom, while a chance scatter above
+  // it would only delay and weaken its start-up.
+  const double scatter = std::sqrt(fit.residual_var);
+  const double sigma_eff = scatter > 2 * sigma_h ? scatter : sigma_h;
   if (sigma_eff > sigma_h &&
       !InitBaselineReached(fixes, std::max(config_.init_min_baseline_m, config_.init_min_baseline_sigmas * sigma_eff)))
     return;
   if (config_.learn_gps_noise && sigma_h > 0) {
-    // The fit's residuals teach the GPS scale too (weight of one sample per
-    // fix and axis; the prediction is the fit itself).
-    for (int i = 0; i < 2 * fit.used; ++i) gps_noise_.Add(0, std::sqrt(fit.residual_var), 0.0, sigma_h * sigma_h);
+    // The fit's residuals teach the GPS scales too (one sample per fix and
+    // axis; the prediction is the fit itself).
+    const double sigma_v = fixes.back()->sigma_v;  // NaN for a 2-D fix
+    const bool heights = std::all_of(fixes.begin(), fixes.end(), [](const InitFix* f) { return std::isfinite(f->sigma_v); });
+    for (int i = 0; i < 2 * fit.used; ++i) gps_noise_h_.Add(0, std::sqrt(fit.residual_var), 0.0, sigma_h * sigma_h);
+    if (heights && sigma_v > 0) {
+      for (int i = 0; i < fit.used; ++i) gps_noise_v_.Add(0, std::sqrt(fit.residual_var_v), 0.0, sigma_v * sigma_v);
+    }
   }
   InitializeState(fit, R_level_start, tilt_var, sigma_eff);
   s_.t_ns = t_ns;
@@ -113,6 +121,12 @@ Ekf::HeadingFit Ekf::FitHeading(const std::vector<const InitFix*>& fixes, const 
     if (use[i]) sum2 += (fixes[i]->p_enu.head<2>() - (Rz * (q_of(i).head<2>() - fit.q_mean) + fit.p_mean)).squaredNorm();
   }
   fit.residual_var = fit.used >= 2 ? sum2 / std::max(1, 2 * fit.used - 3) : 0.0;
+  // Vertical: the fixes' heights about the VO track's, one offset fitted.
+  double sum2_v = 0;
+  for (size_t i = 0; i < fixes.size(); ++i) {
+    if (use[i]) sum2_v += std::pow(fixes[i]->p_enu.z() - (q_of(i).z() + fit.z_off), 2);
+  }
+  fit.residual_var_v = fit.used >= 2 ? sum2_v / (fit.used - 1) : 0.0;
   return fit;
 }
 

@@ -52,16 +52,26 @@ TEST(EkfAccuracy, UrbanCanyonGpsIsSmoothed) {
   // 3 m GPS at 1 Hz: the fused horizontal RMSE must be well below the GPS
   // noise (horizontal RMSE of the raw fixes: 3 m x sqrt(2) = 4.2 m). The 1.0 m
   // product target is measured on the rendered synthetic drive (docs/benchmarks.md).
-  constexpr double kMaxRmseM = 1.35;
+  // The fixed noise models are exact here; learning them (the default) may
+  // cost a little (the learned scales stay >= 1 and so wander above it), at
+  // most 5 %.
+  constexpr double kMaxRmseM = 1.35, kLearningCost = 1.05;
   for (bool imu : {true, false}) {
     SimConfig c;
     c.duration_s = 150;
     c.seed = 9;
     const auto ev = Simulate(c);
-    Ekf ekf(ConfigFor(c, imu));
-    const auto s = RunFilter(ekf, ev, c);
-    const double rmse = std::sqrt(s.rmse_h_sum2 / s.rmse_n);
-    EXPECT_LT(rmse, kMaxRmseM) << (imu ? "IMU" : "no IMU");
+    double rmse[2];
+    for (bool learn : {false, true}) {
+      EkfConfig config = ConfigFor(c, imu);
+      config.learn_vo_noise = config.learn_gps_noise = learn;
+      Ekf ekf(config);
+      const auto s = RunFilter(ekf, ev, c);
+      rmse[learn] = std::sqrt(s.rmse_h_sum2 / s.rmse_n);
+    }
+    EXPECT_LT(rmse[false], kMaxRmseM) << (imu ? "IMU" : "no IMU");
+    EXPECT_LT(rmse[true], kLearningCost * rmse[false]) << (imu ? "IMU" : "no IMU");
+    std::cout << (imu ? "IMU" : "no IMU") << ": rmse fixed " << rmse[false] << " m, learned " << rmse[true] << " m\n";
   }
 }
 

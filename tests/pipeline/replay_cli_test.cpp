@@ -80,6 +80,30 @@ TEST_F(ReplayCli, VoCacheReproducesTheFilterResultWithoutVo) {
   EXPECT_NE(JsonField(tuned.out, "rmse_gps_m"), rmse1);
 }
 
+// Learned noise (docs/api.md "Learned noise") in the JSON, and the two flags
+// that keep the fixed models.
+TEST_F(ReplayCli, NoiseIsLearnedUnlessTheFixedModelsAreAsked) {
+  ASSERT_FALSE(drive_.empty());
+  const fs::path yaml = root_ / "overconfident.yaml";
+  std::ofstream(yaml) << "name: overconfident\n"
+                         "gps: {rate_hz: 10, sigma_h_m: 3.0, sigma_v_m: 5.0, stated_sigma_scale: 0.3333333333}\n";
+  auto run = [&](const std::string& flags) {
+    return RunCommand(std::string(LOCAID_BIN_DIR) + "/locaid-replay --drive " + drive_.string() + " --scenario " +
+                      yaml.string() + " --json " + flags);
+  };
+  const auto learned = run(""), fixed = run("--fixed-vo-noise --fixed-gps-noise");
+  fs::remove(yaml);
+  ASSERT_EQ(learned.exit_code, 0) << learned.out;
+  ASSERT_EQ(fixed.exit_code, 0) << fixed.out;
+  const std::string h = JsonField(learned.out, "gps_scale_horizontal");
+  ASSERT_FALSE(h.empty()) << learned.out;
+  EXPECT_GT(std::stod(h), 2.0) << "the fixes scatter 3x what they state";
+  EXPECT_EQ(std::stod(JsonField(fixed.out, "gps_scale_horizontal")), 1.0);
+  EXPECT_EQ(std::stod(JsonField(fixed.out, "gps_scale_vertical")), 1.0);
+  EXPECT_FALSE(JsonField(learned.out, "nees6_mean_model_gps_good").empty()) << learned.out;
+  EXPECT_FALSE(JsonField(learned.out, "nees_mean_after_30s").empty()) << learned.out;
+}
+
 TEST_F(ReplayCli, CacheOfAnotherRunIsRefusedByName) {
   ASSERT_FALSE(drive_.empty());
   const fs::path cache = root_ / "other.cache";

@@ -3,8 +3,12 @@
 // found, and the fixed models stay fixed when a client asks for them.
 #include "test_support.hpp"
 
+#include <chrono>
 #include <cmath>
+#include <map>
+#include <thread>
 #include <filesystem>
+#include <fstream>
 
 namespace locaid::server::testing {
 namespace {
@@ -70,6 +74,38 @@ TEST(NoiseLearningSession, PosesAndStatsShowTheLearnedNoiseAndFixedStaysFixed) {
   EXPECT_EQ(fixed_stats.noise().gps_horizontal_scale(), 1.0);
   // The fixes it believes are refused and reset to, where the learned filter takes them.
   EXPECT_GT(fixed.back().gps_rejected(), learned.back().gps_rejected());
+}
+
+// The CLI a user types: `locaid session start ... --fixed-gps-noise`, then
+// `locaid stats` prints the learned (here: fixed) noise.
+TEST(NoiseLearningSession, TheCliStartsFixedSessionsAndStatsPrintsTheNoise) {
+  const ScopedTempDir dir("noise_learning_cli");
+  ServerProcess server(dir.path() / "server");
+  ASSERT_GT(server.port(), 0) << server.log();
+  std::string error;
+  const fs::path drive = RenderSynthDrive(dir.path() / "drive", 120, 4, 320, 96, &error);
+  ASSERT_FALSE(drive.empty()) << error;
+  const fs::path scenario = dir.path() / "overconfident.yaml";
+  std::ofstream(scenario) << kOverconfidentReceiver;
+  auto stub = v1::Localization::NewStub(server.NewChannel());
+  std::map<std::string, std::string> printed;
+  for (const std::string flag : {"", "--fixed-gps-noise"}) {
+    std::vector<std::string> args = {"session", "start", "--kitti", drive.string(), "--scenario", scenario.string()};
+    if (!flag.empty()) args.push_back(flag);
+    const CliResult r = RunCli(server.port(), args);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const std::string id = r.out.substr(0, r.out.find('\n'));
+    for (int i = 0; i < 600 && GetSession(stub.get(), id).state() != v1::SESSION_STATE_FINISHED; ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    const CliResult stats = RunCli(server.port(), {"stats", id});
+    ASSERT_EQ(stats.exit_code, 0) << stats.err;
+    const auto at = stats.out.find("noise vo_scale=");
+    ASSERT_NE(at, std::string::npos) << stats.out;
+    printed[flag] = stats.out.substr(at, stats.out.find('\n', at) - at);
+  }
+  EXPECT_NE(printed["--fixed-gps-noise"].find("gps_horizontal_scale=1 gps_vertical_scale=1 "), std::string::npos)
+      << printed["--fixed-gps-noise"];
+  EXPECT_EQ(printed[""].find("gps_horizontal_scale=1 "), std::string::npos) << "learned: " << printed[""];
 }
 
 }  // namespace
