@@ -306,6 +306,7 @@ class Ekf {
   struct GpsGateResult {
     double nis_h = 0, nis_v = 0;
     bool h_ok = false, v_ok = false;
+    Vec3 predicted_var = Vec3::Zero();  // diagonal of H P H' (the prediction's part of S)
   };
   static bool GpsFixUsable(const GpsFix& fix);
   GpsUpdate RefuseGps(const GpsFix& fix);
@@ -315,7 +316,7 @@ class Ekf {
   GpsModel PredictGps(const GpsFix& fix) const;
   GpsGateResult GateGps(const Vec3& y, const Mat3& R, const Eigen::MatrixXd& H) const;
   GpsUpdate GateAndFuse(const GpsFix& fix, const Vec3& y, const GpsModel& m);
-  void LearnGpsNoise(const Vec3& y, const GpsModel& m, bool horizontal, bool vertical);
+  void LearnGpsNoise(const Vec3& y, const GpsModel& m, const GpsGateResult& gate, bool has_altitude);
   GpsUpdate CountGpsOutcome(const GpsFix& fix, const GpsGateResult& gate, bool use_h, bool use_v, bool reset);
   void FuseGpsVelocity(const GpsFix& fix, double late_s);
   void ResetPositionToGps(const Vec3& y, const Mat3& R, bool horizontal, bool vertical);

@@ -96,7 +96,7 @@ GpsUpdate Ekf::GateAndFuse(const GpsFix& fix, const Vec3& y, const GpsModel& m) 
   // vertical disagreement does not throw away the horizontal information. A
   // 2-D fix has no altitude to fuse (not a rejection either).
   const GpsGateResult gate = GateGps(y, m.R, m.H);
-  LearnGpsNoise(y, m, gate.h_ok, gate.v_ok && fix.has_altitude);
+  LearnGpsNoise(y, m, gate, fix.has_altitude);
   const bool fuse_v = fix.has_altitude;
   const bool use_h = gate.h_ok, use_v = gate.v_ok && fuse_v;
   // A run of rejections means the filter, not the GPS, is off (an open-sky
@@ -113,7 +113,7 @@ GpsUpdate Ekf::GateAndFuse(const GpsFix& fix, const Vec3& y, const GpsModel& m) 
   return CountGpsOutcome(fix, gate, use_h || reset_h, fuse_v ? use_v || reset_v : true, reset_h || reset_v);
 }
 
-void Ekf::LearnGpsNoise(const Vec3& y, const GpsModel& m, bool horizontal, bool vertical) {
+void Ekf::LearnGpsNoise(const Vec3& y, const GpsModel& m, const GpsGateResult& gate, bool has_altitude) {
   // A component the gate passed teaches its scale (a multipath jump the gate
   // refuses is not the receiver's noise: urban-canyon's 3 % of 20 m jumps
   // took the horizontal scale to 1.21 and the RMSE from 1.34 to 1.38 m when
@@ -123,9 +123,9 @@ void Ekf::LearnGpsNoise(const Vec3& y, const GpsModel& m, bool horizontal, bool 
   // that understates its noise still teaches it: the fixes it gets through
   // the gate grow the scale, which lets more through (3x: scale ~9).
   if (!config_.learn_gps_noise) return;
-  const Vec3 hph = (m.H * s_.P * m.H.transpose()).diagonal();
+  const Vec3& hph = gate.predicted_var;
   for (int i = 0; i < 3; ++i) {
-    if (!(i < 2 ? horizontal : vertical)) continue;
+    if (!(i < 2 ? gate.h_ok : gate.v_ok && has_altitude)) continue;
     NoiseScaleEstimator& est = i < 2 ? gps_noise_h_ : gps_noise_v_;
     const double r0 = m.R_stated(i, i);
     if (hph[i] <= 4 * est.scale(0) * r0) est.Add(0, y[i], hph[i], r0);
@@ -177,8 +177,10 @@ bool Ekf::GpsFixUsable(const GpsFix& fix) {
 }
 
 Ekf::GpsGateResult Ekf::GateGps(const Vec3& y, const Mat3& R, const Eigen::MatrixXd& H) const {
-  const Mat3 S = H * s_.P * H.transpose() + R;
+  const Mat3 HPHt = H * s_.P * H.transpose();
+  const Mat3 S = HPHt + R;
   GpsGateResult g;
+  g.predicted_var = HPHt.diagonal();
   const Eigen::Vector2d y_h = y.head<2>();
   g.nis_h = y_h.dot(S.topLeftCorner<2, 2>().ldlt().solve(y_h));
   g.nis_v = y.z() * y.z() / S(2, 2);
