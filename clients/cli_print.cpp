@@ -32,7 +32,10 @@ void PrintStats(const v1::SessionStats& s) {
             << "\noxts_bad_lines " << s.oxts_bad_lines() << "\nfps " << s.fps() << "\nlatency_mean_ms "
             << s.latency_mean_ms() << "\nlatency_max_ms " << s.latency_max_ms() << "\nposes_published "
             << s.poses_published() << "\nsubscribers " << s.subscribers() << "\ndropped_total "
-            << s.dropped_total() << "\n";
+            << s.dropped_total() << "\nrealtime_factor " << s.realtime_factor() << "\nbehind_real_time_s "
+            << s.behind_real_time_s() << "\nbehind_real_time_max_s " << s.behind_real_time_max_s()
+            << "\nfalling_behind " << (s.falling_behind() ? "true" : "false") << "\ncpu_cores " << s.cpu_cores()
+            << "\n";
   if (!s.last_input_error().empty()) std::cout << "last_input_error " << s.last_input_error() << "\n";
   if (s.imu_samples() + s.gps_fixes_in() + s.sensor_items_rejected() > 0) {
     std::cout << "imu_samples " << s.imu_samples() << "\ngps_fixes_in " << s.gps_fixes_in() << "\ngps_fixes_late "

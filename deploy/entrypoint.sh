@@ -21,6 +21,9 @@
 #   LOCAID_TOKEN_FILE    bearer token file, passed to server and demo client
 #   LOCAID_METRICS_LISTEN  host:port of the Prometheus /metrics endpoint
 #                        (--metrics-listen), e.g. 0.0.0.0:9464 [off]
+#   LOCAID_MAX_CPU_CORES admit real-time sessions by their measured CPU, up to
+#                        this many cores (--max-cpu-cores), e.g. 1.8 for a
+#                        2-CPU limit [off: max_sessions only]
 #   LOCAID_DEMO_DRIVE    KITTI raw drive folder to play instead of rendering a
 #                        synthetic one, e.g. /data/kitti/2011_09_26/2011_09_26_drive_0001_sync
 #   LOCAID_DEMO_FRAMES [200]  LOCAID_DEMO_SEED [7]  (synthetic demo drive)
@@ -48,6 +51,7 @@ server_args() {
   if [[ -n "${LOCAID_WORK_DIR:-}" ]]; then args+=(--work-dir "$LOCAID_WORK_DIR"); fi
   if [[ -n "${LOCAID_TOKEN_FILE:-}" ]]; then args+=(--token-file "$LOCAID_TOKEN_FILE"); fi
   if [[ -n "${LOCAID_METRICS_LISTEN:-}" ]]; then args+=(--metrics-listen "$LOCAID_METRICS_LISTEN"); fi
+  if [[ -n "${LOCAID_MAX_CPU_CORES:-}" ]]; then args+=(--max-cpu-cores "$LOCAID_MAX_CPU_CORES"); fi
   printf '%s\0' "${args[@]}"
 }
 

@@ -256,9 +256,13 @@ cv::Mat RawDrive::LoadOne(const fs::path& path, int cam, bool missing, size_t i,
                 std::to_string(img.rows) + ", expected " + std::to_string(expected.width) + "x" +
                 std::to_string(expected.height) + (extract_ ? " (S_0x)" : " (S_rect_0x)"));
   }
-  if (!extract_) return img;
+  return Rectify(cam, img);
+}
+
+cv::Mat RawDrive::Rectify(int cam, const cv::Mat& raw) const {
+  if (!extract_) return raw;
   cv::Mat rect;
-  cv::remap(img, rect, map1_[cam], map2_[cam], cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+  cv::remap(raw, rect, map1_[cam & 1], map2_[cam & 1], cv::INTER_LINEAR, cv::BORDER_CONSTANT);
   return rect;
 }
 

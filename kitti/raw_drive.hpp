@@ -63,6 +63,9 @@ class RawDrive final : public StereoDataset {
   const OxtsGroundTruth& gt() const { return gt_; }
   std::filesystem::path left_path(size_t i) const;
   std::filesystem::path right_path(size_t i) const;
+  // The rectified image of camera `cam` (0 left, 1 right) from its raw image
+  // (extract drives, with the maps built once); a sync drive's image as it is.
+  cv::Mat Rectify(int cam, const cv::Mat& raw) const;
 
  private:
   void ReadOxts(const RawDriveOptions& options);

@@ -252,6 +252,8 @@ void StatusJson(const v1::PoseUpdate& p, json& body) {
   PutFiniteOrNull(body, "horizontal_error_m",
                   p.has_truth() ? p.horizontal_error_m() : std::numeric_limits<double>::quiet_NaN());
   Put(body, "processing_latency_ms", p.processing_latency_ms());
+  Put(body, "behind_real_time_s", p.behind_real_time_s());
+  PutBool(body, "falling_behind", p.falling_behind());
 }
 
 PoseConverter::PoseConverter(PathOptions options) : options_(options) { Reset(); }

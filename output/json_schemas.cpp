@@ -145,7 +145,9 @@ std::string Status() {
        {"gps_resets", {{"type", "integer"}}},
        {"has_truth", {{"type", "boolean"}}},
        {"horizontal_error_m", nullable_number},
-       {"processing_latency_ms", Number("server time spent on the frame")}});
+       {"processing_latency_ms", Number("server time spent on the frame")},
+       {"behind_real_time_s", Number("paced sessions: how late this pose was published, s (0: on time)")},
+       {"falling_behind", {{"type", "boolean"}}}});
   schema["properties"]["seconds_since_gps"]["description"] = "since the last accepted fix; null before the first";
   schema["properties"]["horizontal_error_m"]["description"] = "fused vs true position; null without truth";
   return Finish(std::move(schema));

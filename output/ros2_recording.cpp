@@ -176,7 +176,9 @@ std::vector<std::pair<std::string, std::string>> StatusValues(const v1::PoseUpda
                                {"vo_noise_learning", p.noise().vo_learning() ? "true" : "false"}});
   values.insert(values.end(), {{"speed_scale_error", Number(p.speed_scale_error())},
                                {"speed_samples_used", std::to_string(p.speed_samples_used())},
-                               {"processing_latency_ms", Number(p.processing_latency_ms())}});
+                               {"processing_latency_ms", Number(p.processing_latency_ms())},
+                               {"behind_real_time_s", Number(p.behind_real_time_s())},
+                               {"falling_behind", p.falling_behind() ? "true" : "false"}});
   if (p.has_truth()) values.emplace_back("horizontal_error_m", Number(p.horizontal_error_m()));
   return values;
 }

@@ -13,6 +13,12 @@
 namespace locaid::server {
 namespace {
 
+std::string Num(double v) {
+  std::ostringstream out;
+  out << v;
+  return out.str();
+}
+
 std::string ReadFirstLine(const std::string& path, const std::string& field) {
   std::ifstream in(path);
   if (!in) throw ConfigError(field + ": cannot read '" + path + "'");
@@ -155,6 +161,9 @@ void ApplyYamlConfig(const std::filesystem::path& file, ServerConfig* c) {
       {"queue_size", size(&c->queue_size)},
       {"max_queue_size", size(&c->max_queue_size)},
       {"max_sessions", size(&c->max_sessions)},
+      {"behind_threshold_s", real(&c->behind_threshold_s)},
+      {"max_cpu_cores", real(&c->max_cpu_cores)},
+      {"session_cpu_cores_prior", real(&c->session_cpu_cores_prior)},
       {"max_subscribers_per_session", size(&c->max_subscribers_per_session)},
       {"work_dir", str(&c->work_dir)},
       {"default_scenario", str(&c->default_scenario)},
@@ -225,6 +234,15 @@ void ValidateConfig(ServerConfig* c) {
                       "], got " + std::to_string(c->queue_size));
   }
   if (c->max_sessions < 1) throw ConfigError("max_sessions: must be >= 1");
+  if (!(c->behind_threshold_s > 0 && c->behind_threshold_s <= 60)) {
+    throw ConfigError("behind_threshold_s: must be in (0, 60], got " + Num(c->behind_threshold_s));
+  }
+  if (!(c->max_cpu_cores >= 0 && c->max_cpu_cores <= 4096)) {
+    throw ConfigError("max_cpu_cores: must be 0 (off) or in (0, 4096], got " + Num(c->max_cpu_cores));
+  }
+  if (!(c->session_cpu_cores_prior > 0 && c->session_cpu_cores_prior <= 64)) {
+    throw ConfigError("session_cpu_cores_prior: must be in (0, 64], got " + Num(c->session_cpu_cores_prior));
+  }
   if (c->max_subscribers_per_session < 1) throw ConfigError("max_subscribers_per_session: must be >= 1");
   if (!(c->keepalive_time_s >= 1)) throw ConfigError("keepalive_time_s: must be >= 1");
   if (!(c->keepalive_timeout_s >= 1)) throw ConfigError("keepalive_timeout_s: must be >= 1");

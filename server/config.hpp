@@ -35,6 +35,16 @@ struct ServerConfig {
   size_t queue_size = 256;                 // default per-subscriber queue (poses)
   size_t max_queue_size = 10000;
   size_t max_sessions = 16;
+  // Keeping real time (docs/api.md "Keeping real time"). A paced session
+  // whose newest pose is more than behind_threshold_s late (or whose next
+  // pose is that overdue) is falling behind. max_cpu_cores > 0: a real-time
+  // session (paced or live) is admitted only while the real-time sessions'
+  // measured CPU (last ~5 s of their threads) plus its estimate stays within
+  // it; the estimate is the mean cost per unit rate of the sessions running
+  // for >= 5 s, or session_cpu_cores_prior before there is one. 0 = off.
+  double behind_threshold_s = 0.1;
+  double max_cpu_cores = 0;
+  double session_cpu_cores_prior = 0.5;
   size_t max_subscribers_per_session = 4096;
   std::string work_dir;                    // synthetic drives; empty = $TMPDIR/locaid-server-<pid>
   std::string default_scenario = "open-sky";

@@ -55,6 +55,15 @@ int main(int argc, char** argv) {
   app.add_option("--history-size", cli.history_size, "default poses kept per session")->capture_default_str();
   app.add_option("--queue-size", cli.queue_size, "default per-subscriber queue, poses")->capture_default_str();
   app.add_option("--max-sessions", cli.max_sessions, "running sessions at once")->capture_default_str();
+  app.add_option("--behind-threshold-s", cli.behind_threshold_s,
+                 "a paced session more than this late is falling behind (stats, metrics, status)")
+      ->capture_default_str();
+  app.add_option("--max-cpu-cores", cli.max_cpu_cores,
+                 "admit real-time sessions by measured CPU load, cores (0: off, only --max-sessions)")
+      ->capture_default_str();
+  app.add_option("--session-cpu-cores-prior", cli.session_cpu_cores_prior,
+                 "CPU estimate of a real-time session before one has been measured, cores")
+      ->capture_default_str();
   app.add_option("--work-dir", cli.work_dir, "where synthetic drives are rendered");
   app.add_option("--max-synthetic-frames", cli.max_synthetic_frames, "largest synthetic drive a session may ask for")
       ->capture_default_str();
@@ -95,6 +104,9 @@ int main(int argc, char** argv) {
     take("--history-size", &ServerConfig::history_size);
     take("--queue-size", &ServerConfig::queue_size);
     take("--max-sessions", &ServerConfig::max_sessions);
+    take("--behind-threshold-s", &ServerConfig::behind_threshold_s);
+    take("--max-cpu-cores", &ServerConfig::max_cpu_cores);
+    take("--session-cpu-cores-prior", &ServerConfig::session_cpu_cores_prior);
     take("--work-dir", &ServerConfig::work_dir);
     take("--max-synthetic-frames", &ServerConfig::max_synthetic_frames);
     take("--max-concurrent-renders", &ServerConfig::max_concurrent_renders);

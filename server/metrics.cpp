@@ -92,6 +92,15 @@ void AddSession(Families& f, const std::string& id, const Session::MetricsSnapsh
         MetricType::Counter, sid, static_cast<double>(st.dropped_total()));
   f.Add("locaid_session_subscribers", "Open pose streams", MetricType::Gauge, sid, st.subscribers());
   f.Add("locaid_session_frames_per_second", "Processing rate over the last ~2 s", MetricType::Gauge, sid, st.fps());
+  f.Add("locaid_session_behind_real_time_seconds",
+        "Paced sessions: how late the newest pose was, or how overdue the next one is (0: on time)", MetricType::Gauge,
+        sid, st.behind_real_time_s());
+  f.Add("locaid_session_falling_behind", "1 while a paced session is more than behind_threshold_s late",
+        MetricType::Gauge, sid, st.falling_behind() ? 1 : 0);
+  f.Add("locaid_session_realtime_factor", "Sensor seconds processed per wall second over the last ~2 s",
+        MetricType::Gauge, sid, st.realtime_factor());
+  f.Add("locaid_session_cpu_cores", "CPU time of the session's thread per wall second over the last ~5 s",
+        MetricType::Gauge, sid, st.cpu_cores());
   ClientMetric hist;
   hist.label = sid;
   hist.histogram.sample_count = m.latency_count;
@@ -157,6 +166,10 @@ std::vector<MetricFamily> BuildMetricFamilies(const std::vector<SessionMetrics>&
         static_cast<double>(server.max_concurrent_renders));
   f.Add("locaid_rendered_drives_bytes", "Disk used by rendered synthetic drives", MetricType::Gauge, {},
         static_cast<double>(server.rendered_drive_bytes));
+  f.Add("locaid_realtime_cpu_cores", "CPU the real-time sessions' threads used over the last ~5 s, cores",
+        MetricType::Gauge, {}, server.realtime_cpu_cores);
+  f.Add("locaid_realtime_cpu_cores_limit", "max_cpu_cores (0: admission by max_sessions only)", MetricType::Gauge, {},
+        server.max_cpu_cores);
   f.Add("locaid_resident_memory_bytes", "Resident set size of the server process", MetricType::Gauge, {},
         static_cast<double>(server.resident_memory_bytes));
   for (const auto& [id, m] : sessions) AddSession(f, id, m);

@@ -23,6 +23,8 @@ struct ServerFigures {
   size_t max_concurrent_renders = 0;
   uint64_t rendered_drive_bytes = 0;  // under SyntheticRoot(work_dir)
   uint64_t resident_memory_bytes = 0; // of this process
+  double realtime_cpu_cores = 0;      // sum of the real-time sessions' cpu_cores
+  double max_cpu_cores = 0;           // the config's (0: off)
 };
 
 using SessionMetrics = std::pair<std::string, Session::MetricsSnapshot>;  // (id, snapshot)

@@ -74,9 +74,12 @@ std::vector<prometheus::MetricFamily> LocalizationService::CollectMetrics() cons
   ServerFigures figures;
   for (const auto& s : sessions) {
     snapshots.emplace_back(s->id(), s->Metrics());
-    figures.render_queue += snapshots.back().second.state == v1::SESSION_STATE_STARTING ? 1 : 0;
+    const auto& m = snapshots.back().second;
+    figures.render_queue += m.state == v1::SESSION_STATE_STARTING ? 1 : 0;
+    if (s->realtime()) figures.realtime_cpu_cores += m.stats.cpu_cores();
   }
   figures.max_concurrent_renders = config_.max_concurrent_renders;
+  figures.max_cpu_cores = config_.max_cpu_cores;
   figures.rendered_drive_bytes = DirectoryBytes(SyntheticRoot(config_.work_dir).string());
   figures.resident_memory_bytes = ResidentMemoryBytes();
   return BuildMetricFamilies(snapshots, figures);

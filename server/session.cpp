@@ -4,6 +4,9 @@
 
 #include <Eigen/Geometry>
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <cmath>
 #include <exception>
 
@@ -26,7 +29,11 @@ Session::Session(SessionOptions options, std::unique_ptr<pipeline::Pipeline> pip
       hub_(options_.history_size),
       created_unix_ns_(UnixNowNs()),
       total_frames_(pipeline_->total_frames()),
-      pacer_(options_.playback_rate) {}
+      pacer_(options_.playback_rate),
+      monitor_(options_.playback_rate, options_.behind_threshold_s),
+      created_steady_(Clock::now()) {}
+
+double Session::age_s() const { return std::chrono::duration<double>(Clock::now() - created_steady_).count(); }
 
 Session::~Session() {
   Stop();
@@ -89,10 +96,11 @@ void Session::RunCommands() {
   }
 }
 
-bool Session::Pace(int64_t t_ns) {
-  if (const auto due = pacer_.Due(t_ns)) {
+bool Session::Pace(int64_t t_ns, std::optional<Clock::time_point>* due) {
+  *due = pacer_.Due(t_ns);
+  if (*due) {
     std::unique_lock lock(wait_mu_);
-    wait_cv_.wait_until(lock, *due, [this] { return stop_.load(); });
+    wait_cv_.wait_until(lock, **due, [this] { return stop_.load(); });
   }
   return !stop_;
 }
@@ -102,9 +110,12 @@ void Session::NoteOrigin() {
   if (!has_origin_) has_origin_ = pipeline_->origin(&origin_[0], &origin_[1], &origin_[2]);
 }
 
-void Session::Publish(const pipeline::StepResult& r, double latency_ms) {
+void Session::Publish(const pipeline::StepResult& r, double latency_ms, std::optional<Clock::time_point> due) {
   auto msg = std::make_shared<PoseMessage>();
   output::FillPoseUpdate(r, latency_ms, msg.get());
+  const double behind_s = monitor_.NotePose(r.t_ns, due, Clock::now());
+  msg->set_behind_real_time_s(behind_s);
+  msg->set_falling_behind(behind_s > monitor_.threshold_s());
   msg->set_session_id(options_.id);
   msg->set_sequence(sequence_++);
   counters_.Record(r, latency_ms);
@@ -117,7 +128,9 @@ bool Session::StepOnce() {
   RunCommands();
   const auto t0 = Clock::now();
   pipeline::StepResult r = pipeline_->Step();
-  const double step_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  const auto t1 = Clock::now();
+  const double step_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
+  monitor_.NoteCpu(t1);
   auto starting = locaid::v1::SESSION_STATE_STARTING;
   if (pipeline_->ready()) state_.compare_exchange_strong(starting, locaid::v1::SESSION_STATE_RUNNING);
   switch (r.kind) {
@@ -132,8 +145,9 @@ bool Session::StepOnce() {
       return true;
     case pipeline::StepResult::Kind::kPose: {
       const double latency_ms = r.processing_ms >= 0 ? r.processing_ms : step_ms;
-      if (!Pace(r.t_ns)) return false;
-      Publish(r, latency_ms);
+      std::optional<Clock::time_point> due;
+      if (!Pace(r.t_ns, &due)) return false;
+      Publish(r, latency_ms, due);
       return true;
     }
     default:  // skipped or corrupt input: counted
@@ -143,6 +157,9 @@ bool Session::StepOnce() {
 }
 
 void Session::Run() {
+  // Batch sessions yield to real-time ones (Linux: per-thread nice; raising
+  // it needs no privilege). A failure leaves the thread at normal priority.
+  if (!realtime()) (void)setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), kBatchNice);
   try {
     while (!stop_ && StepOnce()) {
     }
@@ -160,6 +177,7 @@ void Session::Run() {
     pipeline_->Release();
   } catch (const std::exception&) {  // freeing must not turn a finished session into a crash
   }
+  monitor_.NoteEnded();
   ended_unix_ns_ = UnixNowNs();
   hub_.Close();
 }
@@ -173,6 +191,7 @@ Session::MetricsSnapshot Session::Metrics() const {
 
 locaid::v1::SessionStats Session::Stats() const {
   locaid::v1::SessionStats s = counters_.Stats();
+  monitor_.Fill(&s, Clock::now());
   const pipeline::LiveInputStats in = pipeline_->input_stats();
   s.set_imu_samples(in.imu_samples);
   s.set_speed_samples(in.speed_samples);

@@ -5,6 +5,7 @@
 
 #include "locaid/v1/localization.pb.h"
 #include "server/pose_hub.hpp"
+#include "server/realtime_monitor.hpp"
 #include "server/session_stats.hpp"
 #include "pipeline/frame_loop.hpp"
 
@@ -31,7 +32,15 @@ struct SessionOptions {
   std::string scenario = "open-sky";
   double playback_rate = 0;  // 0 = as fast as possible, N = N x real time
   size_t history_size = 1000;
+  bool live = false;                // pushed / gpsd input: real time by nature
+  double behind_threshold_s = 0.1;  // lateness above which a paced session is falling behind
 };
+
+// What overload does to a session (docs/api.md "Keeping real time"):
+// real-time sessions (paced or live) run at normal priority and share the
+// cores; batch sessions (unpaced recordings) run at nice +kBatchNice and get
+// what the real-time ones leave.
+inline constexpr int kBatchNice = 10;
 
 class Session {
  public:
@@ -61,6 +70,12 @@ class Session {
   void set_scenario_name(const std::string& name);
 
   const std::string& id() const { return options_.id; }
+  const SessionOptions& options() const { return options_; }
+  // Paced or live (not a batch replay): what load-based admission counts.
+  bool realtime() const { return options_.live || options_.playback_rate > 0; }
+  // CPU cores its thread used over the last ~5 s, and its age (wall seconds).
+  double cpu_cores() const { return monitor_.CpuCores(RealTimeMonitor::Clock::now()); }
+  double age_s() const;
   Hub& hub() { return hub_; }
   locaid::v1::Session ToProto() const;
   locaid::v1::SessionStats Stats() const;
@@ -82,10 +97,11 @@ class Session {
   void RunCommands();
   // One step of the pipeline: false when the session is done.
   bool StepOnce();
-  // Sleeps until the wall time at which sensor time t_ns is due; false if
-  // stopped meanwhile.
-  bool Pace(int64_t t_ns);
-  void Publish(const pipeline::StepResult& r, double latency_ms);
+  // Sleeps until the wall time at which sensor time t_ns is due (set in
+  // *due; nullopt: not paced); false if stopped meanwhile.
+  bool Pace(int64_t t_ns, std::optional<std::chrono::steady_clock::time_point>* due);
+  void Publish(const pipeline::StepResult& r, double latency_ms,
+               std::optional<std::chrono::steady_clock::time_point> due);
   void NoteOrigin();
 
   SessionOptions options_;
@@ -109,6 +125,8 @@ class Session {
 
   SessionCounters counters_;
   Pacer pacer_;  // session thread only
+  RealTimeMonitor monitor_;
+  const std::chrono::steady_clock::time_point created_steady_;
   uint64_t sequence_ = 0;
 
   // Guarded by stats_mu_.

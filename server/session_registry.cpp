@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <sstream>
 #include <utility>
 
 namespace locaid::server {
@@ -27,6 +28,9 @@ Status SessionRegistry::Add(SessionOptions options, std::unique_ptr<pipeline::Pi
     return {StatusCode::RESOURCE_EXHAUSTED,
             "max_sessions (" + std::to_string(config_.max_sessions) + ") sessions are running; stop one first"};
   }
+  options.live = live != nullptr;
+  options.behind_threshold_s = config_.behind_threshold_s;
+  if (Status s = AdmitByCpuLocked(options); !s.ok()) return s;
   if (!pipeline->ready()) {  // it prepares its input (renders) first
     size_t preparing = 0;
     // A stopped session's render ends after the frame being drawn: it counts
@@ -45,6 +49,47 @@ Status SessionRegistry::Add(SessionOptions options, std::unique_ptr<pipeline::Pi
   sessions_[*id] = Entry{session, live, false};  // encodings: its default (a fresh cache)
   session->Start();
   return Status::OK;
+}
+
+Status SessionRegistry::AdmitByCpuLocked(const SessionOptions& options) const {
+  const bool realtime = options.live || options.playback_rate > 0;
+  if (config_.max_cpu_cores <= 0 || !realtime) return Status::OK;
+  const LoadEstimate load = RealTimeLoadLocked();
+  const double rate = options.live ? 1.0 : options.playback_rate;
+  const double need = load.per_unit_rate * rate;
+  if (load.cores + need <= config_.max_cpu_cores) return Status::OK;
+  std::ostringstream msg;
+  msg.precision(3);
+  msg << "max_cpu_cores (" << config_.max_cpu_cores << "): the real-time sessions use " << load.cores
+      << " cores and this one needs about " << need << " (" << load.per_unit_rate << " per session at real time, "
+      << (load.measured > 0 ? "measured on " + std::to_string(load.measured) + " session(s)" : std::string("the prior"))
+      << "); stop a session, lower its playback_rate, or run it unpaced (playback_rate 0)";
+  return {StatusCode::RESOURCE_EXHAUSTED, msg.str()};
+}
+
+SessionRegistry::LoadEstimate SessionRegistry::RealTimeLoadLocked() const {
+  // Sessions younger than the CPU window have no full measurement yet: they
+  // count with the estimate, so sessions started together are not all admitted.
+  constexpr double kMatureS = 5.0;
+  LoadEstimate load;
+  double per_rate_sum = 0;
+  std::vector<const Session*> young;
+  for (const auto& [k, e] : sessions_) {
+    const Session& s = *e.session;
+    const auto st = s.state();
+    if (!s.realtime() || (st != v1::SESSION_STATE_RUNNING && st != v1::SESSION_STATE_STARTING)) continue;
+    if (s.age_s() < kMatureS || s.preparing()) {
+      young.push_back(&s);
+      continue;
+    }
+    const double cores = s.cpu_cores();
+    load.cores += cores;
+    per_rate_sum += cores / (s.options().live ? 1.0 : s.options().playback_rate);
+    ++load.measured;
+  }
+  load.per_unit_rate = load.measured > 0 ? per_rate_sum / load.measured : config_.session_cpu_cores_prior;
+  for (const Session* s : young) load.cores += load.per_unit_rate * (s->options().live ? 1.0 : s->options().playback_rate);
+  return load;
 }
 
 void SessionRegistry::PruneEndedLocked() {

@@ -29,7 +29,8 @@ class SessionRegistry {
 
   // Admits and starts a session with a fresh random id; prunes ended ones
   // first. RESOURCE_EXHAUSTED beyond max_sessions running (or
-  // max_concurrent_renders preparing), UNAVAILABLE once closed.
+  // max_concurrent_renders preparing, or, with max_cpu_cores, beyond the
+  // measured CPU of the real-time sessions), UNAVAILABLE once closed.
   grpc::Status Add(SessionOptions options, std::unique_ptr<pipeline::Pipeline> pipeline,
                    pipeline::LiveFrameSource* live, std::string* id);
   // INVALID_ARGUMENT for an empty id, NOT_FOUND for an unknown one.
@@ -56,6 +57,16 @@ class SessionRegistry {
     bool push_attached = false;
     std::shared_ptr<PoseEncodings> encodings = std::make_shared<PoseEncodings>();
   };
+  // The real-time sessions' CPU: measured cores (sessions running >= 5 s),
+  // plus the estimate for younger ones; the estimate per session at rate 1.
+  struct LoadEstimate {
+    double cores = 0, per_unit_rate = 0;
+    int measured = 0;
+  };
+  LoadEstimate RealTimeLoadLocked() const;
+  // RESOURCE_EXHAUSTED when max_cpu_cores is set and a real-time session
+  // would take the real-time load beyond it (mu_ held).
+  grpc::Status AdmitByCpuLocked(const SessionOptions& options) const;
   // Takes the ended sessions beyond the limits out and retires them (mu_ held).
   void PruneEndedLocked();
   std::vector<std::shared_ptr<Session>> AllLocked() const;

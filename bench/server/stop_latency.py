@@ -19,13 +19,13 @@ import argparse
 import json
 import os
 import shutil
-import signal
 import statistics
-import subprocess
 import sys
 import tempfile
 import threading
 import time
+
+from local_server import LocalServer
 
 
 def stats(values):
@@ -55,69 +55,55 @@ def main():
         ap.error(f"{e} (the Python stubs are built into {args.stubs})")
 
     tmp = tempfile.mkdtemp(prefix="locaid_stop_latency_")
-    port_file = os.path.join(tmp, "port")
-    log = open(os.path.join(tmp, "server.log"), "w")
-    server = subprocess.Popen([args.server, "--listen", "127.0.0.1:0", "--port-file", port_file,
-                               "--work-dir", os.path.join(tmp, "work"),
-                               "--max-concurrent-renders", str(args.renders)], stdout=log, stderr=log)
     try:
-        for _ in range(3000):
-            if os.path.exists(port_file) and os.path.getsize(port_file) > 0:
-                break
-            if server.poll() is not None:
-                sys.exit(f"locaid-server exited with {server.returncode}; log in {log.name}")
-            time.sleep(0.01)
-        with open(port_file) as f:
-            address = f"127.0.0.1:{int(f.read())}"
-        # One connection per stopper (a channel of its own, not shared with the others').
-        own = [rpc.LocalizationStub(grpc.insecure_channel(address, options=[("grpc.use_local_subchannel_pool", 1)]))
-               for _ in range(args.renders)]
-        main_stub = rpc.LocalizationStub(grpc.insecure_channel(address))
-        main_stub.ListSessions(pb.ListSessionsRequest(), timeout=30)  # connected before timing
-        for stub in own:
-            stub.ListSessions(pb.ListSessionsRequest(), timeout=30)
-        stop_ms, list_ms, states = [], [], []
-        for round_ in range(args.rounds):
-            ids = []
-            for i in range(args.renders):
-                s = main_stub.StartSession(pb.StartSessionRequest(
-                    synthetic=pb.SyntheticSource(seed=round_ * args.renders + i + 1, frames=args.frames),
-                    playback_rate=0), timeout=30)
-                ids.append(s.id)
-            time.sleep(args.wait_s)
-            results = [None] * len(ids)
-
-            def stop(i):
-                t0 = time.monotonic()
-                out = own[i].StopSession(pb.StopSessionRequest(session_id=ids[i], remove=True), timeout=30)
-                results[i] = ((time.monotonic() - t0) * 1e3, pb.SessionState.Name(out.state))
-
-            threads = [threading.Thread(target=stop, args=(i,)) for i in range(len(ids))]
-            for t in threads:
-                t.start()
-            t0 = time.monotonic()
-            main_stub.ListSessions(pb.ListSessionsRequest(), timeout=30)
-            list_ms.append((time.monotonic() - t0) * 1e3)
-            for t in threads:
-                t.join()
-            for ms, state in results:
-                stop_ms.append(ms)
-                states.append(state)
-            left = len(main_stub.ListSessions(pb.ListSessionsRequest(), timeout=30).sessions)
-            print(f"round {round_ + 1}: stop {' '.join('%.1f' % r[0] for r in results)} ms, "
-                  f"list {list_ms[-1]:.1f} ms, sessions left {left}", file=sys.stderr)
-        print(json.dumps({"rounds": args.rounds, "renders": args.renders, "frames": args.frames,
-                          "wait_s": args.wait_s, "stop_ms": stats(stop_ms), "list_sessions_ms": stats(list_ms),
-                          "stop_ms_all": [round(v, 1) for v in stop_ms],
-                          "states": sorted(set(states))}, indent=1))
+        with LocalServer(args.server, tmp, ["--max-concurrent-renders", str(args.renders)]) as server:
+            run(args, pb, rpc, grpc, server.address)
     finally:
-        server.send_signal(signal.SIGTERM)
-        try:
-            server.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            server.kill()
-        log.close()
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+def run(args, pb, rpc, grpc, address):
+    # One connection per stopper (a channel of its own, not shared with the others').
+    own = [rpc.LocalizationStub(grpc.insecure_channel(address, options=[("grpc.use_local_subchannel_pool", 1)]))
+           for _ in range(args.renders)]
+    main_stub = rpc.LocalizationStub(grpc.insecure_channel(address))
+    main_stub.ListSessions(pb.ListSessionsRequest(), timeout=30)  # connected before timing
+    for stub in own:
+        stub.ListSessions(pb.ListSessionsRequest(), timeout=30)
+    stop_ms, list_ms, states = [], [], []
+    for round_ in range(args.rounds):
+        ids = []
+        for i in range(args.renders):
+            s = main_stub.StartSession(pb.StartSessionRequest(
+                synthetic=pb.SyntheticSource(seed=round_ * args.renders + i + 1, frames=args.frames),
+                playback_rate=0), timeout=30)
+            ids.append(s.id)
+        time.sleep(args.wait_s)
+        results = [None] * len(ids)
+
+        def stop(i):
+            t0 = time.monotonic()
+            out = own[i].StopSession(pb.StopSessionRequest(session_id=ids[i], remove=True), timeout=30)
+            results[i] = ((time.monotonic() - t0) * 1e3, pb.SessionState.Name(out.state))
+
+        threads = [threading.Thread(target=stop, args=(i,)) for i in range(len(ids))]
+        for t in threads:
+            t.start()
+        t0 = time.monotonic()
+        main_stub.ListSessions(pb.ListSessionsRequest(), timeout=30)
+        list_ms.append((time.monotonic() - t0) * 1e3)
+        for t in threads:
+            t.join()
+        for ms, state in results:
+            stop_ms.append(ms)
+            states.append(state)
+        left = len(main_stub.ListSessions(pb.ListSessionsRequest(), timeout=30).sessions)
+        print(f"round {round_ + 1}: stop {' '.join('%.1f' % r[0] for r in results)} ms, "
+              f"list {list_ms[-1]:.1f} ms, sessions left {left}", file=sys.stderr)
+    print(json.dumps({"rounds": args.rounds, "renders": args.renders, "frames": args.frames,
+                      "wait_s": args.wait_s, "stop_ms": stats(stop_ms), "list_sessions_ms": stats(list_ms),
+                      "stop_ms_all": [round(v, 1) for v in stop_ms],
+                      "states": sorted(set(states))}, indent=1))
 
 
 if __name__ == "__main__":

@@ -2,6 +2,7 @@
 // topics and schema names, field names, covariance layout, timestamps,
 // which channels a pose feeds, and the bounded /locaid/path.
 #include "output/channels.hpp"
+#include "output/json_schemas.hpp"
 #include "output/static_transforms.hpp"
 #include "foxglove/ws_server.hpp"
 #include "server/synthetic_drive.hpp"
@@ -227,6 +228,21 @@ TEST(FoxgloveChannels, StatusTurnsInfinityIntoNull) {
   status = Body(fx::StatusJson, p);
   EXPECT_EQ(status["seconds_since_gps"], 0.25);
   EXPECT_EQ(status["horizontal_error_m"], 1.75);
+}
+
+TEST(FoxgloveChannels, StatusSaysWhenTheSessionFallsBehind) {
+  v1::PoseUpdate p = SamplePose(1);
+  json status = Body(fx::StatusJson, p);
+  EXPECT_EQ(status["behind_real_time_s"], 0.0);
+  EXPECT_EQ(status["falling_behind"], false);
+  p.set_behind_real_time_s(0.75);
+  p.set_falling_behind(true);
+  status = Body(fx::StatusJson, p);
+  EXPECT_EQ(status["behind_real_time_s"], 0.75);
+  EXPECT_EQ(status["falling_behind"], true);
+  const json schema = json::parse(fx::schemas::Status());
+  EXPECT_TRUE(schema["properties"].contains("behind_real_time_s"));
+  EXPECT_EQ(schema["properties"]["falling_behind"]["type"], "boolean");
 }
 
 // The converter refills one body per channel; a refilled body must read

@@ -604,5 +604,26 @@ TEST(Contract, MetricsScrapePassesPromtoolAndCarriesTheSession) {
   EXPECT_TRUE(entry->Wait(30)) << "the entrypoint's server did not exit after SIGTERM";
 }
 
+// The container's LOCAID_MAX_CPU_CORES is the server's --max-cpu-cores: with
+// a budget below one session's prior, a real-time session is refused.
+TEST(Contract, EntrypointPassesLocaidMaxCpuCoresToTheServer) {
+  const ScopedTempDir dir("contract_max_cpu");
+  const fs::path port_file = dir / "port";
+  const auto entry = StartEntrypoint(dir / "entry", {"LOCAID_MAX_CPU_CORES=0.2"}, {"--port-file", port_file.string()});
+  const int port = EntrypointPort(*entry, port_file);
+  ASSERT_GT(port, 0) << Slurp(dir / "entry" / "entry.err");
+  auto stub = MakeStub(port);
+  v1::StartSessionRequest req;
+  req.mutable_live()->CopyFrom(SmallCamera());
+  v1::Session s;
+  grpc::ClientContext ctx;
+  SetDeadline(&ctx);
+  const grpc::Status st = stub->StartSession(&ctx, req, &s);
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << st.error_message();
+  EXPECT_NE(st.error_message().find("max_cpu_cores (0.2)"), std::string::npos) << st.error_message();
+  EXPECT_TRUE(entry->Signal(SIGTERM));
+  EXPECT_TRUE(entry->Wait(30)) << "the entrypoint's server did not exit after SIGTERM";
+}
+
 }  // namespace
 }  // namespace locaid::server::testing
