@@ -3,6 +3,7 @@
 // server read frames through this interface only.
 #pragma once
 
+#include "core/pair_runner.hpp"
 #include "core/stereo_camera.hpp"
 #include "kitti/types.hpp"
 
@@ -45,9 +46,11 @@ class StereoDataset {
   // odometry: times.txt).
   virtual double tum_time_s(size_t i) const = 0;
   virtual bool has_stereo(size_t i) const = 0;     // both images present
-  // Loads and (for extract drives) rectifies frame i. Throws kitti::Error naming
-  // the file when an image is missing or cannot be decoded.
-  virtual StereoImages Load(size_t i) const = 0;
+  // Loads and (for extract drives) rectifies frame i, the left and the right
+  // image through `run` (at once, when it has a second thread). Throws
+  // kitti::Error naming the file when an image is missing or cannot be
+  // decoded (the left image's error first).
+  virtual StereoImages Load(size_t i, const PairRunner& run = PairRunner::Sequential()) const = 0;
   // OXTS records sorted by time; empty for odometry sequences.
   virtual const std::vector<OxtsSample>& oxts() const = 0;
   // cam0 <- imu extrinsic (raw drives; identity-free odometry sequences use Tr).

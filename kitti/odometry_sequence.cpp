@@ -87,19 +87,14 @@ bool OdometrySequence::has_stereo(size_t i) const { return has_left_.at(i) && ha
 fs::path OdometrySequence::left_path(size_t i) const { return dir_ / "image_0" / FrameName(i); }
 fs::path OdometrySequence::right_path(size_t i) const { return dir_ / "image_1" / FrameName(i); }
 
-StereoImages OdometrySequence::Load(size_t i) const {
+StereoImages OdometrySequence::Load(size_t i, const PairRunner& run) const {
   if (i >= size()) {
     throw Error(dir_.string() + ": frame " + std::to_string(i) + " out of range (" +
                 std::to_string(size()) + " frames)");
   }
-  StereoImages out;
-  const std::pair<const char*, fs::path> sides[2] = {{"left", left_path(i)},
-                                                     {"right", right_path(i)}};
-  for (int k = 0; k < 2; ++k) {
-    const auto& [side, path] = sides[k];
-    if (!(k == 0 ? has_left_[i] : has_right_[i])) {
-      throw Error(path.string() + ": " + side + " image of frame " + std::to_string(i) +
-                  " missing");
+  const auto load = [&](const char* side, const fs::path& path, bool present) {
+    if (!present) {
+      throw Error(path.string() + ": " + side + " image of frame " + std::to_string(i) + " missing");
     }
     cv::Mat img = ReadGrayImage(path);
     if (img.cols != camera_.width || img.rows != camera_.height) {
@@ -107,8 +102,11 @@ StereoImages OdometrySequence::Load(size_t i) const {
                   std::to_string(img.rows) + ", expected " + std::to_string(camera_.width) +
                   "x" + std::to_string(camera_.height) + " (first left image)");
     }
-    (k == 0 ? out.left : out.right) = img;
-  }
+    return img;
+  };
+  StereoImages out;
+  run.Run([&] { out.left = load("left", left_path(i), has_left_[i]); },
+          [&] { out.right = load("right", right_path(i), has_right_[i]); });
   return out;
 }
 

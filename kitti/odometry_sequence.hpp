@@ -26,7 +26,7 @@ class OdometrySequence final : public StereoDataset {
   int64_t time_ns(size_t i) const override;     // llround(times.txt * 1e9)
   double tum_time_s(size_t i) const override { return times_s_.at(i); }
   bool has_stereo(size_t i) const override;
-  StereoImages Load(size_t i) const override;
+  StereoImages Load(size_t i, const PairRunner& run = PairRunner::Sequential()) const override;
   const std::vector<OxtsSample>& oxts() const override { return oxts_; }  // always empty
   // KITTI odometry publishes no IMU extrinsic. This returns Tr = T_cam0_velo
   // from calib.txt (NOT cam0<-imu): the only rig transform the format carries.

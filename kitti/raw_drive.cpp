@@ -266,14 +266,14 @@ cv::Mat RawDrive::Rectify(int cam, const cv::Mat& raw) const {
   return rect;
 }
 
-StereoImages RawDrive::Load(size_t i) const {
+StereoImages RawDrive::Load(size_t i, const PairRunner& run) const {
   if (i >= size()) {
     throw Error(dir_.string() + ": frame " + std::to_string(i) + " out of range (" +
                 std::to_string(size()) + " frames)");
   }
   StereoImages out;
-  out.left = LoadOne(left_path(i), 0, !has_left_[i], i, "left");
-  out.right = LoadOne(right_path(i), 1, !has_right_[i], i, "right");
+  run.Run([&] { out.left = LoadOne(left_path(i), 0, !has_left_[i], i, "left"); },
+          [&] { out.right = LoadOne(right_path(i), 1, !has_right_[i], i, "right"); });
   return out;
 }
 

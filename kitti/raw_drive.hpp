@@ -48,7 +48,7 @@ class RawDrive final : public StereoDataset {
   int64_t time_ns(size_t i) const override;
   double tum_time_s(size_t i) const override;
   bool has_stereo(size_t i) const override;
-  StereoImages Load(size_t i) const override;
+  StereoImages Load(size_t i, const PairRunner& run = PairRunner::Sequential()) const override;
   const std::vector<OxtsSample>& oxts() const override { return oxts_; }
   // Rectified cam0 <- imu (R_rect_00 * T_cam0_velo * T_velo_imu).
   Eigen::Isometry3d T_cam0_imu() const override { return calib_.T_cam0_imu; }

@@ -278,16 +278,19 @@ SourceItem BagFrameSource::MakeFrame(Pending left, Pending right) {
     return item;
   }
   try {
-    item.left = Decode(left, *rect_left_);
-    try {
-      item.right = Decode(right, *rect_right_);
-    } catch (const std::exception& e) {
-      throw std::runtime_error(right.where + ": " + e.what());
-    }
+    pair_runner().Run([&] { item.left = Decode(left, *rect_left_); },
+                      [&] {
+                        try {
+                          item.right = Decode(right, *rect_right_);
+                        } catch (const std::exception& e) {
+                          throw std::runtime_error(right.where + ": " + e.what());
+                        }
+                      });
   } catch (const std::exception& e) {
     item.kind = SourceItem::Kind::kCorrupt;
     item.error = std::string(item.left.empty() ? left.where + ": " : "") + e.what();
     item.left.release();
+    item.right.release();
     ++stats_.bad_images;
     return item;
   }

@@ -96,6 +96,10 @@ class Pipeline {
   virtual bool origin(double* lat_deg, double* lon_deg, double* alt_m) const = 0;
   // Typed live input and GPS receiver counters. Any thread.
   virtual LiveInputStats input_stats() const { return {}; }
+  // Who decodes each frame's two images (FrameSource::set_pair_runner);
+  // nullptr: the stepping thread alone. From the stepping thread; `runner`
+  // must outlive the steps.
+  virtual void SetPairRunner(const PairRunner* /*runner*/) {}
 };
 
 class FrameLoop final : public Pipeline {
@@ -116,6 +120,7 @@ class FrameLoop final : public Pipeline {
   void set_notice(std::string notice) { notice_ = std::move(notice); }
   void Cancel() override { source_->Cancel(); }
   void Wake() override { source_->Wake(); }
+  void SetPairRunner(const PairRunner* runner) override { source_->set_pair_runner(runner); }
   int64_t total_frames() const override { return source_->total_frames(); }
   void StartOutageNow(double duration_s) override { scenario_.StartOutageNow(duration_s); }
   void StopOutage() override { scenario_.StopOutage(); }

@@ -70,7 +70,7 @@ SourceItem DatasetFrameSource::Next() {
     return item;
   }
   try {
-    kitti::StereoImages images = dataset_->Load(i);
+    kitti::StereoImages images = dataset_->Load(i, pair_runner());
     item.left = std::move(images.left);
     item.right = std::move(images.right);
     item.kind = SourceItem::Kind::kFrame;

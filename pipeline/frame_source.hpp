@@ -6,6 +6,8 @@
 // Both turn bad input into counted, skipped items instead of errors.
 #pragma once
 
+#include "core/pair_runner.hpp"
+
 #include "core/stereo_camera.hpp"
 #include "fusion/types.hpp"
 #include "kitti/dataset.hpp"
@@ -62,6 +64,16 @@ class FrameSource {
   virtual Eigen::Isometry3d T_cam0_imu() const = 0;
   // Counters of typed live input (any thread).
   virtual LiveInputStats input_stats() const { return {}; }
+  // Who decodes a frame's two images (core/pair_runner.hpp); the stepping
+  // thread alone by default. Set before the first Next(); not owned, must
+  // outlive the source's use.
+  void set_pair_runner(const PairRunner* runner) { runner_ = runner ? runner : &PairRunner::Sequential(); }
+
+ protected:
+  const PairRunner& pair_runner() const { return *runner_; }
+
+ private:
+  const PairRunner* runner_ = &PairRunner::Sequential();
 };
 
 // Frames [first, last] of a dataset (last < 0: to the end), each with the

@@ -306,8 +306,8 @@ SourceItem LiveFrameSource::Next() {
       return out;
     }
     try {
-      out.left = DecodeLiveImage(item.left, item.png, setup_.camera, "left");
-      out.right = DecodeLiveImage(item.right, item.png, setup_.camera, "right");
+      pair_runner().Run([&] { out.left = DecodeLiveImage(item.left, item.png, setup_.camera, "left"); },
+                        [&] { out.right = DecodeLiveImage(item.right, item.png, setup_.camera, "right"); });
       out.kind = SourceItem::Kind::kFrame;
       last_frame_ns_ = item.t_ns;
     } catch (const std::exception& e) {

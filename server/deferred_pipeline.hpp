@@ -59,6 +59,7 @@ class DeferredPipeline : public pipeline::Pipeline {
   void InjectCameraFault(pipeline::CameraFaultAction a, const fusion::CameraFaultWindow& f) override {
     Do([a, f](pipeline::Pipeline& p) { p.InjectCameraFault(a, f); });
   }
+  void SetPairRunner(const PairRunner* r) override { Do([r](pipeline::Pipeline& p) { p.SetPairRunner(r); }); }
   void SetScenario(const fusion::Scenario& sc) override { Do([sc](pipeline::Pipeline& p) { p.SetScenario(sc); }); }
   bool origin(double* a, double* b, double* c) const override {
     std::lock_guard lock(inner_mu_);

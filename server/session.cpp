@@ -1,6 +1,7 @@
 #include "server/session.hpp"
 
 #include "output/pose_message.hpp"
+#include "server/pair_helper.hpp"
 
 #include <Eigen/Geometry>
 
@@ -9,6 +10,8 @@
 
 #include <cmath>
 #include <exception>
+#include <optional>
+#include <system_error>
 
 namespace locaid::server {
 namespace {
@@ -159,7 +162,15 @@ bool Session::StepOnce() {
 void Session::Run() {
   // Batch sessions yield to real-time ones (Linux: per-thread nice; raising
   // it needs no privilege). A failure leaves the thread at normal priority.
-  if (!realtime()) (void)setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), kBatchNice);
+  const int nice = realtime() ? 0 : kBatchNice;
+  if (nice > 0) (void)setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), nice);
+  // The left image of each frame decodes here, the right one on the helper.
+  std::optional<PairHelper> helper;
+  try {
+    helper.emplace(nice);
+    pipeline_->SetPairRunner(&*helper);
+  } catch (const std::system_error&) {  // no thread to be had: this thread decodes both
+  }
   try {
     while (!stop_ && StepOnce()) {
     }
@@ -174,9 +185,11 @@ void Session::Run() {
     }
   }
   try {
+    pipeline_->SetPairRunner(nullptr);
     pipeline_->Release();
   } catch (const std::exception&) {  // freeing must not turn a finished session into a crash
   }
+  helper.reset();
   monitor_.NoteEnded();
   ended_unix_ns_ = UnixNowNs();
   hub_.Close();

@@ -1,0 +1,78 @@
+#include "server/pair_helper.hpp"
+
+#include <sys/resource.h>
+#include <unistd.h>
+
+namespace locaid::server {
+
+PairHelper::PairHelper(int nice) : thread_([this, nice] { Loop(nice); }) {}
+
+PairHelper::~PairHelper() {
+  {
+    std::lock_guard lock(mu_);
+    stop_ = true;
+  }
+  wake_.notify_all();
+  thread_.join();
+}
+
+void PairHelper::Loop(int nice) {
+  if (nice > 0) (void)setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), nice);
+  std::unique_lock lock(mu_);
+  for (;;) {
+    wake_.wait(lock, [this] { return stop_ || state_ == State::kQueued; });
+    if (state_ != State::kQueued) return;  // stopping, nothing queued
+    state_ = State::kRunning;
+    const std::function<void()>* job = job_;
+    lock.unlock();
+    std::exception_ptr error;
+    try {
+      (*job)();
+    } catch (...) {
+      error = std::current_exception();
+    }
+    lock.lock();
+    job_error_ = error;
+    state_ = State::kIdle;
+    done_.notify_all();
+  }
+}
+
+void PairHelper::Run(const std::function<void()>& first, const std::function<void()>& second) const {
+  {
+    std::lock_guard lock(mu_);
+    job_ = &second;
+    job_error_ = nullptr;
+    state_ = State::kQueued;
+  }
+  wake_.notify_one();
+  std::exception_ptr first_error, second_error;
+  try {
+    first();
+  } catch (...) {
+    first_error = std::current_exception();
+  }
+  bool run_here = false;
+  {
+    std::unique_lock lock(mu_);
+    if (state_ == State::kQueued) {  // the helper has not begun: take the job back
+      state_ = State::kIdle;
+      run_here = true;
+    } else {
+      done_.wait(lock, [this] { return state_ == State::kIdle; });
+      second_error = job_error_;
+    }
+    job_ = nullptr;
+  }
+  if (run_here) {
+    try {
+      second();
+    } catch (...) {
+      second_error = std::current_exception();
+    }
+  }
+  if (first_error) std::rethrow_exception(first_error);
+  if (second_error) std::rethrow_exception(second_error);
+}
+
+}  // namespace locaid::server
