@@ -99,7 +99,7 @@ void AddSession(Families& f, const std::string& id, const Session::MetricsSnapsh
         MetricType::Gauge, sid, st.falling_behind() ? 1 : 0);
   f.Add("locaid_session_realtime_factor", "Sensor seconds processed per wall second over the last ~2 s",
         MetricType::Gauge, sid, st.realtime_factor());
-  f.Add("locaid_session_cpu_cores", "CPU time of the session's thread per wall second over the last ~5 s",
+  f.Add("locaid_session_cpu_cores", "CPU time of the session's threads (pipeline, decode helper) per wall second over the last ~5 s",
         MetricType::Gauge, sid, st.cpu_cores());
   ClientMetric hist;
   hist.label = sid;

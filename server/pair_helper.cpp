@@ -3,7 +3,18 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <ctime>
+
 namespace locaid::server {
+namespace {
+
+int64_t ThreadCpuNs() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return static_cast<int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+}  // namespace
 
 PairHelper::PairHelper(int nice) : thread_([this, nice] { Loop(nice); }) {}
 
@@ -26,11 +37,13 @@ void PairHelper::Loop(int nice) {
     const std::function<void()>* job = job_;
     lock.unlock();
     std::exception_ptr error;
+    const int64_t cpu0 = ThreadCpuNs();
     try {
       (*job)();
     } catch (...) {
       error = std::current_exception();
     }
+    cpu_ns_ += ThreadCpuNs() - cpu0;
     lock.lock();
     job_error_ = error;
     state_ = State::kIdle;

@@ -10,7 +10,9 @@
 
 #include "core/pair_runner.hpp"
 
+#include <atomic>
 #include <condition_variable>
+#include <cstdint>
 #include <exception>
 #include <functional>
 #include <mutex>
@@ -28,6 +30,9 @@ class PairHelper final : public PairRunner {
 
   // One caller at a time (the session's thread).
   void Run(const std::function<void()>& first, const std::function<void()>& second) const override;
+  // CPU time the helper thread spent on jobs so far (any thread): the
+  // session counts it as its own (SessionStats.cpu_cores).
+  double cpu_seconds() const { return static_cast<double>(cpu_ns_.load()) * 1e-9; }
 
  private:
   enum class State { kIdle, kQueued, kRunning };
@@ -39,6 +44,7 @@ class PairHelper final : public PairRunner {
   mutable const std::function<void()>* job_ = nullptr;
   mutable std::exception_ptr job_error_;
   bool stop_ = false;
+  std::atomic<int64_t> cpu_ns_{0};
   std::thread thread_;
 };
 

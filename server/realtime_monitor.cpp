@@ -36,10 +36,10 @@ double RealTimeMonitor::NotePose(int64_t t_ns, std::optional<Clock::time_point> 
   return behind;
 }
 
-void RealTimeMonitor::NoteCpu(Clock::time_point now) {
+void RealTimeMonitor::NoteCpu(Clock::time_point now, double other_cpu_s) {
   std::lock_guard lock(mu_);
   if (!cpu_.empty() && now - cpu_.back().first < kMinSampleGap) return;
-  cpu_.emplace_back(now, ThreadCpuSeconds());
+  cpu_.emplace_back(now, ThreadCpuSeconds() + other_cpu_s);
   while (cpu_.size() > 1 && now - cpu_.front().first > kCpuWindow) cpu_.pop_front();
 }
 

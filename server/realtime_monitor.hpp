@@ -3,7 +3,7 @@
 // over the rate, from the first pose); the monitor keeps how late the newest
 // pose was published, how overdue the next one is, the sensor seconds per
 // wall second over the last ~2 s and the session thread's CPU time per wall
-// second over the last ~5 s (docs/api.md "Keeping real time"). Note*() on
+// second (with its decode helper's) over the last ~5 s (docs/api.md "Keeping real time"). Note*() on
 // the session thread; Fill() from any thread. Bounded: at most ~100 samples
 // per window.
 #pragma once
@@ -30,9 +30,9 @@ class RealTimeMonitor {
   // A pose with sensor time t_ns published at `now`; `due`: when it was due
   // (nullopt: not paced, or the first pose). Returns its lateness, s.
   double NotePose(int64_t t_ns, std::optional<Clock::time_point> due, Clock::time_point now);
-  // The calling (session) thread's CPU time so far, sampled at most every
-  // 50 ms.
-  void NoteCpu(Clock::time_point now);
+  // The calling (session) thread's CPU time so far plus `other_cpu_s` (what
+  // its helper threads used so far), sampled at most every 50 ms.
+  void NoteCpu(Clock::time_point now, double other_cpu_s = 0);
   // The session stopped publishing for good (ended): nothing is overdue.
   void NoteEnded();
 

@@ -133,7 +133,7 @@ bool Session::StepOnce() {
   pipeline::StepResult r = pipeline_->Step();
   const auto t1 = Clock::now();
   const double step_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
-  monitor_.NoteCpu(t1);
+  monitor_.NoteCpu(t1, helper_ ? helper_->cpu_seconds() : 0.0);
   auto starting = locaid::v1::SESSION_STATE_STARTING;
   if (pipeline_->ready()) state_.compare_exchange_strong(starting, locaid::v1::SESSION_STATE_RUNNING);
   switch (r.kind) {
@@ -169,6 +169,7 @@ void Session::Run() {
   try {
     helper.emplace(nice);
     pipeline_->SetPairRunner(&*helper);
+    helper_ = &*helper;
   } catch (const std::system_error&) {  // no thread to be had: this thread decodes both
   }
   try {
@@ -189,6 +190,7 @@ void Session::Run() {
     pipeline_->Release();
   } catch (const std::exception&) {  // freeing must not turn a finished session into a crash
   }
+  helper_ = nullptr;
   helper.reset();
   monitor_.NoteEnded();
   ended_unix_ns_ = UnixNowNs();

@@ -22,6 +22,8 @@
 
 namespace locaid::server {
 
+class PairHelper;  // server/pair_helper.hpp
+
 using PoseMessage = locaid::v1::PoseUpdate;
 using Hub = PoseHub<PoseMessage>;
 
@@ -126,6 +128,7 @@ class Session {
   SessionCounters counters_;
   Pacer pacer_;  // session thread only
   RealTimeMonitor monitor_;
+  const PairHelper* helper_ = nullptr;  // session thread only: its decode helper while Run() runs
   const std::chrono::steady_clock::time_point created_steady_;
   uint64_t sequence_ = 0;
 

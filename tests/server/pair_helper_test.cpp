@@ -8,6 +8,7 @@
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
+#include <ctime>
 #include <mutex>
 #include <stdexcept>
 #include <thread>
@@ -45,6 +46,32 @@ TEST(PairHelper, EachJobRunsExactlyOnceOverManyFrames) {
   for (int i = 0; i < 2000; ++i) helper.Run([&] { ++first; }, [&] { ++second; });
   EXPECT_EQ(first, 2000);
   EXPECT_EQ(second.load(), 2000);
+}
+
+TEST(PairHelper, CountsTheCpuItsThreadSpentOnJobs) {
+  const PairHelper helper;
+  std::mutex mu;
+  std::condition_variable cv;
+  bool started = false;
+  // The second job burns 20 ms of its thread's CPU; the first waits until
+  // it has begun, so the helper (not this thread) runs it.
+  helper.Run(
+      [&] {
+        std::unique_lock lock(mu);
+        cv.wait_for(lock, std::chrono::seconds(60), [&] { return started; });
+      },
+      [&] {
+        {
+          std::lock_guard lock(mu);
+          started = true;
+        }
+        cv.notify_all();
+        timespec t0{}, t{};
+        clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t0);
+        do clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+        while ((t.tv_sec - t0.tv_sec) * 1e9 + (t.tv_nsec - t0.tv_nsec) < 20e6);
+      });
+  EXPECT_GE(helper.cpu_seconds(), 0.02);
 }
 
 TEST(PairHelper, ErrorsComeBackFirstJobFirst) {
