@@ -123,7 +123,8 @@ make_seeds() {
     server_config)
       [[ -f $repo/deploy/server.yaml ]] && seed "$t" server.yaml <"$repo/deploy/server.yaml"
       printf 'listen: 127.0.0.1:0\nqueue_size: 8\nmax_queue_size: 16\nkeepalive_time_s: 5\nkeepalive_timeout_s: 2\n' | seed "$t" builtin
-      printf 'listen: 0.0.0.0:50051\nlisten_unix: /tmp/locaid.sock\nmetrics_listen: 127.0.0.1:9464\nmax_ended_sessions: 100\nended_session_ttl_s: 3600\nmax_concurrent_renders: 2\nmax_synthetic_frames: 2000\nsynthetic_default_frames: 100\n' | seed "$t" builtin_sessions ;;
+      printf 'listen: 0.0.0.0:50051\nlisten_unix: /tmp/locaid.sock\nmetrics_listen: 127.0.0.1:9464\nmax_ended_sessions: 100\nended_session_ttl_s: 3600\nmax_concurrent_renders: 2\nmax_synthetic_frames: 2000\nsynthetic_default_frames: 100\n' | seed "$t" builtin_sessions
+      printf 'max_sessions: 32\nbehind_threshold_s: 0.1\nmax_cpu_cores: 1.8\nsession_cpu_cores_prior: 0.5\n' | seed "$t" builtin_realtime ;;
     frame_decode)
       # First byte selects mode/size (see fuzz_frame_decode.cpp).
       if ((have_data)); then
