@@ -43,6 +43,11 @@ void RealTimeMonitor::NoteCpu(Clock::time_point now, double other_cpu_s) {
   while (cpu_.size() > 1 && now - cpu_.front().first > kCpuWindow) cpu_.pop_front();
 }
 
+void RealTimeMonitor::NoteWaiting(Clock::time_point due) {
+  std::lock_guard lock(mu_);
+  next_due_ = due;
+}
+
 void RealTimeMonitor::NoteEnded() {
   std::lock_guard lock(mu_);
   ended_ = true;

@@ -30,6 +30,10 @@ class RealTimeMonitor {
   // A pose with sensor time t_ns published at `now`; `due`: when it was due
   // (nullopt: not paced, or the first pose). Returns its lateness, s.
   double NotePose(int64_t t_ns, std::optional<Clock::time_point> due, Clock::time_point now);
+  // The session waits until `due` to publish its next pose: until then it
+  // is not behind, whatever the previous frame period suggested (a gap in
+  // the input).
+  void NoteWaiting(Clock::time_point due);
   // The calling (session) thread's CPU time so far plus `other_cpu_s` (what
   // its helper threads used so far), sampled at most every 50 ms.
   void NoteCpu(Clock::time_point now, double other_cpu_s = 0);

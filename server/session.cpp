@@ -102,6 +102,7 @@ void Session::RunCommands() {
 bool Session::Pace(int64_t t_ns, std::optional<Clock::time_point>* due) {
   *due = pacer_.Due(t_ns);
   if (*due) {
+    monitor_.NoteWaiting(**due);
     std::unique_lock lock(wait_mu_);
     wait_cv_.wait_until(lock, **due, [this] { return stop_.load(); });
   }

@@ -45,6 +45,24 @@ TEST(RealTimeMonitor, LatenessIsPublishTimeMinusDueTimeAndAStallGrowsIt) {
   EXPECT_NEAR(m.BehindNow(w0 + milliseconds(5000)), 0.05, 1e-9);
 }
 
+// A gap in the input (KITTI's missing frames): the session sleeps until the
+// next pose's due time and is not behind meanwhile.
+TEST(RealTimeMonitor, WaitingForALaterDueTimeIsNotBeingBehind) {
+  RealTimeMonitor m(1.0, 0.1);
+  const Clock::time_point w0{};
+  m.NotePose(0, std::nullopt, w0);
+  m.NotePose(kFrameNs, w0 + milliseconds(100), w0 + milliseconds(100));
+  // Frames 2 and 3 are missing: frame 4 is due at 400 ms, and the session waits for it.
+  m.NoteWaiting(w0 + milliseconds(400));
+  EXPECT_EQ(m.BehindNow(w0 + milliseconds(350)), 0.0);
+  EXPECT_FALSE(m.FallingBehind(w0 + milliseconds(350)));
+  // Had it not been waiting, 350 ms would be 150 ms past the estimated 200 ms.
+  RealTimeMonitor stalled(1.0, 0.1);
+  stalled.NotePose(0, std::nullopt, w0);
+  stalled.NotePose(kFrameNs, w0 + milliseconds(100), w0 + milliseconds(100));
+  EXPECT_TRUE(stalled.FallingBehind(w0 + milliseconds(350)));
+}
+
 TEST(RealTimeMonitor, UnpacedSessionsAreNeverLate) {
   RealTimeMonitor m(0.0, 0.1);
   const Clock::time_point w0{};
@@ -104,7 +122,10 @@ TEST(KeepingRealTime, APacedSessionThatCannotKeepItsRateSaysSoEverywhere) {
   const ScopedTempDir dir("realtime_behind");
   const fs::path drive = SmallDrive(dir.path() / "drive", 60);
   ASSERT_FALSE(drive.empty());
-  ServerProcess server(dir.path() / "server", {"--metrics-listen", "127.0.0.1:0", "--behind-threshold-s", "0.05"});
+  // The threshold from the YAML file (the flag's range check is below).
+  std::ofstream(dir.path() / "server.yaml") << "behind_threshold_s: 0.05\n";
+  ServerProcess server(dir.path() / "server",
+                       {"--metrics-listen", "127.0.0.1:0", "--config", (dir.path() / "server.yaml").string()});
   ASSERT_GT(server.port(), 0) << server.log();
   auto stub = v1::Localization::NewStub(server.NewChannel());
 
