@@ -180,7 +180,11 @@ void ApplyYamlConfig(const std::filesystem::path& file, ServerConfig* c) {
       {"metrics_listen", str(&c->metrics_listen)},
   };
   for (const auto& kv : root) {
-    const std::string key = kv.first.as<std::string>();
+    if (!kv.first.IsScalar()) {  // `? [a]`, `? {a: 1}` or an empty `?` as a key
+      throw ConfigError(file.string() + ":" + std::to_string(kv.first.Mark().line + 1) + ": a key must be a name, got a " +
+                        (kv.first.IsMap() ? "map" : kv.first.IsSequence() ? "sequence" : "null value"));
+    }
+    const std::string key = kv.first.Scalar();
     const std::string where = file.string() + ":" + std::to_string(kv.first.Mark().line + 1) + ": key '" + key + "'";
     auto it = setters.find(key);
     if (it == setters.end()) {

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <tuple>
 #include <vector>
 
 namespace locaid::server {
@@ -21,6 +22,8 @@ std::filesystem::path WriteTemp(const ScopedTempDir& dir, const std::string& nam
   std::ofstream(path) << text;
   return path;
 }
+
+namespace fs = std::filesystem;
 
 std::string ErrorOf(const std::function<void()>& f) { return locaid::test_support::ErrorOf<ConfigError>(f); }
 
@@ -41,6 +44,33 @@ TEST(ServerConfig, UnknownKeyNamesFileLineAndKey) {
   const std::string e = ErrorOf([&] { ApplyYamlConfig(path, &c); });
   EXPECT_NE(e.find("bad_key.yaml:2"), std::string::npos) << e;
   EXPECT_NE(e.find("queue_sise"), std::string::npos) << e;
+}
+
+// Found by fuzz_server_config (2026-11-27): a key that is not a name (an
+// explicit `?` key left empty, a list or a map as a key) threw yaml-cpp's
+// TypedBadConversion out of ApplyYamlConfig. The fuzzer's reproducers are in
+// fuzz/corpus/server_config/; each parses or throws ConfigError.
+TEST(ServerConfig, AKeyThatIsNotANameIsAConfigErrorNamingTheLine) {
+  const ScopedTempDir dir("config");
+  for (const auto& [name, text, kind] : std::vector<std::tuple<std::string, std::string, std::string>>{
+           {"empty_key.yaml", "# settings\n?\n: 1\n", ""},  // the fuzzer's input (yaml-cpp reads a map there)
+           {"list_key.yaml", "listen: 127.0.0.1:0\n[a, b]: 2\n", "sequence"},
+           {"map_key.yaml", "{a: 1}: 2\n", "map"}}) {
+    ServerConfig c;
+    const std::string e = ErrorOf([&] { ApplyYamlConfig(WriteTemp(dir, name, text), &c); });
+    EXPECT_NE(e.find(name + ":"), std::string::npos) << e;
+    EXPECT_NE(e.find("a key must be a name, got a " + kind), std::string::npos) << e;
+  }
+  for (const auto& entry : fs::directory_iterator(std::string(LOCAID_SOURCE_DIR) + "/fuzz/corpus/server_config")) {
+    ServerConfig c;
+    try {
+      ApplyYamlConfig(entry.path(), &c);
+      ValidateConfig(&c);
+    } catch (const ConfigError&) {
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << entry.path() << ": " << e.what();
+    }
+  }
 }
 
 TEST(ServerConfig, WrongTypeAndRangeAreReported) {
