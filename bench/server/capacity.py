@@ -172,6 +172,8 @@ def main():
     if not os.access(args.server, os.X_OK):
         ap.error(f"{args.server}: not an executable (build first, or pass --server)")
     args.drive = os.path.abspath(args.drive)
+    if not os.path.isdir(args.drive):
+        ap.error(f"--drive {args.drive}: not a folder")
     sys.path.insert(0, args.stubs)
     try:
         import grpc
