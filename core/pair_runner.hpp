@@ -18,24 +18,29 @@ class PairRunner {
   // first job's exception is rethrown, else the second's (the order a
   // sequential run reports them in).
   virtual void Run(const std::function<void()>& first, const std::function<void()>& second) const {
-    std::exception_ptr a, b;
-    try {
-      first();
-    } catch (...) {
-      a = std::current_exception();
-    }
-    try {
-      second();
-    } catch (...) {
-      b = std::current_exception();
-    }
-    if (a) std::rethrow_exception(a);
-    if (b) std::rethrow_exception(b);
+    const std::exception_ptr a = Capture(first);
+    RethrowFirst(a, Capture(second));
   }
   // The sequential runner (no state; shared).
   static const PairRunner& Sequential() {
     static const PairRunner runner;
     return runner;
+  }
+
+ protected:
+  // Runs `job`; what it threw, or null.
+  static std::exception_ptr Capture(const std::function<void()>& job) noexcept {
+    try {
+      job();
+    } catch (...) {
+      return std::current_exception();
+    }
+    return nullptr;
+  }
+  // Rethrows the first job's exception, else the second's.
+  static void RethrowFirst(const std::exception_ptr& first, const std::exception_ptr& second) {
+    if (first) std::rethrow_exception(first);
+    if (second) std::rethrow_exception(second);
   }
 };
 

@@ -36,13 +36,8 @@ void PairHelper::Loop(int nice) {
     state_ = State::kRunning;
     const std::function<void()>* job = job_;
     lock.unlock();
-    std::exception_ptr error;
     const int64_t cpu0 = ThreadCpuNs();
-    try {
-      (*job)();
-    } catch (...) {
-      error = std::current_exception();
-    }
+    const std::exception_ptr error = Capture(*job);
     cpu_ns_ += ThreadCpuNs() - cpu0;
     lock.lock();
     job_error_ = error;
@@ -59,12 +54,8 @@ void PairHelper::Run(const std::function<void()>& first, const std::function<voi
     state_ = State::kQueued;
   }
   wake_.notify_one();
-  std::exception_ptr first_error, second_error;
-  try {
-    first();
-  } catch (...) {
-    first_error = std::current_exception();
-  }
+  const std::exception_ptr first_error = Capture(first);
+  std::exception_ptr second_error;
   bool run_here = false;
   {
     std::unique_lock lock(mu_);
@@ -77,15 +68,8 @@ void PairHelper::Run(const std::function<void()>& first, const std::function<voi
     }
     job_ = nullptr;
   }
-  if (run_here) {
-    try {
-      second();
-    } catch (...) {
-      second_error = std::current_exception();
-    }
-  }
-  if (first_error) std::rethrow_exception(first_error);
-  if (second_error) std::rethrow_exception(second_error);
+  if (run_here) second_error = Capture(second);
+  RethrowFirst(first_error, second_error);
 }
 
 }  // namespace locaid::server
