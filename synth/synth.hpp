@@ -73,6 +73,10 @@ struct SynthSummary {
 // Throws kitti::Error naming the field and its range when `config` cannot be
 // rendered (GenerateDrive checks it first; callers can check before).
 void ValidateSynthConfig(const SynthConfig& config);
+// `progress(frame, total)` runs after each rendered frame and, with frame 0,
+// after each set-up step (route, textures, world; about half a second of
+// CPU together), so a callback that throws stops the render within one step
+// or frame; the exception propagates and what was written so far stays.
 SynthSummary GenerateDrive(const SynthConfig& config, const std::filesystem::path& out_dir,
                            const std::function<void(int frame, int total)>& progress = {});
 

@@ -50,7 +50,7 @@ int main(int argc, char** argv) {
   const auto start = std::chrono::steady_clock::now();
   int last_print = 0;
   auto progress = [&](int frame, int total) {
-    if (quiet) return;
+    if (quiet || frame == 0) return;  // frame 0: a set-up step
     const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const double fps = el > 0 ? frame / el : 0;
     const double eta = fps > 0 ? (total - frame) / fps : 0;

@@ -19,7 +19,9 @@
 // published; dropped_total >= the drops the clients saw.
 // Memory: VmRSS of the server after a warm-up phase (same load, shorter) and
 // after the main phase, both measured idle (all sessions removed, all
-// subscribers gone); the second must be within kMaxRssGrowth of the first.
+// subscribers gone); the second must be within kMaxRssGrowth of the first
+// (printed, not checked, in an AddressSanitizer build: its quarantine keeps
+// freed memory).
 // Coverage: the main phase goes on (another round of the same length) until
 // it has exercised every path: sessions that ended while others started, a
 // slow subscriber that lost poses, streams ended by their session and by
@@ -51,6 +53,13 @@ using Clock = std::chrono::steady_clock;
 constexpr double kDefaultSoakSeconds = 45;
 constexpr double kMaxSoakSeconds = 600;          // all rounds; + warm-up and drain stays under the CTest TIMEOUT (900 s)
 constexpr int kMaxRounds = 3;                    // main-phase rounds until every path was exercised
+#if defined(__SANITIZE_ADDRESS__)
+constexpr bool kUnderAddressSanitizer = true;  // gcc
+#elif defined(__has_feature)
+constexpr bool kUnderAddressSanitizer = __has_feature(address_sanitizer);  // clang
+#else
+constexpr bool kUnderAddressSanitizer = false;
+#endif
 constexpr double kMaxRssGrowth = 0.10;           // end RSS <= warm RSS * (1 + this)
 constexpr int kSubscriberWorkers = 100;          // max concurrent subscribers
 constexpr int kConcurrentSessions = 3;
@@ -534,7 +543,14 @@ TEST(Soak, ChurningSubscribersWhileSessionsStartAndStop) {
   std::printf("[soak] server VmRSS after warm-up %ld kB, after load %ld kB (%+.1f %%, limit +%.0f %%)\n", rss_warm_kb,
               rss_end_kb, 100 * growth, 100 * kMaxRssGrowth);
   ASSERT_GT(rss_warm_kb, 0);
-  EXPECT_LE(growth, kMaxRssGrowth) << "server memory grew from " << rss_warm_kb << " kB to " << rss_end_kb << " kB";
+  if (kUnderAddressSanitizer) {
+    // ASan holds freed blocks in its quarantine (256 MB by default) and pads
+    // every allocation, so RSS grows with the load whatever the server keeps;
+    // the load itself still runs under ASan's checks.
+    std::printf("[soak] RSS growth not checked: the server is built with AddressSanitizer\n");
+  } else {
+    EXPECT_LE(growth, kMaxRssGrowth) << "server memory grew from " << rss_warm_kb << " kB to " << rss_end_kb << " kB";
+  }
   EXPECT_EQ(server.Terminate(), 0) << server.Describe();
 }
 
