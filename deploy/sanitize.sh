@@ -85,9 +85,11 @@ EOF
 
 # Numbers of the ctest tests of build folder $1 whose program is one of the
 # executables named after it ("0,0,0,n,n,..." for ctest -I), or "none".
+# ctest numbers -I in the list left by the other filters (-R, -E, -L, -LE),
+# so the same filters ($ctest_filter) are applied here first.
 tests_of() {
   local build=$1; shift
-  (cd "$build" && ctest --show-only=json-v1) | /usr/bin/python3 -c '
+  (cd "$build" && ctest --show-only=json-v1 "${ctest_filter[@]}") | /usr/bin/python3 -c '
 import json, os, sys
 wanted = set(sys.argv[1:])
 numbers = [str(i + 1) for i, t in enumerate(json.load(sys.stdin)["tests"])
@@ -212,6 +214,9 @@ run_mode() {
   # otherwise those of the executables built.
   local select=() exclude='fuzz'
   [[ $mode == tsan ]] && exclude='fuzz|soak'
+  # *_NOT_BUILT: placeholders of test executables not built here.
+  # shellcheck disable=SC2206
+  local ctest_filter=(-E '_NOT_BUILT$' -LE "$exclude" ${LOCAID_SANITIZE_CTEST_ARGS:-})
   if [[ $mode == tsan || $# -gt 0 ]]; then
     local numbers
     numbers=$(tests_of "$build" "${want[@]}")
@@ -224,10 +229,8 @@ run_mode() {
     export TSAN_OPTIONS=${TSAN_OPTIONS:-halt_on_error=0:exitcode=0:second_deadlock_stack=1:log_path=$logs/tsan}
   fi
   echo "sanitize[$mode]: ctest"
-  # *_NOT_BUILT: placeholders of test executables not built here.
-  # shellcheck disable=SC2086
-  ctest --test-dir "$build" -j"$jobs" --output-on-failure --timeout 900 -E '_NOT_BUILT$' -LE "$exclude" \
-        "${select[@]}" ${LOCAID_SANITIZE_CTEST_ARGS:-} || status=1
+  ctest --test-dir "$build" -j"$jobs" --output-on-failure --timeout 900 "${ctest_filter[@]}" "${select[@]}" \
+    || status=1
   if [[ $mode == tsan ]]; then
     classify_tsan "$logs" "$build/tsan-summary.txt" || status=1
   fi
