@@ -8,6 +8,8 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <exception>
 #include <optional>
@@ -161,10 +163,19 @@ bool Session::StepOnce() {
 }
 
 void Session::Run() {
-  // Batch sessions yield to real-time ones (Linux: per-thread nice; raising
-  // it needs no privilege). A failure leaves the thread at normal priority.
-  const int nice = realtime() ? 0 : kBatchNice;
-  if (nice > 0) (void)setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), nice);
+  // Batch sessions yield to real-time ones (Linux: per-thread nice, +10 from
+  // the nice the server was started with, at most 19; raising it needs no
+  // privilege). A failure leaves the thread at the server's priority.
+  // The helper thread below is started from this one and inherits its nice.
+  int nice = 0;
+  if (!realtime()) {
+    errno = 0;
+    const int base = getpriority(PRIO_PROCESS, static_cast<id_t>(gettid()));
+    if (errno == 0 && base < 19) {
+      nice = std::min(19, base + kBatchNice);
+      (void)setpriority(PRIO_PROCESS, static_cast<id_t>(gettid()), nice);
+    }
+  }
   // The left image of each frame decodes here, the right one on the helper.
   std::optional<PairHelper> helper;
   try {

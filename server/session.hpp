@@ -40,8 +40,9 @@ struct SessionOptions {
 
 // What overload does to a session (docs/api.md "Keeping real time"):
 // real-time sessions (paced or live) run at normal priority and share the
-// cores; batch sessions (unpaced recordings) run at nice +kBatchNice and get
-// what the real-time ones leave.
+// cores; batch sessions (unpaced recordings) run kBatchNice above the nice
+// the server was started with (at most 19) and get what the real-time ones
+// leave.
 inline constexpr int kBatchNice = 10;
 
 class Session {

@@ -257,20 +257,28 @@ TEST(KeepingRealTime, BatchSessionsRunAtLowerPriority) {
     const auto v = ThreadNiceValues(pid);
     return std::count(v.begin(), v.end(), nice);
   };
-  ASSERT_EQ(count(kBatchNice), 0) << "no session yet";
+  // The server inherits this test's nice (e.g. a run under `nice -n 10`);
+  // batch threads go kBatchNice above it.
+  const std::vector<int> before = ThreadNiceValues(pid);
+  ASSERT_FALSE(before.empty());
+  const int base = *std::min_element(before.begin(), before.end());
+  if (base >= 19) GTEST_SKIP() << "the server already runs at nice 19: nothing lower to see";
+  const int batch_nice = std::min(19, base + kBatchNice);
+  ASSERT_EQ(count(batch_nice), 0) << "no session yet";
   v1::Session paced, batch;
   ASSERT_TRUE(Start(stub.get(), PacedKitti(drive, 0.5), &paced).ok());  // 40 frames at half speed: 8 s
   std::this_thread::sleep_for(milliseconds(300));
-  EXPECT_EQ(count(kBatchNice), 0) << "a paced session runs at normal priority";
+  EXPECT_EQ(count(batch_nice), 0) << "a paced session runs at the server's priority";
   // A batch session ends as soon as it has run its frames; its thread is
   // seen at nice +10 while it runs (or the session is already over).
   ASSERT_TRUE(Start(stub.get(), PacedKitti(drive, 0), &batch).ok());
   bool seen = false;
   for (int i = 0; i < 2000 && !seen; ++i) {
-    seen = count(kBatchNice) == 2;
+    seen = count(batch_nice) == 2;
     if (!seen && GetSession(stub.get(), batch.id()).state() == v1::SESSION_STATE_FINISHED) break;
   }
-  EXPECT_TRUE(seen) << "not two threads at nice " << kBatchNice << " while the batch session ran";
+  EXPECT_TRUE(seen) << "not two threads at nice " << batch_nice << " (server at " << base
+                    << ") while the batch session ran";
   EXPECT_EQ(GetSession(stub.get(), paced.id()).state(), v1::SESSION_STATE_RUNNING);
 }
 
