@@ -117,8 +117,11 @@ def skip(func, where, module):
     return ("libtsan" in module or "libstdc++" in module or where.startswith("/usr/include/c++/")
             or func.startswith(("__tsan", "__interceptor")))
 def kind_of(func, where, module):
+    # "<null>" (no debug line, as in Debian's libgrpc) is no path: a relative
+    # one would resolve against the working folder, which is in the repo.
     path = where.split(":")[0]
-    return "project" if os.path.realpath(path).startswith(repo + "/") else "uninstrumented"
+    inside = os.path.isabs(path) and os.path.realpath(path).startswith(repo + "/")
+    return "project" if inside else "uninstrumented"
 def tops_of(block, use_context):
     tops, in_stack, decided = [], True, False
     for line in block.splitlines():
