@@ -165,8 +165,8 @@ bool Session::StepOnce() {
 void Session::Run() {
   // Batch sessions yield to real-time ones (Linux: per-thread nice, +10 from
   // the nice the server was started with, at most 19; raising it needs no
-  // privilege). A failure leaves the thread at the server's priority.
-  // The helper thread below is started from this one and inherits its nice.
+  // privilege). A failure leaves the thread at the server's priority. The
+  // decode helper is told the same nice (PairHelper sets its own thread's).
   int nice = 0;
   if (!realtime()) {
     errno = 0;
