@@ -32,10 +32,7 @@ Status SessionRegistry::Add(SessionOptions options, std::unique_ptr<pipeline::Pi
   options.behind_threshold_s = config_.behind_threshold_s;
   if (Status s = AdmitByCpuLocked(options); !s.ok()) return s;
   if (!pipeline->ready()) {  // it prepares its input (renders) first
-    size_t preparing = 0;
-    // A stopped session's render ends after the frame being drawn: it counts
-    // until then, so the bound holds for the render threads themselves.
-    for (const auto& [k, e] : sessions_) preparing += e.session->preparing() ? 1 : 0;
+    const size_t preparing = PreparingLocked();
     if (preparing >= config_.max_concurrent_renders) {
       return {StatusCode::RESOURCE_EXHAUSTED, std::to_string(preparing) +
                                                   " sessions are preparing their input (max_concurrent_renders); "
@@ -92,6 +89,26 @@ SessionRegistry::LoadEstimate SessionRegistry::RealTimeLoadLocked() const {
   return load;
 }
 
+size_t SessionRegistry::PreparingLocked() {
+  // A stopped session's render ends at its next cancellation point: it counts
+  // until then, listed or already taken out, so the bound holds for the render
+  // threads themselves.
+  size_t n = 0;
+  for (const auto& [k, e] : sessions_) n += e.session->preparing() ? 1 : 0;
+  std::erase_if(retired_preparing_, [&n](const std::weak_ptr<Session>& w) {
+    const std::shared_ptr<Session> s = w.lock();
+    if (!s || !s->preparing()) return true;
+    ++n;
+    return false;
+  });
+  return n;
+}
+
+void SessionRegistry::RetireLocked(std::shared_ptr<Session> session) {
+  if (session->preparing()) retired_preparing_.push_back(session);
+  reaper_.Retire(std::move(session));
+}
+
 void SessionRegistry::PruneEndedLocked() {
   const int64_t now = std::chrono::duration_cast<std::chrono::nanoseconds>(
                           std::chrono::system_clock::now().time_since_epoch()).count();
@@ -105,7 +122,7 @@ void SessionRegistry::PruneEndedLocked() {
   for (size_t i = 0; i < ended.size(); ++i) {
     const bool too_many = ended.size() - i > config_.max_ended_sessions;
     if (!too_many && now - ended[i].first <= ttl_ns) continue;
-    reaper_.Retire(sessions_.at(ended[i].second).session);
+    RetireLocked(sessions_.at(ended[i].second).session);
     sessions_.erase(ended[i].second);
   }
 }
@@ -144,7 +161,7 @@ void SessionRegistry::Remove(const std::string& id) {
   std::lock_guard lock(mu_);
   auto it = sessions_.find(id);
   if (it == sessions_.end()) return;
-  reaper_.Retire(std::move(it->second.session));
+  RetireLocked(std::move(it->second.session));
   sessions_.erase(it);
 }
 

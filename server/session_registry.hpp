@@ -67,6 +67,13 @@ class SessionRegistry {
   // RESOURCE_EXHAUSTED when max_cpu_cores is set and a real-time session
   // would take the real-time load beyond it (mu_ held).
   grpc::Status AdmitByCpuLocked(const SessionOptions& options) const;
+  // Sessions preparing their input (max_concurrent_renders): the listed ones
+  // and those taken out whose render has not reached a cancellation point yet
+  // (mu_ held; forgets the retired ones that are done).
+  size_t PreparingLocked();
+  // Hands a session taken out to the reaper, remembering it while it renders
+  // (mu_ held).
+  void RetireLocked(std::shared_ptr<Session> session);
   // Takes the ended sessions beyond the limits out and retires them (mu_ held).
   void PruneEndedLocked();
   std::vector<std::shared_ptr<Session>> AllLocked() const;
@@ -75,6 +82,9 @@ class SessionRegistry {
   SessionReaper& reaper_;
   mutable std::mutex mu_;
   std::map<std::string, Entry> sessions_;
+  // Taken out while preparing: at most the sessions the registry listed
+  // (max_sessions + max_ended_sessions); the done ones go at every Add.
+  std::vector<std::weak_ptr<Session>> retired_preparing_;
   bool closed_ = false;
 };
 

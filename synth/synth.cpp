@@ -269,8 +269,9 @@ SynthSummary GenerateDrive(const SynthConfig& cfg, const std::filesystem::path& 
 
   // The set-up steps report frame 0, so a caller can cancel before the first frame.
   if (progress) progress(0, frames);
-  const std::vector<MipTexture> textures = MakeTextures(cfg.seed);
-  if (progress) progress(0, frames);
+  const std::vector<MipTexture> textures = MakeTextures(cfg.seed, [&] {
+    if (progress) progress(0, frames);
+  });
   World world(route, textures, cfg.seed, duration_bound + lead_s + 2);
   if (progress) progress(0, frames);
   sum.static_polygons = world.num_static_polys();

@@ -379,23 +379,30 @@ MipTexture MakeFacade(Rng& rng) {
 
 }  // namespace
 
-std::vector<MipTexture> MakeTextures(uint64_t seed) {
+std::vector<MipTexture> MakeTextures(uint64_t seed, const std::function<void()>& between) {
   std::vector<MipTexture> t(kNumTextures);
   Rng rng(seed, 7);
-  t[kTexRoad] = MakeRoad(rng);
-  t[kTexSidewalk] = MakeSidewalk(rng);
-  t[kTexCurb] = MakeConcrete(rng, 256, 64, 160, 128);
-  t[kTexGrass] = MakeGrass(rng);
-  t[kTexWall] = MakeBrickWall(rng);
-  t[kTexCarBody] = MakeCarBody(rng);
-  t[kTexGlass] = MakeGlass(rng);
-  t[kTexTire] = MakeSimple(rng, 64, 64, 30, 8, 6, 0.01);
-  t[kTexBark] = MakeBark(rng);
-  t[kTexLeaves] = MakeLeaves(rng);
-  t[kTexMetal] = MakeSimple(rng, 64, 256, 140, 14, 5, 0.01);
-  t[kTexSign] = MakeSign(rng);
-  t[kTexFence] = MakeFence(rng);
-  for (int i = 0; i < kNumFacades; ++i) t[kTexFacade0 + i] = MakeFacade(rng);
+  // In id order: the random stream, and so every texture, is the same as ever.
+  const std::function<MipTexture()> makers[kNumTextures - kNumFacades] = {
+      [&] { return MakeRoad(rng); },
+      [&] { return MakeSidewalk(rng); },
+      [&] { return MakeConcrete(rng, 256, 64, 160, 128); },
+      [&] { return MakeGrass(rng); },
+      [&] { return MakeBrickWall(rng); },
+      [&] { return MakeCarBody(rng); },
+      [&] { return MakeGlass(rng); },
+      [&] { return MakeSimple(rng, 64, 64, 30, 8, 6, 0.01); },
+      [&] { return MakeBark(rng); },
+      [&] { return MakeLeaves(rng); },
+      [&] { return MakeSimple(rng, 64, 256, 140, 14, 5, 0.01); },
+      [&] { return MakeSign(rng); },
+      [&] { return MakeFence(rng); },
+  };
+  static_assert(kTexFence + 1 == kTexFacade0);
+  for (int id = 0; id < kNumTextures; ++id) {
+    t[id] = id < kTexFacade0 ? makers[id]() : MakeFacade(rng);
+    if (between) between();
+  }
   return t;
 }
 

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 namespace locaid::synth {
@@ -42,6 +43,7 @@ constexpr double kRoadBlockLength = 40.96;
 constexpr int kRoadVariants = 4;
 
 // All textures of the world, generated deterministically from `seed`.
-std::vector<MipTexture> MakeTextures(uint64_t seed);
+// `between` (if set) runs after each texture: a caller cancels by throwing.
+std::vector<MipTexture> MakeTextures(uint64_t seed, const std::function<void()>& between = {});
 
 }  // namespace locaid::synth

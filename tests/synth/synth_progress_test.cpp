@@ -2,6 +2,7 @@
 // throws stops the render (how a server cancels the drive of a stopped
 // session).
 #include "synth/synth.hpp"
+#include "synth/texture.hpp"
 #include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
@@ -41,7 +42,30 @@ TEST(SynthProgress, SetUpStepsReportFrameZeroThenEveryFrameOnce) {
     EXPECT_EQ(total, 5);
     frames.push_back(frame);
   });
-  EXPECT_EQ(frames, (std::vector<int>{0, 0, 0, 1, 2, 3, 4, 5}));
+  // The route, each texture and the world: one frame-0 report each.
+  std::vector<int> expected(1 + synth::kNumTextures + 1, 0);
+  for (int k = 1; k <= 5; ++k) expected.push_back(k);
+  EXPECT_EQ(frames, expected);
+}
+
+// Making the textures is the longest set-up step (seconds under a sanitizer):
+// a cancel lands between two textures, not after all of them.
+TEST(SynthProgress, ACallbackThatThrowsWhileTexturesAreMadeStopsThere) {
+  struct Cancelled : std::runtime_error {
+    Cancelled() : std::runtime_error("cancelled") {}
+  };
+  int calls = 0;
+  EXPECT_THROW(synth::MakeTextures(4,
+                                   [&] {
+                                     if (++calls == 3) throw Cancelled();
+                                   }),
+               Cancelled);
+  EXPECT_EQ(calls, 3);
+  calls = 0;
+  const std::vector<synth::MipTexture> all = synth::MakeTextures(4, [&] { ++calls; });
+  EXPECT_EQ(calls, synth::kNumTextures);
+  ASSERT_EQ(all.size(), static_cast<size_t>(synth::kNumTextures));
+  for (const auto& t : all) EXPECT_FALSE(t.levels.empty());
 }
 
 TEST(SynthProgress, ACallbackThatThrowsDuringSetUpStopsBeforeAnyImage) {
