@@ -38,9 +38,23 @@ std::string ItemName(v1::PushRequest::ItemCase c) {
 // once (after the write in flight, if any). Derived classes say what to write
 // next in NextLocked(); everything else (wake, abort, write completion,
 // cancel, unsubscribe, delete) is here, shared by PoseWriter and PushReactor.
+// Made by New() only: other threads (the hub's wakes, shutdown's Abort) reach
+// a stream once it is fully constructed, never while its constructor runs.
 template <typename Reactor, typename Msg>
 class HubStream : public Reactor, public StreamTarget {
  public:
+  template <typename Derived, typename... Args>
+  static Derived* New(ReactorHost* service, Args&&... args) {
+    auto* stream = new Derived(service, std::forward<Args>(args)...);
+    {
+      std::lock_guard lock(stream->waker_->mu);
+      stream->waker_->target = stream;
+    }
+    service->Register(stream->waker_);
+    stream->Wake();  // what the constructor queued (a pose already in the hub)
+    return stream;
+  }
+
   void Wake() override {
     std::lock_guard lock(mu_);
     WriteNextLocked();
@@ -67,6 +81,12 @@ class HubStream : public Reactor, public StreamTarget {
     FinishLocked(Status::CANCELLED);
   }
   void OnDone() override {
+    // gRPC runs OnDone after every other reaction has returned, an ordering it
+    // keeps with its own locks, which a ThreadSanitizer build of this server
+    // cannot see (Debian's gRPC is not instrumented). Taking mu_, which every
+    // reaction that touches the stream's state holds, makes that ordering
+    // visible, so TSan reports only real races here.
+    { std::lock_guard lock(mu_); }
     {
       std::lock_guard lock(waker_->mu);
       waker_->target = nullptr;
@@ -80,10 +100,7 @@ class HubStream : public Reactor, public StreamTarget {
  protected:
   enum class Next { kWrite, kIdle, kEnd };
 
-  explicit HubStream(ReactorHost* service) : service_(service), waker_(std::make_shared<Waker>()) {
-    waker_->target = this;
-    service_->Register(waker_);
-  }
+  explicit HubStream(ReactorHost* service) : service_(service), waker_(std::make_shared<Waker>()) {}
 
   // With mu_ held: fills *out and returns kWrite, or sets *end and returns
   // kEnd, or returns kIdle (nothing to write until the next wake).
@@ -174,7 +191,6 @@ class PoseWriter final : public HubStream<grpc::ServerWriteReactor<grpc::ByteBuf
              std::shared_ptr<PoseEncodings> encodings, bool from_start, std::string peer, size_t queue_size)
       : HubStream(service), encodings_(std::move(encodings)) {
     Subscribe(std::move(session), queue_size, from_start, std::move(peer));
-    Wake();
   }
 
  private:
@@ -359,12 +375,13 @@ grpc::ServerWriteReactor<grpc::ByteBuffer>* NewPoseWriter(ReactorHost* service,
                                                           std::shared_ptr<Session> session,
                                                           std::shared_ptr<PoseEncodings> encodings, bool from_start,
                                                           std::string peer, size_t queue_size) {
-  return new PoseWriter(service, std::move(session), std::move(encodings), from_start, std::move(peer), queue_size);
+  return PoseWriter::New<PoseWriter>(service, std::move(session), std::move(encodings), from_start, std::move(peer),
+                                     queue_size);
 }
 
 grpc::ServerBidiReactor<v1::PushRequest, v1::PushResponse>* NewPushReactor(ReactorHost* service,
                                                                             std::string peer) {
-  return new PushReactor(service, std::move(peer));
+  return PushReactor::New<PushReactor>(service, std::move(peer));
 }
 
 }  // namespace locaid::server
