@@ -160,8 +160,10 @@ std::vector<MetricFamily> BuildMetricFamilies(const std::vector<SessionMetrics>&
   for (const auto& [id, m] : sessions) ++by_state[StateName(m.state)];
   for (const auto& [state, n] : by_state)
     f.Add("locaid_sessions", "Sessions in the registry by state", MetricType::Gauge, {{"state", state}}, n);
-  f.Add("locaid_render_queue", "Sessions rendering their synthetic drive", MetricType::Gauge, {},
-        static_cast<double>(server.render_queue));
+  f.Add("locaid_render_queue",
+        "Sessions rendering their synthetic drive, stopped ones until the render ends (what max_concurrent_renders "
+        "bounds)",
+        MetricType::Gauge, {}, static_cast<double>(server.render_queue));
   f.Add("locaid_render_queue_limit", "max_concurrent_renders", MetricType::Gauge, {},
         static_cast<double>(server.max_concurrent_renders));
   f.Add("locaid_rendered_drives_bytes", "Disk used by rendered synthetic drives", MetricType::Gauge, {},

@@ -19,7 +19,7 @@ namespace locaid::server {
 
 // Server-wide figures beside the sessions'.
 struct ServerFigures {
-  size_t render_queue = 0;            // sessions STARTING (rendering their drive)
+  size_t render_queue = 0;            // sessions preparing their input (SessionRegistry::Preparing)
   size_t max_concurrent_renders = 0;
   uint64_t rendered_drive_bytes = 0;  // under SyntheticRoot(work_dir)
   uint64_t resident_memory_bytes = 0; // of this process

@@ -75,9 +75,9 @@ std::vector<prometheus::MetricFamily> LocalizationService::CollectMetrics() cons
   for (const auto& s : sessions) {
     snapshots.emplace_back(s->id(), s->Metrics());
     const auto& m = snapshots.back().second;
-    figures.render_queue += m.state == v1::SESSION_STATE_STARTING ? 1 : 0;
     if (s->realtime()) figures.realtime_cpu_cores += m.stats.cpu_cores();
   }
+  figures.render_queue = sessions_.Preparing();
   figures.max_concurrent_renders = config_.max_concurrent_renders;
   figures.max_cpu_cores = config_.max_cpu_cores;
   figures.rendered_drive_bytes = DirectoryBytes(SyntheticRoot(config_.work_dir).string());

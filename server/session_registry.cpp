@@ -89,7 +89,7 @@ SessionRegistry::LoadEstimate SessionRegistry::RealTimeLoadLocked() const {
   return load;
 }
 
-size_t SessionRegistry::PreparingLocked() {
+size_t SessionRegistry::PreparingLocked() const {
   // A stopped session's render ends at its next cancellation point: it counts
   // until then, listed or already taken out, so the bound holds for the render
   // threads themselves.
@@ -169,6 +169,11 @@ std::vector<std::shared_ptr<Session>> SessionRegistry::List() {
   std::lock_guard lock(mu_);
   PruneEndedLocked();
   return AllLocked();
+}
+
+size_t SessionRegistry::Preparing() const {
+  std::lock_guard lock(mu_);
+  return PreparingLocked();
 }
 
 std::vector<std::shared_ptr<Session>> SessionRegistry::Snapshot() const {

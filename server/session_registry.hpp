@@ -45,6 +45,9 @@ class SessionRegistry {
   void Remove(const std::string& id);
   // Every session, ended ones beyond the limits pruned first.
   std::vector<std::shared_ptr<Session>> List();
+  // Sessions preparing their input, listed or taken out, as admission counts
+  // them against max_concurrent_renders (metrics).
+  size_t Preparing() const;
   // Every session as it is (metrics).
   std::vector<std::shared_ptr<Session>> Snapshot() const;
   // Refuses new sessions from now on and returns every session.
@@ -70,7 +73,7 @@ class SessionRegistry {
   // Sessions preparing their input (max_concurrent_renders): the listed ones
   // and those taken out whose render has not reached a cancellation point yet
   // (mu_ held; forgets the retired ones that are done).
-  size_t PreparingLocked();
+  size_t PreparingLocked() const;
   // Hands a session taken out to the reaper, remembering it while it renders
   // (mu_ held).
   void RetireLocked(std::shared_ptr<Session> session);
@@ -84,7 +87,7 @@ class SessionRegistry {
   std::map<std::string, Entry> sessions_;
   // Taken out while preparing: at most the sessions the registry listed
   // (max_sessions + max_ended_sessions); the done ones go at every Add.
-  std::vector<std::weak_ptr<Session>> retired_preparing_;
+  mutable std::vector<std::weak_ptr<Session>> retired_preparing_;
   bool closed_ = false;
 };
 

@@ -86,6 +86,7 @@ TEST_F(SessionRegistryTest, RemovedSessionStillPreparingCountsUntilItsPreparatio
   registry_.Remove(a);  // what StopSession with remove does
   EXPECT_TRUE(registry_.List().empty());
   ASSERT_TRUE(removed->preparing()) << "the stopped session's preparation has no cancellation point yet";
+  EXPECT_EQ(registry_.Preparing(), 1u) << "locaid_render_queue counts what admission counts";
   const grpc::Status still = Add(second_, &b);
   EXPECT_EQ(still.error_code(), grpc::RESOURCE_EXHAUSTED)
       << "a removed session still preparing must count against max_concurrent_renders: " << still.error_message();
@@ -97,6 +98,7 @@ TEST_F(SessionRegistryTest, RemovedSessionStillPreparingCountsUntilItsPreparatio
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
   ASSERT_FALSE(removed->preparing());
+  EXPECT_EQ(registry_.Preparing(), 0u);
   removed.reset();
   const grpc::Status admitted = Add(second_, &b);
   EXPECT_TRUE(admitted.ok()) << admitted.error_message();
