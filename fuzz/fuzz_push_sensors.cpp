@@ -1,15 +1,20 @@
-// libFuzzer target: the messages of a PushSensorData stream after its 'start'
-// (locaid.v1.PushRequest with frame, oxts, imu or gps), as the server turns
-// them into pipeline input: server/sensor_requests.hpp ImuItemFromProto /
-// GpsItemFromProto for the typed messages, then the session's
-// pipeline::LiveFrameSource (ordering, OXTS line parsing, frame decoding).
+// libFuzzer target: the messages of a PushSensorData stream (locaid.v1.PushRequest
+// with start, frame, oxts, imu, gps or speed), as the server turns them into
+// pipeline input: a first 'start' carrying a LiveSource through
+// server/live_source_request.hpp LiveSourceFromProto, the typed messages
+// through server/sensor_requests.hpp ImuItemFromProto / GpsItemFromProto,
+// then the session's pipeline::LiveFrameSource (ordering, OXTS line parsing,
+// frame decoding).
 //
 // Input: the stream as protobuf's length-delimited sequence (varint size,
 // then a serialized PushRequest, repeated; what
 // google::protobuf::util::SerializeDelimitedToOstream writes), up to
 // kMaxMessages. Parsing stops at the first malformed message; the ones
-// before it are used. The session camera is a fixed 16x16 stereo pair (the
-// smallest LiveSource allows), so raw GRAY8 frames are 256 bytes.
+// before it are used. A first 'start' with a live source is checked as the
+// server checks it: refused, the stream ends there; accepted, the session
+// takes its extrinsic and GPS delay bound. The session camera's image is a
+// fixed 16x16 stereo pair (the smallest LiveSource allows), so raw GRAY8
+// frames are 256 bytes.
 //
 // Every message is handled as stream_reactors.cpp's PushReactor does (its
 // gRPC reactor is not reachable without a server): a frame with another
@@ -17,7 +22,12 @@
 // IMU/GPS message is converted or refused with a reason.
 //
 // Contract:
-//  - a refused IMU/GPS message has a non-empty reason;
+//  - an accepted live source has finite intrinsics (fx, fy, baseline > 0), a
+//    size in [16, 8192], a finite T_cam0_imu whose rotation is orthonormal to
+//    1e-6 with determinant > 0, a GPS delay bound in (0, 10] s, a lever arm
+//    within 10 m per axis, speed sensor sigmas in [0, 10] m/s and [0, 0.5],
+//    a gpsd host without blanks or '/' of at most 253 bytes and a port > 0;
+//  - a refused IMU/GPS message (or live source) has a non-empty reason;
 //  - an accepted one carries finite values inside the documented ranges
 //    (docs/api.md "Typed sensor input"): |a| <= 2000 m/s^2, |w| <= 100 rad/s,
 //    noise densities >= 0; latitude/longitude in range, altitude in
@@ -31,6 +41,7 @@
 #include "fuzz/fuzz_support.hpp"
 #include "pipeline/frame_source.hpp"
 #include "pipeline/live_frame_source.hpp"
+#include "server/live_source_request.hpp"
 #include "server/sensor_requests.hpp"
 
 #include "locaid/v1/localization.pb.h"
@@ -105,6 +116,35 @@ void CheckGpsItem(const pipeline::LiveItem& item) {
   if (f.v_enu_mps) {
     LOCAID_FUZZ_CHECK(Finite3(*f.v_enu_mps) && f.v_enu_mps->norm() <= 200, "bad velocity accepted");
     LOCAID_FUZZ_CHECK(std::isfinite(f.sigma_v_enu_mps) && f.sigma_v_enu_mps > 0, "bad velocity sigma accepted");
+  }
+}
+
+void CheckLiveSource(const locaid::server::LiveSourceSetup& s) {
+  const locaid::StereoCamera& c = s.camera.camera;
+  LOCAID_FUZZ_CHECK(std::isfinite(c.fx) && c.fx > 0 && std::isfinite(c.fy) && c.fy > 0, "bad focal length accepted");
+  LOCAID_FUZZ_CHECK(std::isfinite(c.cx) && std::isfinite(c.cy), "non-finite principal point accepted");
+  LOCAID_FUZZ_CHECK(std::isfinite(c.baseline_m) && c.baseline_m > 0, "bad baseline accepted");
+  LOCAID_FUZZ_CHECK(c.width >= 16 && c.height >= 16 && c.width <= 8192 && c.height <= 8192, "bad size accepted");
+  const Eigen::Matrix4d T = s.camera.T_cam0_imu.matrix();
+  LOCAID_FUZZ_CHECK(T.allFinite(), "non-finite T_cam0_imu accepted");
+  const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
+  const double off = (R * R.transpose() - Eigen::Matrix3d::Identity()).norm();
+  LOCAID_FUZZ_CHECK(off <= 1e-6, "T_cam0_imu whose rotation is not orthonormal accepted");
+  LOCAID_FUZZ_CHECK(R.determinant() > 0, "T_cam0_imu that is a reflection accepted");
+  const double delay = s.camera.max_gps_delay_s;
+  LOCAID_FUZZ_CHECK(std::isfinite(delay) && delay > 0 && delay <= locaid::server::kMaxGpsDelayS,
+                    "GPS delay bound outside (0, 10] s");
+  LOCAID_FUZZ_CHECK(Finite3(s.gps_antenna_body_m) && s.gps_antenna_body_m.cwiseAbs().maxCoeff() <= 10,
+                    "lever arm beyond 10 m accepted");
+  LOCAID_FUZZ_CHECK(std::isfinite(s.speed_sigma_mps) && s.speed_sigma_mps >= 0 && s.speed_sigma_mps <= 10,
+                    "bad speed sigma accepted");
+  LOCAID_FUZZ_CHECK(std::isfinite(s.speed_scale_sigma) && s.speed_scale_sigma >= 0 && s.speed_scale_sigma <= 0.5,
+                    "bad speed scale sigma accepted");
+  if (s.gpsd) {
+    LOCAID_FUZZ_CHECK(!s.gpsd->host.empty() && s.gpsd->host.size() <= 253 &&
+                          s.gpsd->host.find_first_of(" \t\r\n/") == std::string::npos,
+                      "bad gpsd host accepted");
+    LOCAID_FUZZ_CHECK(s.gpsd->port > 0, "gpsd port 0 accepted");
   }
 }
 
@@ -230,6 +270,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   }
 
   pipeline::LiveCameraSetup setup;
+  if (!messages.empty() && messages.front().has_start() && messages.front().start().has_live()) {
+    locaid::server::LiveSourceSetup live;
+    const std::string error =
+        locaid::server::LiveSourceFromProto(messages.front().start().live(), Eigen::Isometry3d::Identity(), &live);
+    if (!error.empty()) return 0;  // INVALID_ARGUMENT with `error`: the stream ends
+    CheckLiveSource(live);
+    setup = live.camera;
+  }
   setup.camera = locaid::StereoCamera{20.0, 20.0, 7.5, 7.5, 0.5, kCameraSize, kCameraSize};
   pipeline::LiveFrameSource source(setup, kMaxMessages);
   const auto [imu, gps] = PushAll(messages, source);

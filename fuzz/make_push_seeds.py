@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Seed inputs for fuzz_push_sensors: PushSensorData streams (after 'start')
-as length-delimited locaid.v1.PushRequest messages, written from text format
+"""Seed inputs for fuzz_push_sensors: PushSensorData streams (most begin after
+'start'; "live_start" begins with one) as length-delimited locaid.v1.PushRequest messages, written from text format
 with `protoc --encode`, so they follow proto/locaid/v1/localization.proto as
 it is today.
 
@@ -64,6 +64,13 @@ SEEDS = {
         gps(14 * MS, "sigma_horizontal_m: inf"),
         imu(5 * MS), gps(9 * MS), "start { }", "",
     ],
+    # A stream that starts its own live session with every LiveSource field.
+    "live_start": [
+        "start { live { fx: 20 fy: 20 cx: 7.5 cy: 7.5 baseline_m: 0.5 width: 16 height: 16 "
+        "T_cam0_imu: [0, -1, 0, 0.1, 0, 0, -1, -0.2, 1, 0, 0, -1.1] max_gps_delay_s: 2 "
+        "gps_antenna_body_m: [0.5, 0, 1.2] speed_sensor { rate_hz: 50 sigma_mps: 0.1 scale_factor_sigma: 0.02 } "
+        'gps_source { gpsd { host: "127.0.0.1" port: 2947 } } } }',
+        imu(1 * MS), gps(2 * MS), frame(3 * MS), imu(4 * MS), gps(5 * MS)],
     "frames": [frame(0), frame(0, 1), frame(-5 * MS, 2), frame(20 * MS, 3),
                f'frame {{ t_ns: {30 * MS} encoding: IMAGE_ENCODING_PNG left: "\\211PNG" right: "x" }}'],
 }

@@ -9,6 +9,7 @@
 #include "pipeline/live_frame_source.hpp"
 #include "server/bag_source_request.hpp"
 #include "server/gps_receiver.hpp"
+#include "server/live_source_request.hpp"
 #include "server/status.hpp"
 #include "server/synthetic_drive.hpp"
 #include "server/deferred_pipeline.hpp"
@@ -34,76 +35,6 @@ using grpc::StatusCode;
 
 bool Finite(double x) { return std::isfinite(x); }
 
-Status ParseLiveSource(const v1::LiveSource& l, pipeline::LiveCameraSetup* out) {
-  for (const auto& [name, v] : {std::pair{"fx", l.fx()}, {"fy", l.fy()}, {"baseline_m", l.baseline_m()}}) {
-    if (!Finite(v) || v <= 0) return Invalid(std::string("live.") + name + ": must be finite and > 0, got " + std::to_string(v));
-  }
-  for (const auto& [name, v] : {std::pair{"cx", l.cx()}, {"cy", l.cy()}}) {
-    if (!Finite(v)) return Invalid(std::string("live.") + name + ": must be finite");
-  }
-  if (l.width() < 16 || l.height() < 16 || l.width() > 8192 || l.height() > 8192) {
-    return Invalid("live.width/height: must be in [16, 8192], got " + std::to_string(l.width()) + "x" +
-                   std::to_string(l.height()));
-  }
-  out->camera = StereoCamera{l.fx(), l.fy(), l.cx(), l.cy(), l.baseline_m(), l.width(), l.height()};
-  if (l.t_cam0_imu_size() == 0) {
-    out->T_cam0_imu = KittiRigTcam0Imu();
-  } else if (l.t_cam0_imu_size() == 12) {
-    Eigen::Matrix<double, 3, 4> m;
-    for (int i = 0; i < 12; ++i) {
-      if (!Finite(l.t_cam0_imu(i))) return Invalid("live.T_cam0_imu[" + std::to_string(i) + "]: not finite");
-      m(i / 4, i % 4) = l.t_cam0_imu(i);
-    }
-    const Eigen::Matrix3d R = m.leftCols<3>();
-    if ((R * R.transpose() - Eigen::Matrix3d::Identity()).norm() > 1e-6 || R.determinant() < 0) {
-      return Invalid("live.T_cam0_imu: rotation part is not orthonormal");
-    }
-    out->T_cam0_imu.linear() = R;
-    out->T_cam0_imu.translation() = m.col(3);
-  } else {
-    return Invalid("live.T_cam0_imu: expected 0 or 12 values, got " + std::to_string(l.t_cam0_imu_size()));
-  }
-  const double delay = l.max_gps_delay_s();
-  if (!Finite(delay) || delay < 0 || delay > kMaxGpsDelayS) {
-    std::ostringstream got;
-    got << delay;
-    return Invalid("live.max_gps_delay_s: must be in [0, 10] (0 = 0.5 s), got " + got.str());
-  }
-  out->max_gps_delay_s = delay == 0 ? kDefaultGpsDelayS : delay;
-  return Status::OK;
-}
-
-// The GPS antenna's lever arm (live.gps_antenna_body_m): 0 or 3 finite values
-// within 10 m of the IMU.
-Status ParseLeverArm(const v1::LiveSource& l, Eigen::Vector3d* out) {
-  out->setZero();
-  if (l.gps_antenna_body_m_size() == 0) return Status::OK;
-  if (l.gps_antenna_body_m_size() != 3)
-    return Invalid("live.gps_antenna_body_m: expected 0 or 3 values (x, y, z), got " +
-                   std::to_string(l.gps_antenna_body_m_size()));
-  for (int i = 0; i < 3; ++i) {
-    const double v = l.gps_antenna_body_m(i);
-    if (!Finite(v) || std::abs(v) > 10)
-      return Invalid("live.gps_antenna_body_m[" + std::to_string(i) + "]: must be finite and within 10 m of the IMU");
-    (*out)[i] = v;
-  }
-  return Status::OK;
-}
-
-// LiveSource.speed_sensor: the noise and scale prior of the car's speed sensor.
-Status ParseSpeedSensor(const v1::LiveSource& l, EstimatorSetup* setup) {
-  const v1::SpeedSensor& s = l.speed_sensor();
-  const std::pair<const char*, double> fields[] = {
-      {"rate_hz", s.rate_hz()}, {"sigma_mps", s.sigma_mps()}, {"scale_factor_sigma", s.scale_factor_sigma()}};
-  for (const auto& [name, v] : fields)
-    if (!Finite(v) || v < 0) return Invalid(std::string("live.speed_sensor.") + name + ": must be finite and >= 0");
-  if (s.sigma_mps() > 10) return Invalid("live.speed_sensor.sigma_mps: must be <= 10 m/s");
-  if (s.scale_factor_sigma() > 0.5) return Invalid("live.speed_sensor.scale_factor_sigma: must be <= 0.5");
-  setup->speed_sigma_mps = s.sigma_mps();
-  setup->speed_scale_sigma = s.scale_factor_sigma();
-  return Status::OK;
-}
-
 // VehicleOptions: constraints on or off, and the IMU's mounting in the car.
 Status ParseVehicleOptions(const v1::VehicleOptions& v, EstimatorSetup* setup) {
   setup->vehicle_constraints = !v.constraints_off();
@@ -120,21 +51,6 @@ Status ParseVehicleOptions(const v1::VehicleOptions& v, EstimatorSetup* setup) {
   if (!(R.transpose() * R).isApprox(Eigen::Matrix3d::Identity(), 1e-6) || R.determinant() < 0)
     return Invalid("vehicle.R_vehicle_body: not a rotation (R^T R must be I to 1e-6, det +1)");
   setup->R_vehicle_body = R;
-  return Status::OK;
-}
-
-Status ParseGpsdSource(const v1::LiveSource& l, std::optional<GpsdEndpoint>* out) {
-  if (!l.has_gps_source() || l.gps_source().kind_case() == v1::GpsSource::KIND_NOT_SET) return Status::OK;
-  const auto& g = l.gps_source().gpsd();
-  GpsdEndpoint e;
-  if (!g.host().empty()) {
-    if (g.host().size() > 253 || g.host().find_first_of(" \t\r\n/") != std::string::npos)
-      return Invalid("live.gps_source.gpsd.host " + Quoted(g.host()) + ": not a host name or address");
-    e.host = g.host();
-  }
-  if (g.port() > 65535) return Invalid("live.gps_source.gpsd.port: must be in [1, 65535], got " + std::to_string(g.port()));
-  if (g.port() != 0) e.port = static_cast<uint16_t>(g.port());
-  *out = e;
   return Status::OK;
 }
 
@@ -196,15 +112,19 @@ Status OpenKittiSource(const v1::KittiSource& k, std::unique_ptr<pipeline::Frame
   return Status::OK;
 }
 
-// A live source: camera, antenna lever arm and an optional gpsd receiver.
+// A live source: camera, antenna lever arm, speed sensor and an optional gpsd
+// receiver (live_source_request.cpp checks them).
 Status OpenLiveSource(const v1::LiveSource& l, EstimatorSetup* setup, std::unique_ptr<pipeline::LiveFrameSource>* out,
                       std::optional<GpsdEndpoint>* gpsd, std::string* name) {
-  pipeline::LiveCameraSetup cam;
-  if (Status st = ParseLiveSource(l, &cam); !st.ok()) return st;
-  if (Status st = ParseLeverArm(l, &setup->gps_antenna_body_m); !st.ok()) return st;
-  if (Status st = ParseGpsdSource(l, gpsd); !st.ok()) return st;
-  if (Status st = ParseSpeedSensor(l, setup); !st.ok()) return st;
-  *out = std::make_unique<pipeline::LiveFrameSource>(cam);
+  LiveSourceSetup live;
+  if (const std::string error = LiveSourceFromProto(l, KittiRigTcam0Imu(), &live); !error.empty()) {
+    return Invalid(error);
+  }
+  setup->gps_antenna_body_m = live.gps_antenna_body_m;
+  setup->speed_sigma_mps = live.speed_sigma_mps;
+  setup->speed_scale_sigma = live.speed_scale_sigma;
+  *gpsd = live.gpsd;
+  *out = std::make_unique<pipeline::LiveFrameSource>(live.camera);
   *name = *gpsd ? "live+gpsd:" + (*gpsd)->host + ":" + std::to_string((*gpsd)->port) : "live";
   return Status::OK;
 }

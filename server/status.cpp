@@ -22,16 +22,6 @@ Status Bounded(const Status& s) {
 
 Status Invalid(const std::string& msg) { return {StatusCode::INVALID_ARGUMENT, msg}; }
 
-std::string Quoted(const std::string& input) {
-  constexpr size_t kMax = 200;
-  // Appended piece by piece: GCC 12 warns (-Wrestrict, a false positive) on
-  // "'" + std::string&&.
-  std::string out = "'";
-  out.append(input, 0, kMax);
-  out += input.size() <= kMax ? "'" : "...' (" + std::to_string(input.size()) + " bytes)";
-  return out;
-}
-
 Status RequireServerPath(const std::string& field, const std::string& path, const std::string& what) {
   if (path.empty()) return Invalid(field + ": required (" + what + ")");
   if (path.size() > PATH_MAX) {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "locaid/v1/localization.pb.h"
+#include "server/quoted.hpp"
 #include "server/session.hpp"
 
 #include <grpcpp/grpcpp.h>
@@ -18,13 +19,9 @@ namespace locaid::server {
 inline constexpr size_t kMaxStatusMessageBytes = 1024;
 // StartSessionRequest.playback_rate: 0 or within these (pacing divides by it).
 inline constexpr double kMinPlaybackRate = 1e-3, kMaxPlaybackRate = 1e3;
-// LiveSource.max_gps_delay_s: default (for 0) and upper bound, seconds.
-inline constexpr double kDefaultGpsDelayS = 0.5, kMaxGpsDelayS = 10.0;
 
 grpc::Status Bounded(const grpc::Status& s);
 grpc::Status Invalid(const std::string& msg);
-// An input echoed in a message: quoted, cut to 200 bytes (with its size).
-std::string Quoted(const std::string& input);
 // A path a request names on the server's file system (`field`, e.g.
 // "kitti.path"): OK when it exists there, else INVALID_ARGUMENT naming the
 // field: empty ("required"; `what` says what it should be), longer than

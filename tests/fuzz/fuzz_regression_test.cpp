@@ -4,6 +4,7 @@
 #include "fusion/scenario.hpp"
 #include "pipeline/live_frame_source.hpp"
 #include "pipeline/scenario_yaml.hpp"
+#include "server/live_source_request.hpp"
 #include "server/sensor_requests.hpp"
 
 #include <gtest/gtest.h>
@@ -102,6 +103,31 @@ TEST(FuzzRegression, GpsCovarianceWithAZeroVarianceIsRefused) {
   ASSERT_EQ(server::GpsItemFromProto(fix, &good), "");
   ASSERT_TRUE(good.gps.cov_enu_m2.has_value());
   EXPECT_DOUBLE_EQ((*good.gps.cov_enu_m2)(2, 2), 0.09);
+}
+
+// fuzz/corpus/push_sensors/start-overflowing-extrinsic: a LiveSource whose
+// T_cam0_imu is finite but whose R R^T overflows (inf - inf = NaN, the
+// determinant +inf) passed `norm > 1e-6 || det < 0`, both false with NaN.
+// The check is `!(norm <= 1e-6)` now; fuzz_push_sensors' contract catches it.
+TEST(FuzzRegression, ExtrinsicWhoseRotationCheckOverflowsIsRefused) {
+  v1::LiveSource live;
+  live.set_fx(20);
+  live.set_fy(20);
+  live.set_cx(7.5);
+  live.set_cy(7.5);
+  live.set_baseline_m(0.5);
+  live.set_width(16);
+  live.set_height(16);
+  for (double v : {1e200, 1e200, 0.0, 0.0, -1e200, 1e200, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0}) live.add_t_cam0_imu(v);
+  server::LiveSourceSetup setup;
+  EXPECT_EQ(server::LiveSourceFromProto(live, Eigen::Isometry3d::Identity(), &setup),
+            "live.T_cam0_imu: rotation part is not orthonormal");
+  // A rotation (x right, y down, z forward from x forward, y left, z up) is taken.
+  live.clear_t_cam0_imu();
+  for (double v : {0.0, -1.0, 0.0, 0.1, 0.0, 0.0, -1.0, -0.2, 1.0, 0.0, 0.0, -1.1}) live.add_t_cam0_imu(v);
+  ASSERT_EQ(server::LiveSourceFromProto(live, Eigen::Isometry3d::Identity(), &setup), "");
+  EXPECT_DOUBLE_EQ(setup.camera.T_cam0_imu.translation().z(), -1.1);
+  EXPECT_DOUBLE_EQ(setup.camera.max_gps_delay_s, server::kDefaultGpsDelayS);
 }
 
 // Found by fuzz_push_sensors (crash-denormal-asymmetric-covariance): with

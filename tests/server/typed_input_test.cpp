@@ -162,6 +162,13 @@ TEST_F(TypedInput, LeverArmDelayAndGpsdSourceAreCheckedBeforeOk) {
   s = start(live);
   EXPECT_EQ(s.error_code(), grpc::INVALID_ARGUMENT);
   EXPECT_EQ(s.error_message(), "live.max_gps_delay_s: must be in [0, 10] (0 = 0.5 s), got 11");
+  // Finite values whose R R^T overflows (inf - inf = NaN, determinant +inf):
+  // not a rotation, though no comparison with NaN is true.
+  live = SmallCamera();
+  for (double v : {1e200, 1e200, 0.0, 0.0, -1e200, 1e200, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0}) live.add_t_cam0_imu(v);
+  s = start(live);
+  EXPECT_EQ(s.error_code(), grpc::INVALID_ARGUMENT);
+  EXPECT_EQ(s.error_message(), "live.T_cam0_imu: rotation part is not orthonormal");
   live = SmallCamera();
   live.mutable_gps_source()->mutable_gpsd()->set_port(70000);
   s = start(live);
