@@ -414,14 +414,15 @@ INSTANTIATE_TEST_SUITE_P(Formats, RecorderFaultTest, ::testing::Values("csv", "t
 // session still runs, the server neither crashes nor stalls.
 TEST(FaultTest, ClientsKilledMidStreamDoNotDisturbTheOthers) {
   const ScopedTempDir dir("fault_kill");
-  constexpr int kFrames = 60;  // 6 s of sensor time, played at 2x: 3 s
+  constexpr int kFrames = 60;  // 6 s of sensor time, played at 2x: 3 s (30 s under TSan)
   std::string error;
   const fs::path drive = RenderSynthDrive(dir / "drive", kFrames, kSynthSeed, kSynthWidth, kSynthHeight, &error);
   ASSERT_FALSE(drive.empty()) << error;
   ServerProcess server(dir / "server");
   ASSERT_GT(server.port(), 0) << "locaid-server did not start: " << server.log();
   auto stub = v1::Localization::NewStub(server.NewChannel());
-  const std::string id = StartKitti(stub.get(), drive, 2.0, 1000);
+  // The session must outlast the subscribers' start-up, which a sanitizer slows.
+  const std::string id = StartKitti(stub.get(), drive, 2.0 / kSanitizerSlowdown, 1000);
   ASSERT_FALSE(id.empty());
 
   constexpr int kClis = 5, kVictims = 3;
@@ -437,11 +438,12 @@ TEST(FaultTest, ClientsKilledMidStreamDoNotDisturbTheOthers) {
   }
   PoseCollector reader(server.NewChannel(1), id, true);
   const v1::SessionStats attached =
-      WaitStats(stub.get(), id, 20, [&](const v1::SessionStats& s) { return s.subscribers() >= kClis + 1; });
+      WaitStats(stub.get(), id, 20 * kSanitizerSlowdown,
+                [&](const v1::SessionStats& s) { return s.subscribers() >= kClis + 1; });
   ASSERT_EQ(attached.subscribers(), static_cast<uint32_t>(kClis + 1));
 
   // Mid-stream: each victim has recorded some poses, the session still runs.
-  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(20 * kSanitizerSlowdown);
   for (int i = 0; i < kVictims; ++i) {
     while (ReadLines(csv[static_cast<size_t>(i)]).size() < 6 && std::chrono::steady_clock::now() < until) {
       std::this_thread::sleep_for(std::chrono::milliseconds(5));

@@ -42,6 +42,25 @@
 namespace locaid::server::testing {
 
 namespace v1 = locaid::v1;
+
+// How many times slower a sanitizer build runs the server and its clients.
+// Hang bounds, and the sensor time a test needs to stay running, are
+// stretched by it; it is never used to check a speed.
+#if defined(__SANITIZE_THREAD__)
+inline constexpr int kSanitizerSlowdown = 10;  // gcc -fsanitize=thread
+#elif defined(__SANITIZE_ADDRESS__)
+inline constexpr int kSanitizerSlowdown = 3;  // gcc -fsanitize=address
+#elif defined(__has_feature)
+#if __has_feature(thread_sanitizer)
+inline constexpr int kSanitizerSlowdown = 10;
+#elif __has_feature(address_sanitizer)
+inline constexpr int kSanitizerSlowdown = 3;
+#else
+inline constexpr int kSanitizerSlowdown = 1;
+#endif
+#else
+inline constexpr int kSanitizerSlowdown = 1;
+#endif
 using locaid::test_support::ScopedTempDir;
 
 // Moves 1 m east per frame. Mode: GPS_FUSED while a fix came within the
@@ -540,14 +559,14 @@ class Pusher {
   // Waits (bounded) until n poses arrived.
   bool WaitPoses(size_t n) {
     std::unique_lock lock(mu_);
-    return cv_.wait_for(lock, std::chrono::seconds(30), [&] { return poses_.size() >= n; });
+    return cv_.wait_for(lock, std::chrono::seconds(30 * kSanitizerSlowdown), [&] { return poses_.size() >= n; });
   }
   // Waits (bounded) until the pose with this sequence number (or a later one)
   // arrived. Unlike WaitPoses it does not need every pose: this stream has the
   // server's default queue, and under load it may drop older poses.
   bool WaitSequence(uint64_t sequence) {
     std::unique_lock lock(mu_);
-    return cv_.wait_for(lock, std::chrono::seconds(30),
+    return cv_.wait_for(lock, std::chrono::seconds(30 * kSanitizerSlowdown),
                         [&] { return !poses_.empty() && poses_.back().sequence() >= sequence; });
   }
   grpc::Status Close() {
