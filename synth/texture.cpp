@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 namespace locaid::synth {
 namespace {
@@ -382,27 +383,26 @@ MipTexture MakeFacade(Rng& rng) {
 std::vector<MipTexture> MakeTextures(uint64_t seed, const std::function<void()>& between) {
   std::vector<MipTexture> t(kNumTextures);
   Rng rng(seed, 7);
-  // In id order: the random stream, and so every texture, is the same as ever.
-  const std::function<MipTexture()> makers[kNumTextures - kNumFacades] = {
-      [&] { return MakeRoad(rng); },
-      [&] { return MakeSidewalk(rng); },
-      [&] { return MakeConcrete(rng, 256, 64, 160, 128); },
-      [&] { return MakeGrass(rng); },
-      [&] { return MakeBrickWall(rng); },
-      [&] { return MakeCarBody(rng); },
-      [&] { return MakeGlass(rng); },
-      [&] { return MakeSimple(rng, 64, 64, 30, 8, 6, 0.01); },
-      [&] { return MakeBark(rng); },
-      [&] { return MakeLeaves(rng); },
-      [&] { return MakeSimple(rng, 64, 256, 140, 14, 5, 0.01); },
-      [&] { return MakeSign(rng); },
-      [&] { return MakeFence(rng); },
-  };
-  static_assert(kTexFence + 1 == kTexFacade0);
-  for (int id = 0; id < kNumTextures; ++id) {
-    t[id] = id < kTexFacade0 ? makers[id]() : MakeFacade(rng);
+  const auto made = [&](int id, MipTexture texture) {
+    t[id] = std::move(texture);
     if (between) between();
-  }
+  };
+  // One statement each, in this order: the random stream, and so every
+  // texture, is the same as ever.
+  made(kTexRoad, MakeRoad(rng));
+  made(kTexSidewalk, MakeSidewalk(rng));
+  made(kTexCurb, MakeConcrete(rng, 256, 64, 160, 128));
+  made(kTexGrass, MakeGrass(rng));
+  made(kTexWall, MakeBrickWall(rng));
+  made(kTexCarBody, MakeCarBody(rng));
+  made(kTexGlass, MakeGlass(rng));
+  made(kTexTire, MakeSimple(rng, 64, 64, 30, 8, 6, 0.01));
+  made(kTexBark, MakeBark(rng));
+  made(kTexLeaves, MakeLeaves(rng));
+  made(kTexMetal, MakeSimple(rng, 64, 256, 140, 14, 5, 0.01));
+  made(kTexSign, MakeSign(rng));
+  made(kTexFence, MakeFence(rng));
+  for (int i = 0; i < kNumFacades; ++i) made(kTexFacade0 + i, MakeFacade(rng));
   return t;
 }
 
