@@ -53,13 +53,6 @@ using Clock = std::chrono::steady_clock;
 constexpr double kDefaultSoakSeconds = 45;
 constexpr double kMaxSoakSeconds = 600;          // all rounds; + warm-up and drain stays under the CTest TIMEOUT (900 s)
 constexpr int kMaxRounds = 3;                    // main-phase rounds until every path was exercised
-#if defined(__SANITIZE_ADDRESS__)
-constexpr bool kUnderAddressSanitizer = true;  // gcc
-#elif defined(__has_feature)
-constexpr bool kUnderAddressSanitizer = __has_feature(address_sanitizer);  // clang
-#else
-constexpr bool kUnderAddressSanitizer = false;
-#endif
 constexpr double kMaxRssGrowth = 0.10;           // end RSS <= warm RSS * (1 + this)
 constexpr int kSubscriberWorkers = 100;          // max concurrent subscribers
 constexpr int kConcurrentSessions = 3;

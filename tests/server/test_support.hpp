@@ -43,24 +43,26 @@ namespace locaid::server::testing {
 
 namespace v1 = locaid::v1;
 
+// Which sanitizer this build has (gcc defines __SANITIZE_*__, clang answers
+// __has_feature).
+#if defined(__SANITIZE_ADDRESS__)
+inline constexpr bool kUnderAddressSanitizer = true;
+#elif defined(__has_feature)
+inline constexpr bool kUnderAddressSanitizer = __has_feature(address_sanitizer);
+#else
+inline constexpr bool kUnderAddressSanitizer = false;
+#endif
+#if defined(__SANITIZE_THREAD__)
+inline constexpr bool kUnderThreadSanitizer = true;
+#elif defined(__has_feature)
+inline constexpr bool kUnderThreadSanitizer = __has_feature(thread_sanitizer);
+#else
+inline constexpr bool kUnderThreadSanitizer = false;
+#endif
 // How many times slower a sanitizer build runs the server and its clients.
 // Hang bounds, and the sensor time a test needs to stay running, are
 // stretched by it; it is never used to check a speed.
-#if defined(__SANITIZE_THREAD__)
-inline constexpr int kSanitizerSlowdown = 10;  // gcc -fsanitize=thread
-#elif defined(__SANITIZE_ADDRESS__)
-inline constexpr int kSanitizerSlowdown = 3;  // gcc -fsanitize=address
-#elif defined(__has_feature)
-#if __has_feature(thread_sanitizer)
-inline constexpr int kSanitizerSlowdown = 10;
-#elif __has_feature(address_sanitizer)
-inline constexpr int kSanitizerSlowdown = 3;
-#else
-inline constexpr int kSanitizerSlowdown = 1;
-#endif
-#else
-inline constexpr int kSanitizerSlowdown = 1;
-#endif
+inline constexpr int kSanitizerSlowdown = kUnderThreadSanitizer ? 10 : kUnderAddressSanitizer ? 3 : 1;
 using locaid::test_support::ScopedTempDir;
 
 // Moves 1 m east per frame. Mode: GPS_FUSED while a fix came within the
