@@ -37,6 +37,8 @@ test_pkgs=(
   gpsd gpsd-clients python3-gps   # gpsd + gpsfake (NMEA and gpsd tests)
   openssl                         # self-signed certificates (TLS tests)
   clang libclang-rt-14-dev        # libFuzzer + sanitizer runtimes (fuzz/ targets and their test)
+  podman runc debootstrap         # the container image test (deploy/test-image.sh), on every test run
+  slurm-wlm munge                 # a real single-node Slurm for the locaid-sweep tests (tests/sweep)
 )
 node_pkgs=()  # Debian's Node.js only where none is installed (see above)
 command -v node >/dev/null 2>&1 || node_pkgs+=(nodejs)

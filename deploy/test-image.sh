@@ -1,11 +1,20 @@
 #!/usr/bin/env bash
 # Builds the locaid container image with podman or docker and proves it works:
 # start the server from the image, check health, start a session, stream
-# poses with the CLI, stop with SIGTERM and check the clean exit.
+# poses with the CLI, start a session from a ROS 2 bag mounted into the
+# container, run a small sweep with the image's locaid-sweep, stop with
+# SIGTERM and check the clean exit.
 #
 #   deploy/test-image.sh [--tag IMAGE] [--base IMAGE] [--no-cache] [--skip-build]
 #                        [--run auto|podman|chroot] [--port N] [--keep]
-#                        [--engine podman|docker]
+#                        [--engine podman|docker] [--bag-drive DIR]
+#
+# The bag: the tests' reference writer (tests/rosbag/js/kitti_to_bag.mjs on
+# Node.js, the official MCAP libraries) writes the first 80 frames of a KITTI
+# raw drive as a ROS 2 bag on the host; the drive is --bag-drive DIR (env
+# LOCAID_BAG_DRIVE; default the real excerpt in ../shared/data/kitti). Without
+# that drive the bag step is skipped and the summary says so; with CI set it
+# fails instead.
 #
 # Run as root on Debian 12. --engine (env LOCAID_CONTAINER_ENGINE; default
 # podman) picks the tool: podman (installed with runc and debootstrap if
@@ -35,6 +44,7 @@ PORT=50751
 KEEP=0
 MAX_IMAGE_MB=350
 ENGINE=${LOCAID_CONTAINER_ENGINE:-podman}
+BAG_DRIVE=${LOCAID_BAG_DRIVE:-$ROOT/../shared/data/kitti/raw/2011_09_26/2011_09_26_drive_unknown_extract}
 while (($#)); do
   case "$1" in
     --tag) TAG=$2; shift 2 ;;
@@ -45,7 +55,8 @@ while (($#)); do
     --port) PORT=$2; shift 2 ;;
     --keep) KEEP=1; shift ;;
     --engine) ENGINE=$2; shift 2 ;;
-    -h | --help) sed -n '2,24p' "$0"; exit 0 ;;
+    --bag-drive) BAG_DRIVE=$2; shift 2 ;;
+    -h | --help) sed -n '2,32p' "$0"; exit 0 ;;
     *) echo "test-image: unknown argument '$1'" >&2; exit 2 ;;
   esac
 done
@@ -126,6 +137,29 @@ else
   tar -C "$rootfs" -c . | "$ENGINE" import - localhost/debian:12 >/dev/null
   BASE=localhost/debian:12
   note "base: localhost/debian:12 made with debootstrap from $mirror (no registry reachable)"
+fi
+
+# -------------------------------------------------------------- bag ----
+# A ROS 2 bag for the bag session, written before anything runs so a missing
+# writer fails early. The folder is mounted read-only at /data/bags.
+BAG_DIR="$STATE/bags"
+rm -rf "$BAG_DIR"
+bag=""
+if [[ -d $BAG_DRIVE ]]; then
+  command -v node >/dev/null && command -v npm >/dev/null ||
+    fail "node and npm are needed to write the test bag (deploy/install-deps.sh installs them)"
+  bash "$ROOT/tests/record/js/setup.sh" "$STATE/js" "$ROOT/tests/rosbag/js" >"$STATE/js-setup.log" 2>&1 ||
+    { cat "$STATE/js-setup.log" >&2; fail "npm ci of the bag writer (tests/rosbag/js)"; }
+  mkdir -p "$BAG_DIR"
+  node "$STATE/js/kitti_to_bag.mjs" --drive "$BAG_DRIVE" --out "$BAG_DIR/drive.mcap" --max-frames 80 \
+    >"$STATE/bag-writer.log" 2>&1 || { cat "$STATE/bag-writer.log" >&2; fail "kitti_to_bag.mjs"; }
+  chmod -R a+rX "$BAG_DIR"
+  bag=/data/bags/drive.mcap
+  note "bag: $(du -k "$BAG_DIR/drive.mcap" | cut -f1) kB ROS 2 bag of 80 frames of $BAG_DRIVE (kitti_to_bag.mjs), mounted at /data/bags"
+elif [[ -n ${CI:-} && ${CI} != 0 && ${CI} != false ]]; then
+  fail "no KITTI drive at $BAG_DRIVE to write the test bag from, and CI is set (--bag-drive DIR)"
+else
+  note "bag session: SKIPPED, no KITTI drive at $BAG_DRIVE to write a bag from (--bag-drive DIR)"
 fi
 
 # ------------------------------------------------------------ build ----
@@ -218,6 +252,7 @@ if [[ $mode == chroot ]]; then
   cmnt=$(podman mount "$NAME")
   mount --bind /dev "$cmnt/dev"
   mount -t proc proc "$cmnt/proc"
+  [[ -n $bag ]] && { mkdir -p "$cmnt/data/bags" && cp "$BAG_DIR/drive.mcap" "$cmnt/data/bags/"; }
   envs=(env -i HOME=$WORK PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin
     LOCAID_LISTEN=127.0.0.1:$PORT LOCAID_WORK_DIR=$WORK)
   chroot --userspec=10001:10001 "$cmnt" "${envs[@]}" /usr/local/bin/locaid-entrypoint demo \
@@ -229,7 +264,9 @@ else
   note "run: $ENGINE run ($mode${rt:+: ${rt[*]}}), port 127.0.0.1:$PORT -> 50051"
   # (Without systemd, podman logs that it cannot add health-check timers;
   # `podman healthcheck run` below still runs the check.)
-  "$ENGINE" "${rt[@]:0:2}" run -d --name "$NAME" "${rt[@]:2}" -p "127.0.0.1:$PORT:50051" "$TAG" \
+  mounts=()
+  [[ -n $bag ]] && mounts=(-v "$BAG_DIR:/data/bags:ro")
+  "$ENGINE" "${rt[@]:0:2}" run -d --name "$NAME" "${rt[@]:2}" "${mounts[@]}" -p "127.0.0.1:$PORT:50051" "$TAG" \
     >/dev/null 2>"$STATE/run.err" || { cat "$STATE/run.err" >&2; fail "$ENGINE run -d"; }
   in_image() { "$ENGINE" exec "$NAME" "$@"; }
   # A second container on the host network talks to the published port.
@@ -309,10 +346,36 @@ if [[ $mode != chroot ]]; then
 fi
 stats=$(in_image "${cli[@]}" stats "$sid" | grep -E '^(frames_processed|poses_published|fps) ' | tr '\n' ' ')
 note "stats $sid: $stats"
-in_image "${cli[@]}" session list | sed 's/^/test-image:   /'
 in_image "${cli[@]}" session stop "$sid" >/dev/null || fail "session stop"
 
-# 5. SIGTERM and clean exit
+# 5. a session from the ROS 2 bag on the container's disk, played as fast as possible
+if [[ -n $bag ]]; then
+  bid=$(in_image "${cli[@]}" session start --bag "$bag" --rate 0 --scenario open-sky 2>&1) ||
+    fail "session start --bag $bag: $bid"
+  bid=${bid%%[[:space:]]*}
+  bposes=$(in_image "${cli[@]}" subscribe "$bid" --from-start --max 40 --stream-timeout-s 120) ||
+    fail "subscribe to the bag session: $bposes"
+  nb=$(grep -c '^seq=' <<<"$bposes" || true)
+  ((nb == 40)) || { echo "$bposes" >&2; fail "bag session: expected 40 poses, got $nb"; }
+  bget=$(in_image "${cli[@]}" session get "$bid")
+  grep -q "bag" <<<"$bget" || fail "bag session $bid does not report its bag source: $bget"
+  note "session start --bag $bag --rate 0: $bid, $nb poses streamed; last: $(tail -n1 <<<"$bposes")"
+fi
+in_image "${cli[@]}" session list | sed 's/^/test-image:   /'
+
+# 6. a small sweep inside the image (what a Kubernetes sweep task runs): the
+#    demo drive, one scenario, two seeds, with the image's locaid-sweep and
+#    locaid-replay
+in_image sh -c "printf 'recordings:\n  - path: %s\nscenarios: [open-sky]\nseeds: [1, 2]\n' '$drive' >$WORK/sweep.yaml" ||
+  fail "writing a sweep manifest in the image"
+sw=$(in_image locaid-sweep run "$WORK/sweep.yaml" --out "$WORK/sweep" --jobs 1 2>&1) ||
+  { echo "$sw" | tail -n 20 >&2; fail "locaid-sweep run in the image"; }
+st=$(in_image locaid-sweep status "$WORK/sweep" 2>&1) || { echo "$st" >&2; fail "locaid-sweep status: not all done"; }
+rows=$(in_image cat "$WORK/sweep/results.csv" | grep -c ',done,' || true)
+((rows == 2)) || fail "sweep in the image: expected 2 done rows in results.csv, got $rows"
+note "locaid-sweep in the image: 2 runs of the demo drive done, results.csv written"
+
+# 7. SIGTERM and clean exit
 t0=$(date +%s%N)
 if [[ $mode == chroot ]]; then
   kill -TERM "$srv_pid"
