@@ -136,9 +136,15 @@ class ImuProcessModel final : public ProcessModel {
   }
 
   std::optional<VoGate> ApplyVo(FilterState& s, const VoStep& vo) override {
+    // R_vo carries the learner's scale (VoNoise); the adaptation may ask
+    // for more on a rotation axis: the larger of the two holds.
+    Mat6 Rvo = vo.R_vo;
+    if (config_.adaptive_vo_rotation_noise)
+      for (int i = 0; i < 3; ++i)
+        Rvo(3 + i, 3 + i) *= std::max(1.0, rotation_scale_[i] / vo_noise_scale_[3 + i]);
     PropagateTo(s, vo.t_ns);
     std::optional<VoGate> gate;
-    if (vo.vo_ok) gate = UpdateVo(s, vo.motion, vo.R_vo, vo.learn_noise);
+    if (vo.vo_ok) gate = UpdateVo(s, vo.motion, Rvo, vo.learn_noise);
     if (vo.reanchor) Clone(s);  // else the clone stays at the anchor the next motion starts from
     return gate;
   }
@@ -226,7 +232,7 @@ class ImuProcessModel final : public ProcessModel {
   const Mat3& vo_boresight() const override { return R_boresight_; }
   double speed_scale_error() const override { return speed_scale_error_; }
   double vo_scale_error() const override { return vo_scale_error_; }
-  const Vec6& vo_noise_scale() const override { return vo_noise_scale_; }
+  const Vec6& vo_noise_scale() const override { return reported_scale_; }
 
  private:
   void BoxPlus(FilterState& s, const Eigen::VectorXd& dx) override {
@@ -261,7 +267,9 @@ class ImuProcessModel final : public ProcessModel {
         VoCalibrationJacobian(motion.linear(), motion.translation(), R_boresight_, vo_scale_error_);
     const Mat6 S = H * P * H.transpose() + Rvo;
     const double nis = r.dot(S.ldlt().solve(r));
-    if (learn_noise) LearnVoNoise(r, S, Rvo);
+    const Vec6 applied = reported_scale_;  // the scale Rvo carries
+    AdaptVoRotationNoise(r.tail<3>(), S.bottomRightCorner<3, 3>());
+    if (learn_noise) LearnVoNoise(r, S, Rvo, applied);
     const bool gate_ok = std::isfinite(nis) && nis < vo_gate_;
     // A run of rejections means the prediction, not the VO, is off: accept.
     if (gate_ok || (std::isfinite(nis) && ++vo_consecutive_rejections_ > 2)) {
@@ -276,11 +284,33 @@ class ImuProcessModel final : public ProcessModel {
     return {nis, !gate_ok};
   }
 
-  void LearnVoNoise(const Vec6& r, const Mat6& S, const Mat6& Rvo) {
-    // Rvo carries the scale learnt so far: the model's own variance is Rvo / scale.
+  void LearnVoNoise(const Vec6& r, const Mat6& S, const Mat6& Rvo, const Vec6& applied) {
+    // The model's own variance is Rvo / the scale it carries.
     if (!config_.learn_vo_noise) return;
-    for (int i = 0; i < 6; ++i) vo_noise_.Add(i, r[i], S(i, i) - Rvo(i, i), Rvo(i, i) / vo_noise_scale_[i]);
+    for (int i = 0; i < 6; ++i) vo_noise_.Add(i, r[i], S(i, i) - Rvo(i, i), Rvo(i, i) / applied[i]);
     vo_noise_scale_ = vo_noise_.scale();
+    ReportScale();
+  }
+
+  void AdaptVoRotationNoise(const Vec3& r_rot, const Mat3& S_rot) {
+    if (!config_.adaptive_vo_rotation_noise) return;
+    // Per body axis: mean normalised squared rotation innovation (1 when
+    // consistent); one outlier moves it by at most 10 x the rate.
+    constexpr double kRate = 0.05;
+    const double max_scale = std::max(1.0, config_.adaptive_vo_rotation_noise_max_scale);
+    for (int i = 0; i < 3; ++i) {
+      const double q = r_rot[i] * r_rot[i] / S_rot(i, i);
+      if (!std::isfinite(q)) return;
+      rotation_nis_mean_[i] = (1 - kRate) * rotation_nis_mean_[i] + kRate * std::min(q, 10.0);
+      rotation_scale_[i] = std::clamp(rotation_scale_[i] * std::pow(rotation_nis_mean_[i], kRate), 1.0, max_scale);
+    }
+    ReportScale();
+  }
+
+  void ReportScale() {  // the scale applied per axis: the learner's, or the adaptation's where larger
+    reported_scale_ = vo_noise_scale_;
+    if (config_.adaptive_vo_rotation_noise)
+      reported_scale_.tail<3>() = reported_scale_.tail<3>().cwiseMax(rotation_scale_);
   }
 
   void Clone(FilterState& s) {
@@ -315,6 +345,8 @@ class ImuProcessModel final : public ProcessModel {
   int vo_consecutive_rejections_ = 0;
   NoiseScaleEstimator vo_noise_;          // learn_vo_noise
   Vec6 vo_noise_scale_ = Vec6::Ones();    // its scale, applied by VoNoise
+  Vec3 rotation_scale_ = Vec3::Ones(), rotation_nis_mean_ = Vec3::Ones();  // adaptive_vo_rotation_noise
+  Vec6 reported_scale_ = Vec6::Ones();    // both, as vo_noise_scale() shows them
 };
 
 }  // namespace

@@ -63,6 +63,7 @@ void ApplyEkfSetting(fusion::EkfConfig& c, const std::string& setting) {
       {"gps_lever_arm_z_m", &c.gps_lever_arm_body_m.z()},
       {"gps_latency_s", &c.gps_latency_s},
       {"vo_noise_prior_frames", &c.vo_noise_prior_frames},
+      {"adaptive_vo_rotation_noise_max_scale", &c.adaptive_vo_rotation_noise_max_scale},
       {"vo_noise_window_frames", &c.vo_noise_window_frames},
       {"vo_noise_scale_min", &c.vo_noise_scale_min},
       {"vo_noise_scale_max", &c.vo_noise_scale_max},
@@ -105,7 +106,7 @@ int main(int argc, char** argv) {
   std::string drive_dir, scenario_arg = "open-sky", out_tum, out_csv, out_mcap, vo_method = "default";
   std::string out_bag;
   bool json = false, no_imu = false, fixed_vo_noise = false, fixed_gps_noise = false;
-  std::string vehicle_constraints = "auto";
+  std::string vehicle_constraints = "auto", vo_rotation_noise = "adaptive";
   int max_frames = 0;
   int64_t seed = -1;
   std::string vo_cache_path;
@@ -142,6 +143,11 @@ int main(int argc, char** argv) {
   app.add_flag("--fixed-vo-noise", fixed_vo_noise,
                "the fixed VO noise model, not learnt from the innovations (docs/api.md \"Learned noise\")");
   app.add_flag("--fixed-gps-noise", fixed_gps_noise, "the fixes' stated sigmas as they are, not a learnt multiple");
+  app.add_option("--vo-rotation-noise", vo_rotation_noise,
+                 "the VO rotation axes' noise: adaptive (default: each axis takes the larger of the learnt "
+                 "scale and one adapted from the rotation innovations at every update, outages included) or "
+                 "learned (the learnt scale only; with --fixed-vo-noise: the fixed model)")
+      ->check(CLI::IsMember({"adaptive", "learned"}));
   app.add_option("--vehicle-constraints", vehicle_constraints,
                  "car motion constraints (non-holonomic, zero-velocity updates): auto (once a speed sensor "
                  "reports), on (always), off (a platform that slides)")
@@ -216,6 +222,7 @@ int main(int argc, char** argv) {
     options.ekf.use_imu = !no_imu;
     options.ekf.learn_vo_noise = !fixed_vo_noise;
     options.ekf.learn_gps_noise = !fixed_gps_noise;
+    options.ekf.adaptive_vo_rotation_noise = vo_rotation_noise == "adaptive";
     options.ekf.vehicle_constraints = vehicle_constraints != "off";
     options.ekf.vehicle_constraints_need_speed = vehicle_constraints == "auto";
     if (bag_source) options.ekf.gps_lever_arm_body_m = bag_source->gps_lever_arm_body_m();

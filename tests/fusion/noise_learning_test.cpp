@@ -83,6 +83,7 @@ EkfConfig ExactVoModel(const SimConfig& c) {
   e.vo_gate_probability = 1.0 - 1e-12;  // a model 3x off must not be gated away before it is learnt
   e.vo_noise_scale_min = 0.01;
   e.vo_noise_window_frames = 600;
+  e.adaptive_vo_rotation_noise = false;  // the learner takes all six axes (AdaptiveVoRotationNoise below: not)
   return e;
 }
 
@@ -173,6 +174,59 @@ TEST(LearnedVoNoise, TheFixedModelStaysAsConfigured) {
   EXPECT_EQ(ekf.vo_noise_scale(), Vec6::Ones());
   EXPECT_EQ(ekf.gps_noise_scale_horizontal(), 1.0);
   for (bool l : r.learning) EXPECT_FALSE(l);
+}
+
+// ------------------------------------------------ adaptive rotation noise
+
+// With the adaptation on (the default), a rotation axis takes the larger of
+// the learner's scale and the adaptation's; the translation axes are the
+// learner's.
+Vec6 ScaleWithAdaptiveRotation(double reported_factor, double max_scale, bool learn = true, bool adapt = true) {
+  SimConfig c;
+  c.duration_s = 240;
+  c.seed = 21;
+  c.vo_sigma_t_m = 0.02;
+  EkfConfig config = ExactVoModel(c);
+  config.learn_vo_noise = learn;
+  config.adaptive_vo_rotation_noise = adapt;
+  config.adaptive_vo_rotation_noise_max_scale = max_scale;
+  Ekf ekf(config);
+  Drive(ekf, Simulate(c), reported_factor);
+  EXPECT_TRUE(ekf.initialized());
+  std::cout << "VO reports " << reported_factor << "x its variance, learn " << learn << ", adapt " << adapt
+            << ", rotation clamp " << max_scale << ": scale " << ekf.vo_noise_scale().transpose() << "\n";
+  return ekf.vo_noise_scale();
+}
+
+TEST(AdaptiveVoRotationNoise, AloneItScalesUpTheRotationOfAVoThatUnderstatesItsNoise) {
+  const Vec6 got = ScaleWithAdaptiveRotation(1.0 / 4.0, 400, /*learn=*/false);
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(got[i], 1.0) << "translation axis " << i << " (fixed: not learning)";
+  for (int i = 3; i < 6; ++i) EXPECT_GT(got[i], 2.0) << "rotation axis " << i - 3 << " (the adaptation's)";
+}
+
+TEST(AdaptiveVoRotationNoise, WithTheLearnerEachRotationAxisTakesTheLargerScale) {
+  const Vec6 both = ScaleWithAdaptiveRotation(1.0 / 4.0, 400);
+  const Vec6 learner = ScaleWithAdaptiveRotation(1.0 / 4.0, 400, /*learn=*/true, /*adapt=*/false);
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(both[i], 4.0, 0.8) << "translation axis " << i << " (the learner's)";
+  for (int i = 3; i < 6; ++i) EXPECT_GT(both[i], 2.0) << "rotation axis " << i - 3;
+  // Where the adaptation asks for more than the learner (yaw in this drive),
+  // that axis carries it.
+  EXPECT_GT(both[5], 1.1 * learner[5]);
+}
+
+TEST(AdaptiveVoRotationNoise, AClampOfOneLeavesTheRotationAxesToTheLearner) {
+  // The same as the learner alone where its scale is >= 1 (its default
+  // floor); the sim's model allows 0.01, so early frames may differ a little.
+  const Vec6 clamped = ScaleWithAdaptiveRotation(1.0 / 4.0, 1.0);
+  const Vec6 learner = ScaleWithAdaptiveRotation(1.0 / 4.0, 400, /*learn=*/true, /*adapt=*/false);
+  for (int i = 0; i < 6; ++i) EXPECT_NEAR(clamped[i], learner[i], 0.01 * learner[i]) << "axis " << i;
+  const Vec6 fixed = ScaleWithAdaptiveRotation(1.0 / 4.0, 1.0, /*learn=*/false);
+  EXPECT_EQ(fixed, Vec6::Ones()) << "neither: the fixed model";
+}
+
+TEST(AdaptiveVoRotationNoise, AConsistentVoLeavesTheModelAsItIs) {
+  const Vec6 got = ScaleWithAdaptiveRotation(1.0, 400, /*learn=*/false);
+  for (int i = 3; i < 6; ++i) EXPECT_LT(got[i], 1.6) << "rotation axis " << i - 3;
 }
 
 TEST(LearnedGpsNoise, AReceiverThatClaimsAThirdOfItsNoiseIsFound) {
