@@ -238,7 +238,8 @@ def outage_sweep(ctx, run_name, drive, scenarios, seeds, no_imu_too, ekf=(), opt
     for e in ekf:
         cmd += ["--ekf", e]
     cmd += list(options)
-    cmd += ["--replay", ctx.exe("locaid-replay"), "--cache-dir", ctx.work, "--jobs", str(ctx.jobs), "--json"]
+    cmd += ["--sweep", ctx.exe("locaid-sweep"), "--out", os.path.join(ctx.work, f"sweep-{run_name}"),
+            "--jobs", str(ctx.jobs), "--json"]
     return ctx.json(cmd, run_name)
 
 

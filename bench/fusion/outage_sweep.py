@@ -1,10 +1,13 @@
 #!/usr/bin/python3
-"""Seed sweep of locaid-replay: filter accuracy AND consistency over many GPS-noise seeds.
+"""Seed sweep of one drive: filter accuracy AND consistency over many GPS-noise seeds.
 
 One seed is one draw of the GPS noise; on a short drive the end-of-outage
-error depends on that draw as much as on the filter. This runs locaid-replay
-for seeds 1..N on each (scenario, IMU / no IMU) case, reusing one VO run per
-drive through --vo-cache, and reports per case:
+error depends on that draw as much as on the filter. The runs are
+`locaid-sweep`'s (docs/sweeps.md): this writes a manifest of the drive, the
+scenarios, seeds 1..N and IMU on (and off with --no-imu-too), runs
+`locaid-sweep run` (one VO run per drive through its VO cache, resumable in
+--out), then reads every run's `locaid-replay --json` from the sweep folder
+and reports per case the figures the sweep's own summary does not:
 
   - rmse_gps_m, end_error_pct (every outage), added_error_pct (what the
     outage added to the error it started with), reconverge_s: median / p90 / max
@@ -19,26 +22,22 @@ drive through --vo-cache, and reports per case:
   - VO updates rejected by the filter's VO gate
 
   bench/fusion/outage_sweep.py --drive DIR --scenario scenarios/outage-10s-middle.yaml \\
-      [--scenario urban-canyon ...] [--seeds 50] [--no-imu-too] [--jobs 2] [--json] [--runs-csv F]
+      [--scenario urban-canyon ...] [--seeds 50] [--no-imu-too] [--jobs 2] [--json] [--runs-csv F] \\
+      [--out SWEEP_DIR] [--replay-arg=ARG ...]
 
-The VO cache (one file in --cache-dir) is keyed on the drive's content, not
-its path: the drive folder's path and every file's relative path, size and
-modification time, and the locaid-replay binary's size and modification
-time. A drive re-rendered into the same folder, or a rebuilt locaid-replay,
-gets a new cache; an unchanged drive reuses its cache.
-
-Scenarios with camera faults (a `camera:` key) change what VO sees, so they
-run VO for every seed (no cache). Speed sensors (`speed:`) and camera faults
-come from the scenario file; --ekf and --vehicle-constraints pass through.
+Without --out the sweep folder is a temporary one, removed at the end; with
+it, a second call does only what is missing (locaid-sweep's keys). Speed
+sensors (`speed:`) and camera faults come from the scenario file; --ekf,
+--vehicle-constraints and --replay-arg pass through to every run.
 
 Progress goes to stderr; with --json one object goes to stdout. Exit status 0
 even when a target is missed: this measures, it does not judge.
 """
 import argparse
-import concurrent.futures
-import hashlib
+import glob
 import json
 import os
+import shutil
 import statistics
 import subprocess
 import sys
@@ -65,36 +64,33 @@ class ReplayFailed(Exception):
     pass
 
 
-def run_one(cmd):
-    run = subprocess.run(cmd, capture_output=True, text=True)
-    if run.returncode != 0:
-        last = run.stderr.strip().splitlines()[-1:] or [f"exit status {run.returncode}"]
-        raise ReplayFailed(f"{' '.join(cmd)}\nfailed: {last[0]}")
-    return json.loads(run.stdout)
-
-
-def has_camera_faults(scenario):
-    """A scenario YAML with a `camera:` list (built-in names have none)."""
-    if not os.path.isfile(scenario):
-        return False
-    with open(scenario) as f:
-        return any(line.startswith("camera:") for line in f)
-
-
-def cache_key(drive, replay):
-    """Content key of the VO cache: the drive's path, every file's relative
-    path, size and mtime (ns), and the replay binary's size and mtime."""
-    h = hashlib.sha1()
-    h.update(drive.encode())
-    for root, dirs, files in os.walk(drive):
-        dirs.sort()
-        for name in sorted(files):
-            path = os.path.join(root, name)
-            st = os.stat(path)
-            h.update(f"\0{os.path.relpath(path, drive)}\0{st.st_size}\0{st.st_mtime_ns}".encode())
-    st = os.stat(replay)
-    h.update(f"\0replay\0{st.st_size}\0{st.st_mtime_ns}".encode())
-    return h.hexdigest()[:16]
+def run_sweep(sweep, drive, scenarios, seeds, imus, extra, jobs, out):
+    """locaid-sweep run over the cases; returns {(scenario, imu, seed): replay JSON}."""
+    manifest = os.path.join(out, "manifest.yaml")
+    os.makedirs(out, exist_ok=True)
+    with open(manifest, "w") as f:
+        f.write("recordings:\n  - path: %s\n" % json.dumps(drive))
+        f.write("scenarios: %s\n" % json.dumps(scenarios))
+        f.write("seeds: {from: 1, to: %d}\n" % seeds)
+        f.write("imu: %s\n" % json.dumps(["on" if i else "off" for i in imus]))
+        f.write("replay_args: %s\n" % json.dumps(extra))
+    run = subprocess.run([sweep, "run", manifest, "--out", os.path.join(out, "sweep"), "--jobs", str(jobs)])
+    if run.returncode not in (0, 1):
+        raise ReplayFailed(f"locaid-sweep run exited with {run.returncode}")
+    runs, failed = {}, []
+    for path in glob.glob(os.path.join(out, "sweep", "runs", "*.json")):
+        with open(path) as f:
+            r = json.load(f)
+        if r.get("stage") != "filter":
+            continue
+        if r.get("status") != "done":
+            failed.append(f"{r['id']}: {r.get('error', 'failed')}")
+            continue
+        scenario = r["args"][r["args"].index("--scenario") + 1]
+        runs[(scenario, r["imu"], r["seed"])] = r["metrics"]
+    if failed:
+        raise ReplayFailed("runs failed:\n  " + "\n  ".join(sorted(failed)))
+    return runs
 
 
 def main():
@@ -104,12 +100,12 @@ def main():
     ap.add_argument("--scenario", action="append", required=True, help="built-in name or YAML (repeatable)")
     ap.add_argument("--seeds", type=int, default=10, help="seeds 1..N (default 10)")
     ap.add_argument("--no-imu-too", action="store_true", help="also run every case without IMU")
-    ap.add_argument("--replay", default=os.path.join(here, "..", "..", "build", "bin", "locaid-replay"),
-                    help="locaid-replay binary (default build/bin/locaid-replay)")
-    ap.add_argument("--cache-dir", default=tempfile.gettempdir(),
-                    help="where the VO cache is kept (default: the temp folder); its name is a hash of the "
-                         "drive's files (paths, sizes, mtimes) and of the locaid-replay binary")
+    ap.add_argument("--sweep", default=os.path.join(here, "..", "..", "build", "bin", "locaid-sweep"),
+                    help="locaid-sweep binary (default build/bin/locaid-sweep; it runs the locaid-replay beside it)")
+    ap.add_argument("--out", help="sweep folder, kept (default: a temporary one, removed at the end)")
     ap.add_argument("--ekf", action="append", default=[], help="NAME=VALUE passed to locaid-replay --ekf")
+    ap.add_argument("--replay-arg", action="append", default=[],
+                    help="one more locaid-replay argument for every run, e.g. --replay-arg=--vo-rotation-noise=learned")
     ap.add_argument("--vehicle-constraints", choices=["auto", "on", "off"],
                     help="pass --vehicle-constraints to locaid-replay (its default: auto)")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel replays (default: cores)")
@@ -120,37 +116,31 @@ def main():
         ap.error("--seeds must be >= 1")
     if args.jobs < 1:
         ap.error("--jobs must be >= 1")
-    if not os.access(args.replay, os.X_OK):
-        ap.error(f"{args.replay}: not an executable (build first, or pass --replay)")
+    if not os.access(args.sweep, os.X_OK):
+        ap.error(f"{args.sweep}: not an executable (build first, or pass --sweep)")
     if not os.path.isdir(args.drive):
         ap.error(f"{args.drive}: no such drive folder")
 
     drive = os.path.realpath(args.drive)
-    cache = os.path.join(args.cache_dir, f"locaid-vo-{cache_key(drive, os.path.realpath(args.replay))}.v3.cache")
-    extra = [a for e in args.ekf for a in ("--ekf", e)]
+    scenarios = [os.path.realpath(s) if os.path.isfile(s) else s for s in args.scenario]
+    extra = [a for e in args.ekf for a in ("--ekf", e)] + args.replay_arg
     if args.vehicle_constraints:
         extra += ["--vehicle-constraints", args.vehicle_constraints]
-    cases = [(s, imu) for s in args.scenario for imu in ([True, False] if args.no_imu_too else [True])]
-    result = {"drive": drive, "seeds": args.seeds, "ekf": args.ekf, "gate_probability": GATE_PROBABILITY,
+    imus = [True, False] if args.no_imu_too else [True]
+    out = args.out or tempfile.mkdtemp(prefix="outage_sweep_")
+    try:
+        all_runs = run_sweep(args.sweep, drive, scenarios, args.seeds, imus, extra, args.jobs, out)
+    finally:
+        if not args.out:
+            shutil.rmtree(out, ignore_errors=True)
+    result = {"drive": drive, "seeds": args.seeds, "ekf": args.ekf, "replay_args": args.replay_arg,
+              "gate_probability": GATE_PROBABILITY,
               "cases": []}
     runs_out = []
-    for scenario, imu in cases:
-        def cmd(seed):
-            vo_cache = [] if has_camera_faults(scenario) else ["--vo-cache", cache]
-            return [args.replay, "--drive", drive, "--scenario", scenario, "--json", "--seed", str(seed)] + \
-                vo_cache + ([] if imu else ["--no-imu"]) + extra
-        # Seed 1 first and alone: it writes the VO cache the others read.
-        runs = {1: run_one(cmd(1))}
-        with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
-            futures = {pool.submit(run_one, cmd(s)): s for s in range(2, args.seeds + 1)}
-            for n, f in enumerate(concurrent.futures.as_completed(futures), start=2):
-                try:
-                    runs[futures[f]] = f.result()
-                except ReplayFailed:
-                    pool.shutdown(wait=True, cancel_futures=True)  # the runs already started finish
-                    raise
-                print(f"\r{scenario} {'IMU' if imu else 'no IMU'} {n}/{args.seeds} runs   ",
-                      end="", file=sys.stderr, flush=True)
+    for given, scenario, imu in [(g, s, imu) for g, s in zip(args.scenario, scenarios) for imu in imus]:
+        runs = {seed: j for (sc, i, seed), j in all_runs.items() if sc == scenario and i == imu}
+        if len(runs) != args.seeds:
+            raise ReplayFailed(f"{scenario} ({'IMU' if imu else 'no IMU'}): {len(runs)} of {args.seeds} runs found")
         rmse, end_pct, added_pct, reconv, nees_ratio, max_up = [], [], [], [], [], []
         modes, vo_health, speed_scale = {}, {}, []
         fixes = rej_h = rej_v = resets = vo_rej = never = 0
@@ -182,13 +172,13 @@ def main():
             resets += j["gps_resets"]
             vo_rej += j["vo_rejected_by_gate"]
             longest_run = max(longest_run, j["max_gps_rejection_run"], j["max_gps_rejection_run_vertical"])
-            runs_out.append({"scenario": scenario, "use_imu": imu, "seed": seed, "nees_mean": j["nees_mean"],
+            runs_out.append({"scenario": given, "use_imu": imu, "seed": seed, "nees_mean": j["nees_mean"],
                              "nees_bound_99": j["nees_bound_99"], "max_vertical_error_m": j["max_vertical_error_m"],
                              "gps_rejected": j["gps_rejected"], "gps_rejected_vertical": j["gps_rejected_vertical"],
                              "gps_resets": j["gps_resets"], "rmse_gps_m": j["rmse_gps_m"],
                              "end_error_pct": [o["end_error_pct"] for o in j["outages"]]})
         result["cases"].append({
-            "scenario": scenario, "use_imu": imu, "rmse_gps_m": summary(rmse),
+            "scenario": given, "use_imu": imu, "rmse_gps_m": summary(rmse),
             "end_error_pct": summary(end_pct), "added_error_pct": summary(added_pct),
             "reconverge_s": summary(reconv), "modes": modes, "vo_health": vo_health,
             "speed_scale_error": summary(speed_scale),

@@ -22,14 +22,14 @@ LAYERS = {
     "kitti": 1, "bag": 1, "sensors": 2,
     "synth": 3, "eval": 3, "vo": 3,
     "pipeline": 4,
-    "output": 5, "client": 5,
+    "output": 5, "client": 5, "sweep": 5,
     "server": 6, "foxglove": 6,
 }
 PROGRAMS = 5.5   # apps/ folders and clients/: above output/ and client/, below server/ and foxglove/
 ANYTHING = 100   # tests/, bench/, fuzz/
 LAYERS["clients"] = PROGRAMS
 SCANNED = ["core", "fusion", "record", "kitti", "bag", "sensors", "synth", "eval", "vo", "pipeline", "output",
-           "client", "server", "foxglove", "clients", "tests", "bench", "fuzz"]
+           "client", "sweep", "server", "foxglove", "clients", "tests", "bench", "fuzz"]
 INCLUDE = re.compile(r'^\s*#\s*include\s+"(([a-z_0-9]+)/[^"]*)"')
 
 

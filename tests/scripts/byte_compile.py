@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Byte-compiles every Python script of bench/ and clients/ (recursively).
+"""Byte-compiles every Python script of bench/, clients/ and sweep/ (recursively).
 
 The test command builds every C++ program under bench/; the Python scripts
 there (and the clients') are only run by hand or by some tests, so a syntax
@@ -15,7 +15,7 @@ import py_compile
 import sys
 import tempfile
 
-FOLDERS = ("bench", "clients")
+FOLDERS = ("bench", "clients", "sweep")
 
 
 def main() -> int:
