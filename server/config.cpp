@@ -176,6 +176,7 @@ void ApplyYamlConfig(const std::filesystem::path& file, ServerConfig* c) {
       {"keepalive_time_s", real(&c->keepalive_time_s)},
       {"keepalive_timeout_s", real(&c->keepalive_timeout_s)},
       {"shutdown_grace_s", real(&c->shutdown_grace_s)},
+      {"malloc_arena_max", size(&c->malloc_arena_max)},
       {"port_file", str(&c->port_file)},
       {"metrics_listen", str(&c->metrics_listen)},
   };
@@ -252,6 +253,10 @@ void ValidateConfig(ServerConfig* c) {
   if (!(c->keepalive_timeout_s >= 1)) throw ConfigError("keepalive_timeout_s: must be >= 1");
   if (!(c->shutdown_grace_s >= 0 && c->shutdown_grace_s <= 60)) {
     throw ConfigError("shutdown_grace_s: must be in [0, 60]");
+  }
+  if (c->malloc_arena_max > kMaxMallocArenas) {
+    throw ConfigError("malloc_arena_max: must be 0 (glibc's default) or in [1, " + std::to_string(kMaxMallocArenas) +
+                      "], got " + std::to_string(c->malloc_arena_max));
   }
   if (c->max_ended_sessions > 100000) {
     throw ConfigError("max_ended_sessions: must be in [0, 100000], got " + std::to_string(c->max_ended_sessions));

@@ -67,6 +67,14 @@ struct ServerConfig {
   double keepalive_time_s = 20;            // HTTP/2 pings on idle connections
   double keepalive_timeout_s = 10;
   double shutdown_grace_s = 1.5;           // streams still open this long after SIGTERM are cancelled
+  // Upper bound on glibc malloc's arenas (mallopt M_ARENA_MAX, set by
+  // locaid-server before its first thread); 0 = glibc's default of 8 per
+  // core. Threads started per session and per stream otherwise spread freed
+  // memory over up to 8 arenas a core, which glibc keeps: RSS grew with every
+  // round of sessions (docs/reliability.md "Memory under fan-out").
+  // MALLOC_ARENA_MAX (or glibc.malloc.arena_max in GLIBC_TUNABLES) in the
+  // environment wins.
+  size_t malloc_arena_max = 2;
   std::string port_file;                   // write the bound port here once listening
   // host:port of the Prometheus /metrics endpoint; empty = off (default).
   // Plain HTTP without the token: bind it to loopback or a pod network.
@@ -93,6 +101,8 @@ int ParseListenPort(const std::string& listen);
 // bytes), not ending in '/', and its parent directory exists. ConfigError
 // "listen_unix: ..." naming the path and the reason.
 void CheckListenUnixPath(const std::string& path);
+// The largest malloc_arena_max (glibc's own default is 8 per core).
+inline constexpr size_t kMaxMallocArenas = 1024;
 // The most bytes a `listen_unix` path may have (sizeof(sockaddr_un::sun_path) - 1).
 inline constexpr size_t kMaxUnixPathBytes = sizeof(sockaddr_un{}.sun_path) - 1;
 

@@ -1,5 +1,6 @@
 // Server configuration: YAML + validation give precise errors.
 #include "server/config.hpp"
+#include "server/malloc_arenas.hpp"
 #include "error_of.hpp"
 #include "temp_dir.hpp"
 
@@ -130,7 +131,8 @@ TEST(ServerConfig, EveryNumericYamlFieldReportsFieldValueAndReason) {
   };
   const std::vector<std::string> size_fields = {"max_receive_mb", "history_size", "max_history_size",
                                                 "queue_size",     "max_queue_size", "max_sessions",
-                                                "max_subscribers_per_session", "synthetic_default_frames"};
+                                                "max_subscribers_per_session", "synthetic_default_frames",
+                                                "malloc_arena_max"};
   int n = 0;
   for (const auto& field : size_fields) {
     for (const auto& k : size_cases) {
@@ -173,6 +175,31 @@ TEST(ServerConfig, TokenFileIsRead) {
   c.token_file = WriteTemp(dir, "token.txt", "s3cret\n").string();
   ValidateConfig(&c);
   EXPECT_EQ(c.token, "s3cret");
+}
+
+// malloc_arena_max: a YAML key with a range; the environment's own bound
+// (glibc already applied it) is never overridden, and 0 leaves glibc alone.
+TEST(ServerConfig, MallocArenaMaxIsBoundedAndTheEnvironmentWins) {
+  const ScopedTempDir dir("config");
+  ServerConfig c;
+  EXPECT_EQ(c.malloc_arena_max, 2u);
+  ApplyYamlConfig(WriteTemp(dir, "arenas.yaml", "malloc_arena_max: 0\n"), &c);
+  EXPECT_EQ(c.malloc_arena_max, 0u);
+  EXPECT_NO_THROW(ValidateConfig(&c));
+  c.malloc_arena_max = kMaxMallocArenas + 1;
+  const std::string e = ErrorOf([&] { ValidateConfig(&c); });
+  EXPECT_NE(e.find("malloc_arena_max: must be 0 (glibc's default) or in [1, 1024], got 1025"), std::string::npos) << e;
+
+  using Source = MallocArenaPolicy::Source;
+  EXPECT_EQ(ChooseMallocArenaPolicy(2, nullptr, nullptr).source, Source::kConfig);
+  EXPECT_EQ(ChooseMallocArenaPolicy(2, nullptr, nullptr).arena_max, 2u);
+  EXPECT_EQ(ChooseMallocArenaPolicy(0, nullptr, nullptr).source, Source::kGlibcDefault);
+  EXPECT_EQ(ChooseMallocArenaPolicy(2, "8", nullptr).source, Source::kEnvironment);
+  EXPECT_EQ(ChooseMallocArenaPolicy(0, "1", nullptr).source, Source::kEnvironment);
+  EXPECT_EQ(ChooseMallocArenaPolicy(2, "", nullptr).source, Source::kConfig);  // set but empty: not a bound
+  EXPECT_EQ(ChooseMallocArenaPolicy(2, nullptr, "glibc.malloc.check=0:glibc.malloc.arena_max=4").source,
+            Source::kEnvironment);
+  EXPECT_EQ(ChooseMallocArenaPolicy(2, nullptr, "glibc.malloc.tcache_count=0").source, Source::kConfig);
 }
 
 }  // namespace

@@ -71,15 +71,6 @@ double SoakSeconds() {
   return std::min(s, kMaxSoakSeconds);
 }
 
-long VmRssKb(pid_t pid) {
-  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.rfind("VmRSS:", 0) == 0) return std::strtol(line.c_str() + 6, nullptr, 10);
-  }
-  return -1;
-}
-
 // The real server binary on 127.0.0.1, port picked by the OS; its port
 // file and work_dir in a folder of its own.
 class ServerProcess {

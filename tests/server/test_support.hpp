@@ -24,6 +24,7 @@
 #include <condition_variable>
 #include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <fcntl.h>
 #include <filesystem>
 #include <fstream>
@@ -339,6 +340,16 @@ class ChildProcess {
   int status_ = 0;
   bool reaped_ = false;
 };
+
+// VmRSS of a process from /proc/PID/status, kB (-1 if it cannot be read).
+inline long VmRssKb(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/status");
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind("VmRSS:", 0) == 0) return std::strtol(line.c_str() + 6, nullptr, 10);
+  }
+  return -1;
+}
 
 // The real build/bin/locaid-server on 127.0.0.1, port picked by the OS and
 // read from --port-file. `dir` holds the port file and the server's log.
