@@ -74,7 +74,9 @@ def run_sweep(sweep, drive, scenarios, seeds, imus, extra, jobs, out):
         f.write("seeds: {from: 1, to: %d}\n" % seeds)
         f.write("imu: %s\n" % json.dumps(["on" if i else "off" for i in imus]))
         f.write("replay_args: %s\n" % json.dumps(extra))
-    run = subprocess.run([sweep, "run", manifest, "--out", os.path.join(out, "sweep"), "--jobs", str(jobs)])
+    # Its output is progress for a person: stderr, so that --json keeps stdout to itself.
+    run = subprocess.run([sweep, "run", manifest, "--out", os.path.join(out, "sweep"), "--jobs", str(jobs)],
+                         stdout=sys.stderr)
     if run.returncode not in (0, 1):
         raise ReplayFailed(f"locaid-sweep run exited with {run.returncode}")
     runs, failed = {}, []

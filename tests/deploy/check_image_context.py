@@ -96,7 +96,7 @@ def containerfile_facts(text: str) -> tuple[list[tuple[list[str], str]], list[st
         if words and words[0] == "COPY" and not any(w.startswith("--from") for w in words):
             copies.append(([w for w in words[1:-1] if not w.startswith("--")], words[-1]))
         if "cmake -S /src" in line:
-            options = [w for w in shlex.split(line) if w.startswith("-D")]
+            options = [w for w in shlex.split(line) if w.startswith("-D") and "COMPILER_LAUNCHER" not in w]
     return copies, options
 
 
