@@ -141,12 +141,12 @@ int main(int argc, char** argv) {
   app.add_flag("--json", json, "print metrics as JSON on stdout");
   app.add_flag("--no-imu", no_imu, "VO + GPS only (no IMU)");
   app.add_flag("--fixed-vo-noise", fixed_vo_noise,
-               "the fixed VO noise model, not learnt from the innovations (docs/api.md \"Learned noise\")");
+               "the fixed VO noise model: neither learnt nor adapted from the innovations (docs/api.md \"Learned noise\")");
   app.add_flag("--fixed-gps-noise", fixed_gps_noise, "the fixes' stated sigmas as they are, not a learnt multiple");
   app.add_option("--vo-rotation-noise", vo_rotation_noise,
                  "the VO rotation axes' noise: adaptive (default: each axis takes the larger of the learnt "
                  "scale and one adapted from the rotation innovations at every update, outages included) or "
-                 "learned (the learnt scale only; with --fixed-vo-noise: the fixed model)")
+                 "learned (the learnt scale only); --fixed-vo-noise: the fixed model, neither")
       ->check(CLI::IsMember({"adaptive", "learned"}));
   app.add_option("--vehicle-constraints", vehicle_constraints,
                  "car motion constraints (non-holonomic, zero-velocity updates): auto (once a speed sensor "
@@ -222,7 +222,7 @@ int main(int argc, char** argv) {
     options.ekf.use_imu = !no_imu;
     options.ekf.learn_vo_noise = !fixed_vo_noise;
     options.ekf.learn_gps_noise = !fixed_gps_noise;
-    options.ekf.adaptive_vo_rotation_noise = vo_rotation_noise == "adaptive";
+    options.ekf.adaptive_vo_rotation_noise = vo_rotation_noise == "adaptive" && !fixed_vo_noise;
     options.ekf.vehicle_constraints = vehicle_constraints != "off";
     options.ekf.vehicle_constraints_need_speed = vehicle_constraints == "auto";
     if (bag_source) options.ekf.gps_lever_arm_body_m = bag_source->gps_lever_arm_body_m();
