@@ -46,9 +46,11 @@ Batching AutoBatching(size_t runs, std::optional<double> cpu_s_per_run, size_t c
     const size_t k = std::min(std::max<size_t>(for_work, 1), std::max<size_t>(runs, 1));
     if (k > b.runs_per_task) {
       b.runs_per_task = k;
-      why = "at least " + Seconds(kMinTaskWorkS) + " of work per task";
+      why = for_work >= runs ? "one task: less than " + Seconds(kMinTaskWorkS) + " of work in all"
+                             : "at least " + Seconds(kMinTaskWorkS) + " of work per task";
     }
-    why += ", at an estimated " + Seconds(*cpu_s_per_run) + " CPU per run";
+    why += ", at an estimated " + Seconds(*cpu_s_per_run) + " CPU per run: about " +
+           Seconds(static_cast<double>(b.runs_per_task) * *cpu_s_per_run) + " per task";
   } else {
     why += ", no cost estimate yet";
   }

@@ -194,8 +194,10 @@ int RunTask(const fs::path& dir_arg, Stage stage, std::optional<size_t> index) {
   size_t failed = 0, ran = 0;
   for (const size_t task : batch) {
     if (g_signal != 0) break;
-    // Done by an earlier attempt of this array task (a requeue, a retried pod).
-    if (ReadResult(dir, id_of(task), key_of(task)).state == RunState::kDone) {
+    // Done by an earlier attempt of this array task (a requeue, a retried pod);
+    // a VO run also needs its cache still there (`run` replans one whose cache is gone).
+    if (ReadResult(dir, id_of(task), key_of(task)).state == RunState::kDone &&
+        (stage != Stage::kVo || fs::exists(plan.vo[task].cache))) {
       ++ran;
       continue;
     }

@@ -70,7 +70,11 @@ Plan SmallPlan() {
   p.locaid_version = "0";
   p.recordings.push_back({"/d", "drive", "", "k"});
   p.vo.push_back({"vo.d", "kv", 0, "/s/vo/d.cache", {"--drive", "/d"}});
-  for (int i = 0; i < 10; ++i) p.filter.push_back({"f" + std::to_string(i), "k", 0, "open-sky", i, true, 0, {}});
+  for (int i = 0; i < 10; ++i) {
+    std::string id = "f";  // not "f" + ...: GCC 12's -Wrestrict misfires on it (GCC PR 105651)
+    id += std::to_string(i);
+    p.filter.push_back({id, "k", 0, "open-sky", i, true, 0, {}});
+  }
   p.filter_array = {1, 2, 3, 5, 6, 7, 9, 0};  // the pending runs, in any order
   p.vo_array = {0};
   return p;

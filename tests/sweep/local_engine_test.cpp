@@ -102,6 +102,26 @@ TEST_F(SweepLocal, ResultsEqualADirectReplayAndASecondRunStartsNothing) {
       << changed.out;
 }
 
+// A VO run whose cache is gone runs again when a filter run still needs the
+// cache (its result alone is not enough), and only then.
+TEST_F(SweepLocal, AVoCacheDeletedIsRebuiltWhenAFilterRunNeedsIt) {
+  ASSERT_FALSE(drive_.empty());
+  const fs::path m = Manifest("scenarios: [open-sky]\nseeds: [1, 2]\n");
+  const fs::path out = tmp_ / "out";
+  ASSERT_EQ(Sweep("run " + m.string() + " --out " + out.string() + " --jobs 2").exit_code, 0);
+  const auto plan = PlanJson(out);
+  const fs::path cache = plan["vo_tasks"][0]["cache"].get<std::string>();
+  ASSERT_TRUE(fs::exists(cache));
+  fs::remove(cache);
+  fs::remove(out / "runs" / (plan["filter_tasks"][1]["id"].get<std::string>() + ".json"));
+  const auto again = Sweep("run " + m.string() + " --out " + out.string() + " --jobs 2");
+  EXPECT_EQ(again.exit_code, 0) << again.out;
+  EXPECT_NE(again.out.find("1 VO runs and 1 filter runs to do (1 of 3 already done)"), std::string::npos)
+      << again.out;
+  EXPECT_TRUE(fs::exists(cache));
+  EXPECT_EQ(Sweep("status " + out.string()).exit_code, 0);
+}
+
 TEST_F(SweepLocal, CtrlCKeepsFinishedResultsAndTheNextRunDoesOnlyTheRest) {
   ASSERT_FALSE(drive_.empty());
   const fs::path m = Manifest("scenarios: [open-sky, outage.yaml]\nseeds: {from: 1, to: 10}\n");
