@@ -4,6 +4,7 @@
 // server tests' ChildProcess / ServerProcess (tests/server/test_support.hpp).
 #pragma once
 
+#include "free_port.hpp"
 #include "needs_tool.hpp"
 #include "server/test_support.hpp"
 
@@ -20,21 +21,7 @@ using nlohmann::json;
 
 inline bool HaveNode() { return test_support::HaveCommand("node"); }
 
-// A port the OS had free a moment ago (bind to 0, read it, close).
-inline int FreeLoopbackPort() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  socklen_t len = sizeof a;
-  if (::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0 ||
-      ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len) != 0) {
-    ::close(fd);
-    return 0;
-  }
-  ::close(fd);
-  return ntohs(a.sin_port);
-}
+using test_support::FreeLoopbackPort;
 
 // locaid-foxglove against a server port; its stderr log in `dir`/bridge.err.
 class BridgeProcess {

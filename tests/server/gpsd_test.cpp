@@ -5,6 +5,7 @@
 // order of the modes through a scripted GPS gap and a gpsd stopped mid-run,
 // and the fused error against the drive's ground truth beside
 // locaid-replay's on the same scenario.
+#include "free_port.hpp"
 #include "test_support.hpp"
 
 #include "needs_tool.hpp"
@@ -36,17 +37,6 @@ std::string Which(const std::string& program) {
   return path;
 }
 
-int FreePort() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  socklen_t len = sizeof a;
-  ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
-  ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
-  ::close(fd);
-  return ntohs(a.sin_port);
-}
 
 int Shell(const std::string& cmd) { return std::system(cmd.c_str()); }
 
@@ -150,7 +140,7 @@ TEST(GpsdSession, FusesARealGpsdThroughAGapAndAGpsdRestart) {
 
   ServerProcess server(dir / "server");
   ASSERT_GT(server.port(), 0) << server.log();
-  const std::string gpsd_port = std::to_string(FreePort());
+  const std::string gpsd_port = std::to_string(test_support::FreeLoopbackPort());
   // gpsfake runs gpsd as its child and puts their control socket in $TMPDIR:
   // the test's folder here. SIGTERM, not ChildProcess's SIGKILL, ends it, so
   // it stops its gpsd (a killed gpsfake left gpsd running).

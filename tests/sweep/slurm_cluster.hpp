@@ -6,6 +6,7 @@
 // The destructor cancels every job, then stops each daemon by its PID.
 #pragma once
 
+#include "free_port.hpp"
 #include "pipeline/cli_support.hpp"
 
 #include <arpa/inet.h>
@@ -79,17 +80,6 @@ class SlurmCluster {
     return r.exit_code == 0;
   }
 
-  static int FreePort() {
-    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-    sockaddr_in a{};
-    a.sin_family = AF_INET;
-    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-    socklen_t len = sizeof a;
-    ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
-    ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
-    ::close(fd);
-    return ntohs(a.sin_port);
-  }
 
   void WriteConf(const std::string& munge_socket) {
     char host[256] = {};
@@ -99,9 +89,9 @@ class SlurmCluster {
     std::string key;
     long kb = 0;
     if (meminfo >> key >> kb && key == "MemTotal:") mem_mb = std::max(512L, kb / 1024 - 1024);
-    const int ctld_port = FreePort();
-    int d_port = FreePort();
-    while (d_port == ctld_port) d_port = FreePort();
+    const int ctld_port = test_support::FreeLoopbackPort();
+    int d_port = test_support::FreeLoopbackPort();
+    while (d_port == ctld_port) d_port = test_support::FreeLoopbackPort();
     const std::string d = dir_.string();
     std::ofstream(dir_ / "slurm.conf")
         << "ClusterName=locaidtest\nSlurmctldHost=" << host << "(127.0.0.1)\n"
