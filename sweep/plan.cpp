@@ -1,11 +1,11 @@
 #include "sweep/plan.hpp"
 
 #include "sweep/key_hash.hpp"
+#include "sweep/recording.hpp"
 #include "sweep/result_store.hpp"
 
 #include <algorithm>
 #include <fstream>
-#include <sstream>
 #include <stdexcept>
 
 namespace fs = std::filesystem;
@@ -40,20 +40,10 @@ std::string Join(const std::vector<std::string>& v) {
 // A scenario's content for the key: its name, or its YAML file's bytes (a
 // scenario file is small, unlike a recording).
 std::string ScenarioContent(const ScenarioRef& s) {
-  if (s.builtin) return "builtin:" + s.arg;
-  std::ifstream in(s.arg);
-  std::stringstream text;
-  text << in.rdbuf();
-  return "file:" + text.str();
+  return s.builtin ? "builtin:" + s.arg : "file:" + ReadFileText(s.arg);
 }
 
-std::string FileContent(const std::string& path) {
-  if (path.empty()) return "";
-  std::ifstream in(path);
-  std::stringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
+std::string FileContent(const std::string& path) { return path.empty() ? "" : ReadFileText(path); }
 
 }  // namespace
 

@@ -3,6 +3,8 @@
 #include "sweep/key_hash.hpp"
 
 #include <algorithm>
+#include <fstream>
+#include <sstream>
 #include <system_error>
 #include <vector>
 
@@ -83,6 +85,13 @@ std::string FileFingerprint(const fs::path& path) {
   const std::string st = SizeAndTime(path, ec);
   if (ec) return "";
   return KeyHasher().Add("path", fs::weakly_canonical(path).string()).Add("file", st).Hex();
+}
+
+std::string ReadFileText(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
 }
 
 }  // namespace locaid::sweep

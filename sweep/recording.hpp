@@ -27,4 +27,8 @@ std::string RecordingKey(const std::filesystem::path& path);
 // locaid-replay binary); "" when it does not exist.
 std::string FileFingerprint(const std::filesystem::path& path);
 
+// A small file's bytes (a scenario or --bag-topics file, a run's JSON
+// output); "" when it cannot be read.
+std::string ReadFileText(const std::filesystem::path& path);
+
 }  // namespace locaid::sweep

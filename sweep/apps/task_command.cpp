@@ -9,9 +9,7 @@
 
 #include <chrono>
 #include <cstdlib>
-#include <fstream>
 #include <iostream>
-#include <sstream>
 
 namespace fs = std::filesystem;
 
@@ -41,13 +39,6 @@ std::string HostName() {
   char host[256] = {};
   ::gethostname(host, sizeof host - 1);
   return host;
-}
-
-std::string Slurp(const fs::path& file) {
-  std::ifstream in(file);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
 }
 
 // What every result of a task says about its run.
@@ -121,7 +112,7 @@ int RunOne(const Plan& plan, const fs::path& dir, Stage stage, size_t task) {
   }
   result["wall_s"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   result["cpu_s"] = exit.cpu_s;
-  const std::string out = Slurp(spec.stdout_path);
+  const std::string out = ReadFileText(spec.stdout_path);
   const std::vector<std::string> tail = TailLines(spec.stderr_path, 20);
   std::error_code ec;
   fs::remove(spec.stdout_path, ec);
