@@ -58,7 +58,7 @@ struct EkfConfig {
   // along-track error summed over 200 frames is 3.9x what white errors of the
   // same per-frame size give), so noise matched to single frames (scale 0.01
   // to 0.05 there) makes the fused track overconfident: open-sky RMSE 0.29 ->
-  // 0.76 m, NEES 2.2 -> 29 (docs/benchmarks.md, "Learned noise"). Upwards it
+  // 0.76 m, NEES 2.2 -> 29 (docs/experiments/fusion-learned-noise.md). Upwards it
   // takes a camera worse than the model, and the sparse OXTS records of the
   // real excerpt, whose roll / pitch over a frame the model under-states.
   bool learn_vo_noise = true;
@@ -76,7 +76,9 @@ struct EkfConfig {
   // of a 10 s outage 20 s into a longer real drive rose from 0.76 to 1.03 %
   // (docs/experiments/vo-rotation-noise.md). false (`locaid-replay
   // --vo-rotation-noise learned`): the learner's scale alone; a max_scale of 1
-  // has the same effect.
+  // has the same effect. It is part of the learned VO noise: the fixed model
+  // (learn_vo_noise false: `--fixed-vo-noise`, NoiseOptions.fixed_vo_noise)
+  // has neither; the adaptation alone is vo_noise_scale_max = 1.
   bool adaptive_vo_rotation_noise = true;
   double adaptive_vo_rotation_noise_max_scale = 400.0;
   double vo_noise_prior_frames = 5;

@@ -139,7 +139,7 @@ class ImuProcessModel final : public ProcessModel {
     // R_vo carries the learner's scale (VoNoise); the adaptation may ask
     // for more on a rotation axis: the larger of the two holds.
     Mat6 Rvo = vo.R_vo;
-    if (config_.adaptive_vo_rotation_noise)
+    if (adapt_rotation_)
       for (int i = 0; i < 3; ++i)
         Rvo(3 + i, 3 + i) *= std::max(1.0, rotation_scale_[i] / vo_noise_scale_[3 + i]);
     PropagateTo(s, vo.t_ns);
@@ -270,6 +270,7 @@ class ImuProcessModel final : public ProcessModel {
     const Vec6 applied = reported_scale_;  // the scale Rvo carries
     AdaptVoRotationNoise(r.tail<3>(), S.bottomRightCorner<3, 3>());
     if (learn_noise) LearnVoNoise(r, S, Rvo, applied);
+    ReportScale();
     const bool gate_ok = std::isfinite(nis) && nis < vo_gate_;
     // A run of rejections means the prediction, not the VO, is off: accept.
     if (gate_ok || (std::isfinite(nis) && ++vo_consecutive_rejections_ > 2)) {
@@ -289,11 +290,10 @@ class ImuProcessModel final : public ProcessModel {
     if (!config_.learn_vo_noise) return;
     for (int i = 0; i < 6; ++i) vo_noise_.Add(i, r[i], S(i, i) - Rvo(i, i), Rvo(i, i) / applied[i]);
     vo_noise_scale_ = vo_noise_.scale();
-    ReportScale();
   }
 
   void AdaptVoRotationNoise(const Vec3& r_rot, const Mat3& S_rot) {
-    if (!config_.adaptive_vo_rotation_noise) return;
+    if (!adapt_rotation_) return;
     // Per body axis: mean normalised squared rotation innovation (1 when
     // consistent); one outlier moves it by at most 10 x the rate.
     constexpr double kRate = 0.05;
@@ -304,12 +304,11 @@ class ImuProcessModel final : public ProcessModel {
       rotation_nis_mean_[i] = (1 - kRate) * rotation_nis_mean_[i] + kRate * std::min(q, 10.0);
       rotation_scale_[i] = std::clamp(rotation_scale_[i] * std::pow(rotation_nis_mean_[i], kRate), 1.0, max_scale);
     }
-    ReportScale();
   }
 
   void ReportScale() {  // the scale applied per axis: the learner's, or the adaptation's where larger
     reported_scale_ = vo_noise_scale_;
-    if (config_.adaptive_vo_rotation_noise)
+    if (adapt_rotation_)
       reported_scale_.tail<3>() = reported_scale_.tail<3>().cwiseMax(rotation_scale_);
   }
 
@@ -345,7 +344,9 @@ class ImuProcessModel final : public ProcessModel {
   int vo_consecutive_rejections_ = 0;
   NoiseScaleEstimator vo_noise_;          // learn_vo_noise
   Vec6 vo_noise_scale_ = Vec6::Ones();    // its scale, applied by VoNoise
-  Vec3 rotation_scale_ = Vec3::Ones(), rotation_nis_mean_ = Vec3::Ones();  // adaptive_vo_rotation_noise
+  // adaptive_vo_rotation_noise, part of the learned VO noise: off with the fixed model (learn_vo_noise false)
+  const bool adapt_rotation_ = config_.adaptive_vo_rotation_noise && config_.learn_vo_noise;
+  Vec3 rotation_scale_ = Vec3::Ones(), rotation_nis_mean_ = Vec3::Ones();
   Vec6 reported_scale_ = Vec6::Ones();    // both, as vo_noise_scale() shows them
 };
 

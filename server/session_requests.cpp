@@ -139,7 +139,6 @@ std::unique_ptr<pipeline::Estimator> MakeLocalizer(const EstimatorSetup& setup) 
   options.ekf.vehicle_constraints_need_speed = setup.vehicle_constraints_need_speed;
   options.ekf.R_vehicle_body = setup.R_vehicle_body;
   options.ekf.learn_vo_noise = setup.learn_vo_noise;
-  options.ekf.adaptive_vo_rotation_noise = setup.learn_vo_noise;  // fixed_vo_noise: the fixed model, neither
   options.ekf.learn_gps_noise = setup.learn_gps_noise;
   if (setup.speed_sigma_mps > 0) options.ekf.speed_sigma_mps = setup.speed_sigma_mps;
   if (setup.speed_scale_sigma > 0) options.ekf.speed_scale_sigma = setup.speed_scale_sigma;

@@ -222,7 +222,7 @@ int main(int argc, char** argv) {
     options.ekf.use_imu = !no_imu;
     options.ekf.learn_vo_noise = !fixed_vo_noise;
     options.ekf.learn_gps_noise = !fixed_gps_noise;
-    options.ekf.adaptive_vo_rotation_noise = vo_rotation_noise == "adaptive" && !fixed_vo_noise;
+    options.ekf.adaptive_vo_rotation_noise = vo_rotation_noise == "adaptive";
     options.ekf.vehicle_constraints = vehicle_constraints != "off";
     options.ekf.vehicle_constraints_need_speed = vehicle_constraints == "auto";
     if (bag_source) options.ekf.gps_lever_arm_body_m = bag_source->gps_lever_arm_body_m();

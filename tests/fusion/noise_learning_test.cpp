@@ -180,14 +180,15 @@ TEST(LearnedVoNoise, TheFixedModelStaysAsConfigured) {
 
 // With the adaptation on (the default), a rotation axis takes the larger of
 // the learner's scale and the adaptation's; the translation axes are the
-// learner's.
+// learner's. learn = false: the learner held at the model (min = max = 1),
+// the adaptation alone; the fixed model is learn_vo_noise = false.
 Vec6 ScaleWithAdaptiveRotation(double reported_factor, double max_scale, bool learn = true, bool adapt = true) {
   SimConfig c;
   c.duration_s = 240;
   c.seed = 21;
   c.vo_sigma_t_m = 0.02;
   EkfConfig config = ExactVoModel(c);
-  config.learn_vo_noise = learn;
+  if (!learn) config.vo_noise_scale_min = config.vo_noise_scale_max = 1.0;
   config.adaptive_vo_rotation_noise = adapt;
   config.adaptive_vo_rotation_noise_max_scale = max_scale;
   Ekf ekf(config);
@@ -221,7 +222,20 @@ TEST(AdaptiveVoRotationNoise, AClampOfOneLeavesTheRotationAxesToTheLearner) {
   const Vec6 learner = ScaleWithAdaptiveRotation(1.0 / 4.0, 400, /*learn=*/true, /*adapt=*/false);
   for (int i = 0; i < 6; ++i) EXPECT_NEAR(clamped[i], learner[i], 0.01 * learner[i]) << "axis " << i;
   const Vec6 fixed = ScaleWithAdaptiveRotation(1.0 / 4.0, 1.0, /*learn=*/false);
-  EXPECT_EQ(fixed, Vec6::Ones()) << "neither: the fixed model";
+  EXPECT_EQ(fixed, Vec6::Ones()) << "neither";
+}
+
+TEST(AdaptiveVoRotationNoise, TheFixedModelHasNoAdaptation) {
+  SimConfig c;
+  c.duration_s = 240;
+  c.seed = 21;
+  c.vo_sigma_t_m = 0.02;
+  EkfConfig config = ExactVoModel(c);
+  config.adaptive_vo_rotation_noise = true;
+  config.learn_vo_noise = false;
+  Ekf ekf(config);
+  Drive(ekf, Simulate(c), 1.0 / 4.0);
+  EXPECT_EQ(ekf.vo_noise_scale(), Vec6::Ones());
 }
 
 TEST(AdaptiveVoRotationNoise, AConsistentVoLeavesTheModelAsItIs) {
