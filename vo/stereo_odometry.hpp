@@ -123,7 +123,8 @@ struct DefaultConfig {
   TimingClock timing_clock = TimingClock::kWall;
 };
 
-// Configuration of the "thesis" baseline (reference/thesis-stereo-vo-kitti.md).
+// Configuration of the "thesis" baseline: the stereo VO this project started
+// from (docs/architecture.md, "The algorithms"; compared in docs/benchmarks.md).
 struct ThesisConfig {
   int grid_cell_px = 60;             // detection grid (thesis: 60x60 px)
   int max_features_per_cell = 6;

@@ -1,4 +1,5 @@
-// "thesis" method: the baseline of reference/thesis-stereo-vo-kitti.md.
+// "thesis" method: the stereo VO baseline this project started from
+// (docs/architecture.md, "The algorithms"; compared in docs/benchmarks.md).
 //
 // Track(frame) = grid-bucketed FAST on the left image -> ORB descriptors ->
 // brute-force knn (k = 2) matching previous->current left with Lowe's ratio
