@@ -16,7 +16,7 @@
 set -euo pipefail
 
 build_pkgs=(
-  build-essential cmake pkg-config ninja-build
+  build-essential cmake pkg-config ninja-build ccache
   libopencv-dev
   libeigen3-dev libgeographiclib-dev
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc

@@ -174,6 +174,12 @@ if ((SKIP_BUILD == 0)); then
       cp -n /var/cache/apt/archives/*.deb "$cache_dir/"
   fi
   cache=(-v "$cache_dir:/var/cache/apt/archives")
+  # The host's compiler cache (deploy/build.sh fills it): the build stage
+  # compiles what the host build already compiled from the cache.
+  ccache_dir=""
+  if command -v ccache >/dev/null && ccache_dir=$(ccache -k cache_dir 2>/dev/null) && [[ -d $ccache_dir ]]; then
+    cache+=(-v "$ccache_dir:/ccache")
+  fi
   if [[ $ENGINE == podman ]]; then
     how=(podman build --isolation chroot --format docker "${cache[@]}")
     say "building $TAG (${how[*]:0:4}, base $BASE, apt cache $cache_dir: $(ls "$cache_dir" | grep -c '\.deb$') packages)"
@@ -186,7 +192,8 @@ if ((SKIP_BUILD == 0)); then
     -f "$ROOT/deploy/Containerfile" -t "$TAG" "$ROOT" >"$STATE/build.log" 2>&1 ||
     { tail -n 40 "$STATE/build.log" >&2; fail "$ENGINE build failed, full log $STATE/build.log"; }
   t1=$(date +%s)
-  note "build: ${how[*]:0:3} ${NO_CACHE[*]} took $((t1 - t0)) s on $(nproc) cores (log $STATE/build.log)"
+  hits=$(grep -E '^ *(Hits|Misses):' "$STATE/build.log" | tr -s ' ' | tr '\n' ' ' || true)
+  note "build: ${how[*]:0:3} ${NO_CACHE[*]} took $((t1 - t0)) s on $(nproc) cores (log $STATE/build.log)${ccache_dir:+; ccache $ccache_dir: ${hits:-no compile step ran}}"
 fi
 image_exists "$TAG" || fail "image $TAG does not exist"
 
