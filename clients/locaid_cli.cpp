@@ -11,7 +11,7 @@
 //   locaid stats ID
 // Every call carries a deadline (--timeout-s; subscribe: --stream-timeout-s).
 #include "bag/bag_topics.hpp"
-#include "client/connection.hpp"
+#include "connection/connection.hpp"
 #include "clients/cli_camera_fault.hpp"
 #include "clients/cli_print.hpp"
 #include "clients/recorder.hpp"
@@ -59,7 +59,7 @@ using locaid::clients::Recorder;
 
 namespace {
 
-struct Common : locaid::client::Connection {
+struct Common : locaid::connection::Connection {
   double timeout_s = 10;
 };
 
@@ -105,7 +105,7 @@ std::string CheckServerAddress(const std::string& a) {
 }
 
 void Prepare(const Common& c, grpc::ClientContext* ctx, double timeout_s) {
-  locaid::client::Prepare(c, ctx, timeout_s);
+  locaid::connection::Prepare(c, ctx, timeout_s);
 }
 
 // Exit codes: 0 OK, 1 RPC error (status printed), 2 usage error, 3 health
@@ -113,7 +113,7 @@ void Prepare(const Common& c, grpc::ClientContext* ctx, double timeout_s) {
 // disk full, file size limit, I/O error; the file is kept valid up to the
 // last complete pose and the message says how many poses it holds).
 int Fail(const grpc::Status& s) {
-  std::cerr << "error: " << locaid::client::StatusCodeName(s.error_code()) << ": " << s.error_message() << "\n";
+  std::cerr << "error: " << locaid::connection::StatusCodeName(s.error_code()) << ": " << s.error_message() << "\n";
   return 1;
 }
 
@@ -439,8 +439,8 @@ int main(int argc, char** argv) {
   so.synthetic = o_synth->count() > 0;
 
   try {
-    locaid::client::ResolveToken(c);
-    auto channel = locaid::client::MakeChannel(c);
+    locaid::connection::ResolveToken(c);
+    auto channel = locaid::connection::MakeChannel(c);
     auto stub = v1::Localization::NewStub(channel);
     auto with_id = [&session_id](auto req) {
       req.set_session_id(session_id);

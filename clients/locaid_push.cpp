@@ -9,7 +9,7 @@
 //
 // Prints the session id on stdout, progress on stderr, and the pose count per
 // mode at the end. Exit status: 0 when the stream ended OK, 1 otherwise.
-#include "client/connection.hpp"
+#include "connection/connection.hpp"
 #include "kitti/dataset.hpp"
 #include "kitti/oxts.hpp"
 #include "locaid/v1/localization.grpc.pb.h"
@@ -36,7 +36,7 @@ namespace v1 = locaid::v1;
 using Clock = std::chrono::steady_clock;
 
 struct Options {
-  locaid::client::Connection conn;
+  locaid::connection::Connection conn;
   std::string drive, gps = "oxts", gpsd = "127.0.0.1:2947", start_utc, scenario, out_csv, vo_method;
   std::vector<double> lever_arm;
   double rate = 1.0, max_gps_delay_s = 0, gps_lead_s = 0.2, wait_fix_s = 20;
@@ -164,7 +164,7 @@ class ReceiverClock {
 };
 
 int Run(Options& o) {
-  locaid::client::ResolveToken(o.conn);
+  locaid::connection::ResolveToken(o.conn);
   const auto dataset = locaid::kitti::OpenDataset(o.drive);
   const auto& oxts = dataset->oxts();
   if (dataset->size() == 0) throw std::runtime_error(o.drive + ": no frames");
@@ -172,9 +172,9 @@ int Run(Options& o) {
   const int64_t t0 = oxts.empty() ? dataset->time_ns(0) : oxts.front().t_ns;
   const int64_t shift = o.start_utc.empty() ? 0 : locaid::sensors::ParseIso8601Utc(o.start_utc) - t0;
 
-  auto stub = v1::Localization::NewStub(locaid::client::MakeChannel(o.conn));
+  auto stub = v1::Localization::NewStub(locaid::connection::MakeChannel(o.conn));
   grpc::ClientContext ctx;
-  locaid::client::Prepare(o.conn, &ctx, 0);
+  locaid::connection::Prepare(o.conn, &ctx, 0);
   auto stream = stub->PushSensorData(&ctx);
   v1::PushRequest start;
   *start.mutable_start()->mutable_live() = LiveSourceFor(*dataset, o);

@@ -52,7 +52,7 @@ struct SpeedSample {
 };
 
 // Where a reference unit (a recorded drive's OXTS RT3003: ground truth) says
-// the body was. Never fused: the scenario (fusion/scenario.hpp) makes the
+// the body was. Never fused: the scenario (sim/scenario.hpp) makes the
 // receiver fixes the filter sees from it, and evaluation compares with it.
 struct ReferencePose {
   int64_t t_ns = 0;

@@ -8,15 +8,15 @@
 // blur_sigma_px}, speed.{rate_hz, sigma_mps, scale_error}, seed.
 // Contract: ParseScenarioYaml returns a scenario or throws
 // pipeline::ScenarioError (no yaml-cpp or std exception escapes); an accepted
-// scenario passes fusion::ValidateScenario, its outages placed on a drive
-// (PlaceOutagesForDrive) and it drives a GpsScenario (with an attitude, so the
+// scenario passes sim::ValidateScenario, its outages placed on a drive
+// (PlaceOutagesForDrive) and it drives a GpsReceiverSim (with an attitude, so the
 // antenna lever arm is used) and an ImuDegrader over a short synthetic drive
 // without undefined behaviour, every fix, sample and speed reading finite
 // (readings in time order, within the drive); its camera faults
 // go through a CameraFaultStage over small stereo pairs of the same drive,
 // each image coming out empty or of its size and type.
 #include "fuzz/fuzz_support.hpp"
-#include "fusion/scenario.hpp"
+#include "sim/scenario.hpp"
 #include "pipeline/camera_faults.hpp"
 #include "pipeline/scenario_yaml.hpp"
 
@@ -33,16 +33,17 @@ constexpr int64_t kStepNs = 100'000'000;  // 10 Hz OXTS: a 20 s drive
 constexpr double kDriveS = 20.0;
 constexpr int64_t kStartNs = 1'317'000'000'000'000'000;
 
-void Exercise(const locaid::fusion::Scenario& scenario) {
+void Exercise(const locaid::sim::Scenario& scenario) {
   namespace fusion = locaid::fusion;
-  fusion::ValidateScenario(scenario);
-  const fusion::Scenario placed = fusion::PlaceOutagesForDrive(scenario, kDriveS);
-  for (const fusion::OutageWindow& o : placed.outages) {
+  namespace sim = locaid::sim;
+  sim::ValidateScenario(scenario);
+  const sim::Scenario placed = sim::PlaceOutagesForDrive(scenario, kDriveS);
+  for (const sim::OutageWindow& o : placed.outages) {
     LOCAID_FUZZ_CHECK(!o.centered && std::isfinite(o.start_s) && o.start_s >= 0, "outage not placed");
   }
-  fusion::GpsScenario gps(placed);
-  fusion::ImuDegrader imu(placed);
-  fusion::SpeedSimulator speed(placed);
+  sim::GpsReceiverSim gps(placed);
+  sim::ImuDegrader imu(placed);
+  sim::SpeedSimulator speed(placed);
   int64_t last_reading_ns = 0;
   const Eigen::Matrix3d R_enu_body = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   for (int i = 0; i < kSamples; ++i) {
@@ -88,7 +89,7 @@ void Exercise(const locaid::fusion::Scenario& scenario) {
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string text(reinterpret_cast<const char*>(data), size);
-  locaid::fusion::Scenario scenario;
+  locaid::sim::Scenario scenario;
   try {
     scenario = locaid::pipeline::ParseScenarioYaml(text, "fuzz.yaml");
   } catch (const locaid::pipeline::ScenarioError&) {

@@ -11,14 +11,14 @@
 namespace locaid::pipeline {
 namespace {
 
-using fusion::CameraFaultKind;
+using sim::CameraFaultKind;
 
 constexpr double kMaxSeconds = 1e6;  // seconds become int64 nanoseconds (as outages)
 
 int64_t Nanoseconds(double s) { return static_cast<int64_t>(std::llround(s * 1e9)); }
 
-void CheckFault(const fusion::CameraFaultWindow& fault) {
-  const std::string problem = fusion::CameraFaultParameterProblem(fault);
+void CheckFault(const sim::CameraFaultWindow& fault) {
+  const std::string problem = sim::CameraFaultParameterProblem(fault);
   if (!problem.empty()) throw std::invalid_argument(std::string("camera fault ") + ToString(fault.kind) + ": " + problem);
 }
 
@@ -34,22 +34,22 @@ cv::RNG SeededRng(uint64_t seed) { return cv::RNG(seed * 0x9E3779B97F4A7C15ULL +
 
 }  // namespace
 
-CameraFaultStage::CameraFaultStage(const fusion::Scenario& scenario) { SetScenario(scenario); }
+CameraFaultStage::CameraFaultStage(const sim::Scenario& scenario) { SetScenario(scenario); }
 
-CameraFaultStage::Window CameraFaultStage::Relative(const fusion::CameraFaultWindow& fault) {
+CameraFaultStage::Window CameraFaultStage::Relative(const sim::CameraFaultWindow& fault) {
   Window w{fault, Nanoseconds(fault.start_s), 0};
   w.end_ns = w.start_ns + Nanoseconds(fault.duration_s);
   return w;
 }
 
-void CameraFaultStage::SetScenario(const fusion::Scenario& scenario) {
-  fusion::ValidateCameraFaults(scenario);
+void CameraFaultStage::SetScenario(const sim::Scenario& scenario) {
+  sim::ValidateCameraFaults(scenario);
   scenario_windows_.clear();
-  for (const fusion::CameraFaultWindow& f : scenario.camera_faults) scenario_windows_.push_back(Relative(f));
+  for (const sim::CameraFaultWindow& f : scenario.camera_faults) scenario_windows_.push_back(Relative(f));
   rng_ = SeededRng(scenario.seed);
 }
 
-void CameraFaultStage::StartNow(const fusion::CameraFaultWindow& fault, double duration_s) {
+void CameraFaultStage::StartNow(const sim::CameraFaultWindow& fault, double duration_s) {
   CheckFault(fault);
   CheckSeconds("duration_s", duration_s, true);
   pending_now_.emplace_back(fault, duration_s);
@@ -60,14 +60,14 @@ void CameraFaultStage::Stop() {
   pending_now_.clear();
 }
 
-void CameraFaultStage::AddWindow(const fusion::CameraFaultWindow& fault) {
+void CameraFaultStage::AddWindow(const sim::CameraFaultWindow& fault) {
   CheckFault(fault);
   CheckSeconds("start_s", fault.start_s, true);
   CheckSeconds("duration_s", fault.duration_s, false);
   injected_.push_back(Relative(fault));
 }
 
-void CameraFaultStage::Inject(CameraFaultAction action, const fusion::CameraFaultWindow& fault) {
+void CameraFaultStage::Inject(CameraFaultAction action, const sim::CameraFaultWindow& fault) {
   switch (action) {
     case CameraFaultAction::kStartNow: StartNow(fault, fault.duration_s); return;
     case CameraFaultAction::kStop: Stop(); return;
@@ -75,8 +75,8 @@ void CameraFaultStage::Inject(CameraFaultAction action, const fusion::CameraFaul
   }
 }
 
-std::vector<const fusion::CameraFaultWindow*> CameraFaultStage::ActiveAt(int64_t t_rel_ns) const {
-  std::vector<const fusion::CameraFaultWindow*> active;
+std::vector<const sim::CameraFaultWindow*> CameraFaultStage::ActiveAt(int64_t t_rel_ns) const {
+  std::vector<const sim::CameraFaultWindow*> active;
   for (const auto* list : {&scenario_windows_, &injected_})
     for (const Window& w : *list)
       if (w.start_ns <= t_rel_ns && t_rel_ns < w.end_ns) active.push_back(&w.fault);
@@ -104,7 +104,7 @@ void CameraFaultStage::Apply(vo::StereoFrame& frame) {
     Window w{fault, t_rel, duration_s > 0 ? t_rel + Nanoseconds(duration_s) : kForever};
     injected_.push_back(w);
   }
-  const std::vector<const fusion::CameraFaultWindow*> active = ActiveAt(t_rel);
+  const std::vector<const sim::CameraFaultWindow*> active = ActiveAt(t_rel);
   const auto has = [&](CameraFaultKind kind) {
     return std::any_of(active.begin(), active.end(), [kind](const auto* f) { return f->kind == kind; });
   };

@@ -25,7 +25,7 @@
 // Threading: one thread (the session's or the replay's stepping thread).
 #pragma once
 
-#include "fusion/scenario.hpp"
+#include "sim/scenario.hpp"
 #include "vo/stereo_odometry.hpp"
 
 #include <opencv2/core.hpp>
@@ -47,39 +47,39 @@ enum class CameraFaultAction {
 class CameraFaultStage {
  public:
   // Throws std::invalid_argument when the scenario is invalid.
-  explicit CameraFaultStage(const fusion::Scenario& scenario);
+  explicit CameraFaultStage(const sim::Scenario& scenario);
 
   // The frame with the faults active at frame.t_ns applied (in place).
   void Apply(vo::StereoFrame& frame);
 
   // Run-time faults. Throw std::invalid_argument for out-of-range parameters
-  // (fusion::CameraFaultParameterProblem) or times (start_s in [0, 1e6],
+  // (sim::CameraFaultParameterProblem) or times (start_s in [0, 1e6],
   // duration_s in (0, 1e6] for a window, [0, 1e6] for StartNow).
-  void StartNow(const fusion::CameraFaultWindow& fault, double duration_s);  // 0 = until Stop
+  void StartNow(const sim::CameraFaultWindow& fault, double duration_s);  // 0 = until Stop
   void Stop();  // ends every injected fault, active or scheduled
-  void AddWindow(const fusion::CameraFaultWindow& fault);
+  void AddWindow(const sim::CameraFaultWindow& fault);
   // Any action above.
-  void Inject(CameraFaultAction action, const fusion::CameraFaultWindow& fault);
+  void Inject(CameraFaultAction action, const sim::CameraFaultWindow& fault);
 
   // The scenario's windows and seed are replaced; the clock (first frame) and
   // the injected faults stay. Throws std::invalid_argument if invalid.
-  void SetScenario(const fusion::Scenario& scenario);
+  void SetScenario(const sim::Scenario& scenario);
 
  private:
   static constexpr int64_t kForever = std::numeric_limits<int64_t>::max();
   // A fault over [start_ns, end_ns) relative to the first frame.
   struct Window {
-    fusion::CameraFaultWindow fault;
+    sim::CameraFaultWindow fault;
     int64_t start_ns = 0, end_ns = kForever;
   };
-  static Window Relative(const fusion::CameraFaultWindow& fault);
-  std::vector<const fusion::CameraFaultWindow*> ActiveAt(int64_t t_rel_ns) const;
+  static Window Relative(const sim::CameraFaultWindow& fault);
+  std::vector<const sim::CameraFaultWindow*> ActiveAt(int64_t t_rel_ns) const;
   void AddNoise(cv::Mat& image, double gain, double sigma_dn);
 
   std::vector<Window> scenario_windows_;
   std::vector<Window> injected_;
   // StartNow requests waiting for the next frame: fault and duration.
-  std::vector<std::pair<fusion::CameraFaultWindow, double>> pending_now_;
+  std::vector<std::pair<sim::CameraFaultWindow, double>> pending_now_;
   std::optional<int64_t> first_frame_ns_;
   cv::RNG rng_;
   // The pair last delivered (what a freeze repeats), and the frozen copy.

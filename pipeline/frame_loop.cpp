@@ -39,8 +39,8 @@ StepResult FrameLoop::Step() {
   return r;
 }
 
-void FrameLoop::SetScenario(const fusion::Scenario& scenario) {
-  fusion::ValidateScenario(scenario);
+void FrameLoop::SetScenario(const sim::Scenario& scenario) {
+  sim::ValidateScenario(scenario);
   scenario_.SetScenario(scenario);
   camera_faults_.SetScenario(scenario);
 }

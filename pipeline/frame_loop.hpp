@@ -12,7 +12,7 @@
 // from the stepping thread (a session posts them there).
 #pragma once
 
-#include "fusion/scenario.hpp"
+#include "sim/scenario.hpp"
 #include "fusion/types.hpp"
 #include "pipeline/camera_faults.hpp"
 #include "pipeline/frame_source.hpp"
@@ -89,9 +89,9 @@ class Pipeline {
   // Camera faults, applied from the next frame on (CameraFaultStage::Inject;
   // times relative to the first frame). Throws std::invalid_argument for
   // out-of-range values.
-  virtual void InjectCameraFault(CameraFaultAction action, const fusion::CameraFaultWindow& fault) = 0;
+  virtual void InjectCameraFault(CameraFaultAction action, const sim::CameraFaultWindow& fault) = 0;
   // Throws std::invalid_argument when the scenario is invalid.
-  virtual void SetScenario(const fusion::Scenario& scenario) = 0;
+  virtual void SetScenario(const sim::Scenario& scenario) = 0;
   // ENU origin once known.
   virtual bool origin(double* lat_deg, double* lon_deg, double* alt_m) const = 0;
   // Typed live input and GPS receiver counters. Any thread.
@@ -125,11 +125,11 @@ class FrameLoop final : public Pipeline {
   void StartOutageNow(double duration_s) override { scenario_.StartOutageNow(duration_s); }
   void StopOutage() override { scenario_.StopOutage(); }
   void AddOutageWindow(double start_s, double duration_s) override { scenario_.AddOutageWindow(start_s, duration_s); }
-  void InjectCameraFault(CameraFaultAction action, const fusion::CameraFaultWindow& fault) override {
+  void InjectCameraFault(CameraFaultAction action, const sim::CameraFaultWindow& fault) override {
     camera_faults_.Inject(action, fault);
   }
   // Both stages take the new scenario (validated before either changes).
-  void SetScenario(const fusion::Scenario& scenario) override;
+  void SetScenario(const sim::Scenario& scenario) override;
   bool origin(double* lat_deg, double* lon_deg, double* alt_m) const override;
   // The source's counters plus the arrival-to-use latency of received fixes.
   LiveInputStats input_stats() const override;

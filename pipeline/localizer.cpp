@@ -21,8 +21,8 @@ constexpr double kMovingMps = 1.5;
 
 }  // namespace
 
-fusion::EkfConfig EkfConfigForScenario(fusion::EkfConfig c, const fusion::Scenario& s) {
-  if (s.imu_grade == fusion::ImuGrade::kMems) {
+fusion::EkfConfig EkfConfigForScenario(fusion::EkfConfig c, const sim::Scenario& s) {
+  if (s.imu_grade == sim::ImuGrade::kMems) {
     c.accel_noise_mps2_sqrt_hz = std::max(c.accel_noise_mps2_sqrt_hz, 2 * s.imu_accel_noise_mps2_sqrt_hz);
     c.gyro_noise_radps_sqrt_hz = std::max(c.gyro_noise_radps_sqrt_hz, 2 * s.imu_gyro_noise_radps_sqrt_hz);
     c.init_accel_bias_sigma_mps2 = std::max(c.init_accel_bias_sigma_mps2, 2 * s.imu_accel_bias_sigma_mps2);

@@ -9,7 +9,7 @@
 
 #include "core/stereo_camera.hpp"
 #include "fusion/ekf.hpp"
-#include "fusion/scenario.hpp"
+#include "sim/scenario.hpp"
 #include "fusion/types.hpp"
 #include "pipeline/sensors.hpp"
 #include "vo/stereo_odometry.hpp"
@@ -31,7 +31,7 @@ struct LocalizerOptions {
 
 // The filter's noise for a scenario that simulates a worse IMU than the
 // recorded one (ImuGrade::kMems): the filter must know the IMU is worse.
-fusion::EkfConfig EkfConfigForScenario(fusion::EkfConfig config, const fusion::Scenario& scenario);
+fusion::EkfConfig EkfConfigForScenario(fusion::EkfConfig config, const sim::Scenario& scenario);
 
 // One fix fed to the filter, and what the filter did with it.
 struct GpsFeed {

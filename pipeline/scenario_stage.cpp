@@ -12,15 +12,15 @@ int64_t Nanoseconds(double s) { return static_cast<int64_t>(std::llround(s * 1e9
 
 }  // namespace
 
-ScenarioStage::ScenarioStage(fusion::Scenario scenario) : scenario_(std::move(scenario)) {
-  fusion::ValidateScenario(scenario_);
+ScenarioStage::ScenarioStage(sim::Scenario scenario) : scenario_(std::move(scenario)) {
+  sim::ValidateScenario(scenario_);
   RebuildDegradation(std::nullopt);
 }
 
 void ScenarioStage::RebuildDegradation(std::optional<int64_t> drive_start_ns) {
-  gps_ = std::make_unique<fusion::GpsScenario>(scenario_);
-  imu_ = std::make_unique<fusion::ImuDegrader>(scenario_);
-  speed_ = std::make_unique<fusion::SpeedSimulator>(scenario_);
+  gps_ = std::make_unique<sim::GpsReceiverSim>(scenario_);
+  imu_ = std::make_unique<sim::ImuDegrader>(scenario_);
+  speed_ = std::make_unique<sim::SpeedSimulator>(scenario_);
   // Keep the drive clock: the scenario's outages stay relative to the drive start.
   if (drive_start_ns) gps_->SetDriveStart(*drive_start_ns);
   for (const auto& [a, b] : runtime_outages_) gps_->ScheduleOutage(a, b);
@@ -110,8 +110,8 @@ void ScenarioStage::AddOutageWindow(double start_s, double duration_s) {
   ScheduleAbsolute(start_ns, start_ns + Nanoseconds(duration_s));
 }
 
-void ScenarioStage::SetScenario(fusion::Scenario scenario) {
-  fusion::ValidateScenario(scenario);
+void ScenarioStage::SetScenario(sim::Scenario scenario) {
+  sim::ValidateScenario(scenario);
   scenario_ = std::move(scenario);
   RebuildDegradation(gps_->drive_start_ns());
 }

@@ -11,7 +11,7 @@
 // a session posts its outage controls there.
 #pragma once
 
-#include "fusion/scenario.hpp"
+#include "sim/scenario.hpp"
 #include "pipeline/sensors.hpp"
 
 #include <cstdint>
@@ -25,7 +25,7 @@ namespace locaid::pipeline {
 class ScenarioStage {
  public:
   // Throws std::invalid_argument when the scenario is invalid.
-  explicit ScenarioStage(fusion::Scenario scenario);
+  explicit ScenarioStage(sim::Scenario scenario);
 
   // A frame at t_ns comes next: the first one starts the clock of run-time
   // windows (and the scenario's, unless a reference sample came first).
@@ -42,17 +42,17 @@ class ScenarioStage {
   void AddOutageWindow(double start_s, double duration_s);
   // Replaces the degradation (new seed / noise / outages on the same drive
   // clock); run-time outages stay. Throws std::invalid_argument if invalid.
-  void SetScenario(fusion::Scenario scenario);
-  const fusion::Scenario& scenario() const { return scenario_; }
+  void SetScenario(sim::Scenario scenario);
+  const sim::Scenario& scenario() const { return scenario_; }
 
  private:
   void ScheduleAbsolute(int64_t start_ns, int64_t end_ns);
   void RebuildDegradation(std::optional<int64_t> drive_start_ns);
 
-  fusion::Scenario scenario_;
-  std::unique_ptr<fusion::GpsScenario> gps_;
-  std::unique_ptr<fusion::ImuDegrader> imu_;
-  std::unique_ptr<fusion::SpeedSimulator> speed_;
+  sim::Scenario scenario_;
+  std::unique_ptr<sim::GpsReceiverSim> gps_;
+  std::unique_ptr<sim::ImuDegrader> imu_;
+  std::unique_ptr<sim::SpeedSimulator> speed_;
   std::optional<int64_t> first_frame_ns_;
   int64_t last_frame_ns_ = 0;
   std::vector<std::pair<double, double>> early_windows_;      // asked for before the first frame

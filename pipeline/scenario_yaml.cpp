@@ -68,15 +68,15 @@ struct Ctx {
 };
 
 // The `camera:` list: [{start_s, duration_s | end_s, fault, parameters of that fault}].
-std::vector<fusion::CameraFaultWindow> ParseCameraFaults(const Ctx& c, const YAML::Node& list) {
-  using fusion::CameraFaultKind;
+std::vector<sim::CameraFaultWindow> ParseCameraFaults(const Ctx& c, const YAML::Node& list) {
+  using sim::CameraFaultKind;
   if (!list.IsSequence()) c.Fail(list, "camera", "expected a list of {start_s, duration_s | end_s, fault, ...}");
   const std::vector<std::pair<std::string, CameraFaultKind>> kinds = {
       {"dark", CameraFaultKind::kDark},         {"noise", CameraFaultKind::kNoise},
       {"blur", CameraFaultKind::kBlur},         {"frozen", CameraFaultKind::kFrozen},
       {"drop", CameraFaultKind::kDrop},         {"left_only", CameraFaultKind::kLeftOnly},
       {"right_only", CameraFaultKind::kRightOnly}};
-  std::vector<fusion::CameraFaultWindow> out;
+  std::vector<sim::CameraFaultWindow> out;
   for (size_t i = 0; i < list.size(); ++i) {
     const std::string f = "camera[" + std::to_string(i) + "]";
     const YAML::Node w = list[i];
@@ -87,7 +87,7 @@ std::vector<fusion::CameraFaultWindow> ParseCameraFaults(const Ctx& c, const YAM
     if (kind == kinds.end())
       c.Fail(w["fault"], f + ".fault",
              "expected dark, noise, blur, frozen, drop, left_only or right_only, got '" + name + "'");
-    fusion::CameraFaultWindow win;
+    sim::CameraFaultWindow win;
     win.kind = kind->second;
     // Parameters only for the faults they change.
     const std::vector<std::pair<std::string, std::set<CameraFaultKind>>> parameters = {
@@ -112,7 +112,7 @@ std::vector<fusion::CameraFaultWindow> ParseCameraFaults(const Ctx& c, const YAM
     if (w["noise_dn"]) win.noise_dn = c.NonNegative(w["noise_dn"], f + ".noise_dn");
     if (w["blur_sigma_px"]) win.blur_sigma_px = c.Positive(w["blur_sigma_px"], f + ".blur_sigma_px");
     // Upper bounds (gain <= 1, noise <= 255, blur <= 50) with the line of the value.
-    const std::string problem = fusion::CameraFaultParameterProblem(win);
+    const std::string problem = sim::CameraFaultParameterProblem(win);
     if (!problem.empty()) {
       const std::string key = problem.substr(0, problem.find(':'));
       c.Fail(w[key], f + "." + key, problem.substr(key.size() + 2));
@@ -123,9 +123,9 @@ std::vector<fusion::CameraFaultWindow> ParseCameraFaults(const Ctx& c, const YAM
 }
 
 // The `speed:` mapping: a simulated vehicle speed sensor.
-fusion::SpeedSensorSim ParseSpeedSensor(const Ctx& c, const YAML::Node& m) {
+sim::SpeedSensorSim ParseSpeedSensor(const Ctx& c, const YAML::Node& m) {
   c.CheckKeys(m, "speed", {"rate_hz", "sigma_mps", "scale_error"});
-  fusion::SpeedSensorSim sensor;
+  sim::SpeedSensorSim sensor;
   if (m["rate_hz"]) sensor.rate_hz = c.Positive(m["rate_hz"], "speed.rate_hz");
   if (m["sigma_mps"]) sensor.sigma_mps = c.Positive(m["sigma_mps"], "speed.sigma_mps");
   if (m["scale_error"]) sensor.scale_error = c.Number(m["scale_error"], "speed.scale_error");
@@ -134,7 +134,7 @@ fusion::SpeedSensorSim ParseSpeedSensor(const Ctx& c, const YAML::Node& m) {
 
 }  // namespace
 
-fusion::Scenario ParseScenarioYaml(const std::string& text, const std::string& where) {
+sim::Scenario ParseScenarioYaml(const std::string& text, const std::string& where) {
   const Ctx c{where};
   YAML::Node root;
   try {
@@ -144,11 +144,11 @@ fusion::Scenario ParseScenarioYaml(const std::string& text, const std::string& w
   }
   if (!root.IsDefined() || root.IsNull()) throw ScenarioError(where + ": empty scenario file");
   c.CheckKeys(root, "", {"name", "base", "gps", "imu", "outages", "camera", "speed", "seed"});
-  fusion::Scenario s;
+  sim::Scenario s;
   if (root["base"]) {
     if (!root["base"].IsScalar()) c.Fail(root["base"], "base", "expected a built-in scenario name");
     try {
-      s = fusion::BuiltinScenario(root["base"].Scalar());
+      s = sim::BuiltinScenario(root["base"].Scalar());
     } catch (const std::invalid_argument& e) {
       c.Fail(root["base"], "base", e.what());
     }
@@ -192,8 +192,8 @@ fusion::Scenario ParseScenarioYaml(const std::string& text, const std::string& w
                            "accel_noise_mps2_sqrt_hz", "gyro_noise_radps_sqrt_hz"});
     if (m["grade"]) {
       const std::string g = m["grade"].IsScalar() ? m["grade"].Scalar() : "";
-      if (g == "as-recorded") s.imu_grade = fusion::ImuGrade::kAsRecorded;
-      else if (g == "mems") s.imu_grade = fusion::ImuGrade::kMems;
+      if (g == "as-recorded") s.imu_grade = sim::ImuGrade::kAsRecorded;
+      else if (g == "mems") s.imu_grade = sim::ImuGrade::kMems;
       else c.Fail(m["grade"], "imu.grade", "expected 'as-recorded' or 'mems', got '" + g + "'");
     }
     if (m["accel_bias_sigma_mps2"]) s.imu_accel_bias_sigma_mps2 = c.NonNegative(m["accel_bias_sigma_mps2"], "imu.accel_bias_sigma_mps2");
@@ -208,7 +208,7 @@ fusion::Scenario ParseScenarioYaml(const std::string& text, const std::string& w
       const std::string f = "outages[" + std::to_string(i) + "]";
       const auto w = o[i];
       c.CheckKeys(w, f, {"start_s", "duration_s", "end_s", "centered"});
-      fusion::OutageWindow win;
+      sim::OutageWindow win;
       if (!w["start_s"] && !w["centered"]) c.Fail(w, f + ".start_s", "missing");
       if (w["start_s"]) win.start_s = c.NonNegative(w["start_s"], f + ".start_s");
       if (w["centered"]) {
@@ -232,20 +232,20 @@ fusion::Scenario ParseScenarioYaml(const std::string& text, const std::string& w
     }
   }
   try {
-    fusion::ValidateScenario(s);
+    sim::ValidateScenario(s);
   } catch (const std::invalid_argument& e) {
     throw ScenarioError(where + ": " + e.what());
   }
   return s;
 }
 
-fusion::Scenario LoadScenario(const std::string& name_or_path) {
-  for (const auto& n : fusion::BuiltinScenarioNames())
-    if (n == name_or_path) return fusion::BuiltinScenario(n);
+sim::Scenario LoadScenario(const std::string& name_or_path) {
+  for (const auto& n : sim::BuiltinScenarioNames())
+    if (n == name_or_path) return sim::BuiltinScenario(n);
   const std::filesystem::path path(name_or_path);
   if (!std::filesystem::exists(path)) {
     std::string known;
-    for (const auto& n : fusion::BuiltinScenarioNames()) known += (known.empty() ? "" : ", ") + n;
+    for (const auto& n : sim::BuiltinScenarioNames()) known += (known.empty() ? "" : ", ") + n;
     throw ScenarioError("scenario '" + name_or_path + "': neither a built-in (" + known +
                         ") nor an existing file");
   }

@@ -7,7 +7,7 @@
 //         jump_duration_s: 0, stated_sigma_scale: 1}
 //     # stated_sigma_scale (0, 100]: the receiver states this multiple of
 //     # its sigma (1/3: claims 1 m, delivers 3 m); antenna_body_m [x, y, z]
-//     # and measured: as-recorded | degraded (fusion/scenario.hpp)
+//     # and measured: as-recorded | degraded (sim/scenario.hpp)
 //   imu: {grade: as-recorded | mems, accel_bias_sigma_mps2: 0.05,
 //         gyro_bias_sigma_radps: 0.002, accel_noise_mps2_sqrt_hz: 0.01,
 //         gyro_noise_radps_sqrt_hz: 0.0005}
@@ -25,7 +25,7 @@
 //   seed: 7
 #pragma once
 
-#include "fusion/scenario.hpp"
+#include "sim/scenario.hpp"
 
 #include <stdexcept>
 #include <string>
@@ -37,10 +37,10 @@ class ScenarioError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// A built-in name (fusion::BuiltinScenarioNames()) or a path to a YAML file.
+// A built-in name (sim::BuiltinScenarioNames()) or a path to a YAML file.
 // Throws ScenarioError "FILE:LINE: field 'gps.sigma_h_m': must be >= 0, got -1"
 // (unknown key, wrong type, out-of-range value, outage end before start ...).
-fusion::Scenario LoadScenario(const std::string& name_or_path);
-fusion::Scenario ParseScenarioYaml(const std::string& text, const std::string& where);
+sim::Scenario LoadScenario(const std::string& name_or_path);
+sim::Scenario ParseScenarioYaml(const std::string& text, const std::string& where);
 
 }  // namespace locaid::pipeline

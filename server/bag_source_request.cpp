@@ -122,7 +122,7 @@ Status OpenBagSource(const v1::BagSource& b, EstimatorSetup* setup, std::unique_
   if (Status s = ParseTopics(b.topics(), &options.topics); !s.ok()) return s;
   // Outages placed on the drive's middle need its length: scan it all.
   const auto& outages = setup->scenario.outages;
-  if (std::any_of(outages.begin(), outages.end(), [](const fusion::OutageWindow& o) { return o.centered; }))
+  if (std::any_of(outages.begin(), outages.end(), [](const sim::OutageWindow& o) { return o.centered; }))
     options.preview_s = 0;
   try {
     auto bag = std::make_unique<pipeline::BagFrameSource>(b.path(), options);

@@ -9,7 +9,7 @@
 namespace locaid::server {
 
 namespace v1 = locaid::v1;
-using fusion::CameraFaultKind;
+using sim::CameraFaultKind;
 
 namespace {
 
@@ -34,8 +34,8 @@ bool KindFromProto(v1::CameraFault::Kind kind, CameraFaultKind* out) {
 
 }  // namespace
 
-grpc::Status CameraFaultFromProto(const v1::CameraFault& f, bool window, fusion::CameraFaultWindow* out) {
-  fusion::CameraFaultWindow w;
+grpc::Status CameraFaultFromProto(const v1::CameraFault& f, bool window, sim::CameraFaultWindow* out) {
+  sim::CameraFaultWindow w;
   if (!KindFromProto(f.kind(), &w.kind))
     return Invalid("fault.kind: must be DARK, NOISE, BLUR, FROZEN, DROP, LEFT_ONLY or RIGHT_ONLY, got " +
                    std::to_string(static_cast<int>(f.kind())));
@@ -65,12 +65,12 @@ grpc::Status CameraFaultFromProto(const v1::CameraFault& f, bool window, fusion:
   if (grpc::Status s = only_for("blur_sigma_px", f.blur_sigma_px(), w.kind == CameraFaultKind::kBlur, "BLUR");
       !s.ok())
     return s;
-  // 0 = the default (fusion::CameraFaultWindow's; 8 DN for NOISE).
+  // 0 = the default (sim::CameraFaultWindow's; 8 DN for NOISE).
   if (f.gain() != 0) w.gain = f.gain();
   if (noise) w.noise_dn = 8;
   if (f.noise_dn() != 0) w.noise_dn = f.noise_dn();
   if (f.blur_sigma_px() != 0) w.blur_sigma_px = f.blur_sigma_px();
-  const std::string problem = fusion::CameraFaultParameterProblem(w);
+  const std::string problem = sim::CameraFaultParameterProblem(w);
   if (!problem.empty()) return Invalid("fault." + problem);
   *out = w;
   return grpc::Status::OK;
@@ -88,7 +88,7 @@ grpc::Status CameraFaultCommandFromProto(const v1::InjectCameraFaultRequest& req
     default: return Invalid("action: must be START_NOW, STOP_NOW or WINDOW");
   }
   if (!req.has_fault()) return Invalid("fault: required for START_NOW and WINDOW");
-  fusion::CameraFaultWindow fault;
+  sim::CameraFaultWindow fault;
   if (grpc::Status s = CameraFaultFromProto(req.fault(), action == CameraFaultAction::kWindow, &fault); !s.ok())
     return s;
   *out = [action, fault](pipeline::Pipeline& p) { p.InjectCameraFault(action, fault); };

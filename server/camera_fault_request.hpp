@@ -2,7 +2,7 @@
 // thread, with every value checked here.
 #pragma once
 
-#include "fusion/scenario.hpp"
+#include "sim/scenario.hpp"
 #include "locaid/v1/localization.pb.h"
 #include "pipeline/camera_faults.hpp"
 #include "server/session.hpp"
@@ -17,7 +17,7 @@ namespace locaid::server {
 // (gain (0, 1], noise_dn [0, 255], blur_sigma_px (0, 50]) and only for the
 // kinds they change; times finite, start_s in [0, 1e6] (WINDOW only),
 // duration_s in [0, 1e6] (WINDOW: > 0).
-grpc::Status CameraFaultFromProto(const locaid::v1::CameraFault& fault, bool window, fusion::CameraFaultWindow* out);
+grpc::Status CameraFaultFromProto(const locaid::v1::CameraFault& fault, bool window, sim::CameraFaultWindow* out);
 // The whole request: OK and `out` set, or INVALID_ARGUMENT (a known action;
 // STOP_NOW needs no fault).
 grpc::Status CameraFaultCommandFromProto(const locaid::v1::InjectCameraFaultRequest& req, Session::Command* out);

@@ -56,11 +56,11 @@ class DeferredPipeline : public pipeline::Pipeline {
   void StartOutageNow(double d) override { Do([d](pipeline::Pipeline& p) { p.StartOutageNow(d); }); }
   void StopOutage() override { Do([](pipeline::Pipeline& p) { p.StopOutage(); }); }
   void AddOutageWindow(double s, double d) override { Do([s, d](pipeline::Pipeline& p) { p.AddOutageWindow(s, d); }); }
-  void InjectCameraFault(pipeline::CameraFaultAction a, const fusion::CameraFaultWindow& f) override {
+  void InjectCameraFault(pipeline::CameraFaultAction a, const sim::CameraFaultWindow& f) override {
     Do([a, f](pipeline::Pipeline& p) { p.InjectCameraFault(a, f); });
   }
   void SetPairRunner(const PairRunner* r) override { Do([r](pipeline::Pipeline& p) { p.SetPairRunner(r); }); }
-  void SetScenario(const fusion::Scenario& sc) override { Do([sc](pipeline::Pipeline& p) { p.SetScenario(sc); }); }
+  void SetScenario(const sim::Scenario& sc) override { Do([sc](pipeline::Pipeline& p) { p.SetScenario(sc); }); }
   bool origin(double* a, double* b, double* c) const override {
     std::lock_guard lock(inner_mu_);
     return inner_ && inner_->origin(a, b, c);

@@ -214,7 +214,7 @@ grpc::ServerUnaryReactor* LocalizationService::SetScenario(grpc::CallbackServerC
   if (Status s = sessions_.Find(req->session_id(), &session); !s.ok()) return Reply(ctx, s);
   if (Status s = RequireActive(*session, "SetScenario"); !s.ok()) return Reply(ctx, s);
   if (req->scenario().kind_case() == v1::Scenario::KIND_NOT_SET) return Reply(ctx, Invalid("scenario: required"));
-  fusion::Scenario scenario;
+  sim::Scenario scenario;
   std::string name;
   if (Status s = ResolveScenario(req->scenario(), &scenario, &name); !s.ok()) return Reply(ctx, s);
   session->Post([scenario](pipeline::Pipeline& p) { p.SetScenario(scenario); });

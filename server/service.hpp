@@ -9,6 +9,7 @@
 #include "server/session_registry.hpp"
 #include "pipeline/live_frame_source.hpp"
 #include "pipeline/localizer.hpp"
+#include "pipeline/run_assembly.hpp"
 
 #include <grpcpp/grpcpp.h>
 
@@ -28,9 +29,7 @@ namespace locaid::server {
 
 // What a session's estimator is built from.
 struct EstimatorSetup {
-  StereoCamera camera;
-  Eigen::Isometry3d T_cam0_imu = Eigen::Isometry3d::Identity();
-  fusion::Scenario scenario;
+  sim::Scenario scenario;
   std::string vo_method = "default";
   Eigen::Vector3d gps_antenna_body_m = Eigen::Vector3d::Zero();  // lever arm (live sources)
   // VehicleOptions: the car's motion constraints and the IMU mounting.
@@ -40,11 +39,12 @@ struct EstimatorSetup {
   // LiveSource.speed_sensor (0 = the filter's defaults).
   double speed_sigma_mps = 0, speed_scale_sigma = 0;
 };
-// Builds a session's estimator; throws std::invalid_argument (unknown VO
-// method, bad scenario). Tests and benchmarks pass their own.
-using EstimatorFactory = std::function<std::unique_ptr<pipeline::Estimator>(const EstimatorSetup&)>;
-// The production one: a pipeline::Localizer.
-std::unique_ptr<pipeline::Estimator> MakeLocalizer(const EstimatorSetup& setup);
+// Builds a session's estimator (pipeline/run_assembly.hpp); throws
+// std::invalid_argument (unknown VO method). Tests and benchmarks pass their
+// own; the production one is pipeline::MakeLocalizer.
+using EstimatorFactory = pipeline::EstimatorMaker;
+// The run a request asks for (pipeline::AssembleRun puts it together).
+pipeline::RunOptions RunOptionsOf(const EstimatorSetup& setup);
 
 // Something that streams to a client and can be woken by the hub or ended by
 // the server. Reached through a Waker so callbacks never touch a deleted
@@ -155,7 +155,7 @@ class LocalizationService final
   // Rendered on the session thread (a DeferredPipeline): checked here, started at once.
   grpc::Status StartSynthetic(const locaid::v1::SyntheticSource& s, SessionOptions options, EstimatorSetup setup,
                               std::string* id);
-  grpc::Status ResolveScenario(const locaid::v1::Scenario& s, fusion::Scenario* out, std::string* name) const;
+  grpc::Status ResolveScenario(const locaid::v1::Scenario& s, sim::Scenario* out, std::string* name) const;
   // A control of a running session (InjectOutage, InjectCameraFault): the
   // session found and active (else NOT_FOUND / FAILED_PRECONDITION naming
   // `rpc`), the request turned into a command by `to_command` (its

@@ -14,6 +14,7 @@
 #include "server/synthetic_drive.hpp"
 #include "server/deferred_pipeline.hpp"
 #include "pipeline/frame_source.hpp"
+#include "pipeline/run_assembly.hpp"
 #include "pipeline/scenario_yaml.hpp"
 
 #include <algorithm>
@@ -54,20 +55,12 @@ Status ParseVehicleOptions(const v1::VehicleOptions& v, EstimatorSetup* setup) {
   return Status::OK;
 }
 
-// The frame loop of a session reading `source`: the estimator gets its camera
-// and extrinsic, and the scenario's outages placed on the drive ("tunnel-30s"
-// is relative to it); an outage that leaves the filter nothing to start from
+// The frame loop of a session reading `source`, assembled as locaid-replay
+// assembles its runs: an outage that leaves the filter nothing to start from
 // is said with the first pose (Session.error). Throws what the factory throws.
-std::unique_ptr<pipeline::FrameLoop> MakeFrameLoop(const EstimatorFactory& make, EstimatorSetup setup,
+std::unique_ptr<pipeline::FrameLoop> MakeFrameLoop(const EstimatorFactory& make, const EstimatorSetup& setup,
                                                    std::unique_ptr<pipeline::FrameSource> source) {
-  setup.camera = source->camera();
-  setup.T_cam0_imu = source->T_cam0_imu();
-  const double duration_s = source->duration_s();
-  if (duration_s > 0) setup.scenario = fusion::PlaceOutagesForDrive(setup.scenario, duration_s);
-  auto loop = std::make_unique<pipeline::FrameLoop>(std::move(source), pipeline::ScenarioStage(setup.scenario),
-                                                    make(setup));
-  loop->set_notice(fusion::OutageCoverageWarning(setup.scenario, duration_s));
-  return loop;
+  return pipeline::AssembleRun(std::move(source), RunOptionsOf(setup), make).loop;
 }
 
 // A KITTI drive on the server: opened and checked (frames in range, at least
@@ -131,8 +124,10 @@ Status OpenLiveSource(const v1::LiveSource& l, EstimatorSetup* setup, std::uniqu
 
 }  // namespace
 
-std::unique_ptr<pipeline::Estimator> MakeLocalizer(const EstimatorSetup& setup) {
-  pipeline::LocalizerOptions options;
+pipeline::RunOptions RunOptionsOf(const EstimatorSetup& setup) {
+  pipeline::RunOptions run;
+  run.scenario = setup.scenario;
+  pipeline::LocalizerOptions& options = run.localizer;
   options.vo_method = setup.vo_method;
   options.ekf.gps_lever_arm_body_m = setup.gps_antenna_body_m;
   options.ekf.vehicle_constraints = setup.vehicle_constraints;
@@ -142,11 +137,10 @@ std::unique_ptr<pipeline::Estimator> MakeLocalizer(const EstimatorSetup& setup) 
   options.ekf.learn_gps_noise = setup.learn_gps_noise;
   if (setup.speed_sigma_mps > 0) options.ekf.speed_sigma_mps = setup.speed_sigma_mps;
   if (setup.speed_scale_sigma > 0) options.ekf.speed_scale_sigma = setup.speed_scale_sigma;
-  options.ekf = pipeline::EkfConfigForScenario(options.ekf, setup.scenario);
-  return std::make_unique<pipeline::Localizer>(setup.camera, setup.T_cam0_imu, options);
+  return run;
 }
 
-Status LocalizationService::ResolveScenario(const v1::Scenario& s, fusion::Scenario* out, std::string* name) const {
+Status LocalizationService::ResolveScenario(const v1::Scenario& s, sim::Scenario* out, std::string* name) const {
   try {
     switch (s.kind_case()) {
       case v1::Scenario::kYaml:
@@ -155,15 +149,15 @@ Status LocalizationService::ResolveScenario(const v1::Scenario& s, fusion::Scena
         *name = out->name.empty() ? "yaml" : out->name;
         break;
       case v1::Scenario::kName:
-        *out = fusion::BuiltinScenario(s.name());
+        *out = sim::BuiltinScenario(s.name());
         *name = s.name();
         break;
       case v1::Scenario::KIND_NOT_SET:
-        *out = fusion::BuiltinScenario(config_.default_scenario);
+        *out = sim::BuiltinScenario(config_.default_scenario);
         *name = config_.default_scenario;
         break;
     }
-    fusion::ValidateScenario(*out);
+    sim::ValidateScenario(*out);
   } catch (const std::exception& e) {
     return Invalid(std::string("scenario: ") + e.what());
   }
@@ -251,10 +245,8 @@ Status LocalizationService::StartSynthetic(const v1::SyntheticSource& s, Session
   }
   // The estimator is built after the render; building one now with the
   // drive's rig checks vo_method and the scenario before the RPC answers.
-  setup.camera = rig.camera;
-  setup.T_cam0_imu = rig.T_cam0_imu;
   try {
-    estimator_factory_(setup);
+    estimator_factory_(pipeline::EstimatorInputsFor(rig.camera, rig.T_cam0_imu, RunOptionsOf(setup)));
   } catch (const std::exception& e) {
     return Invalid(std::string("vo_method/scenario: ") + e.what());
   }

@@ -1,6 +1,6 @@
 #include "sweep/manifest.hpp"
 
-#include "fusion/scenario.hpp"
+#include "sim/scenario.hpp"
 #include "pipeline/scenario_yaml.hpp"
 
 #include <yaml-cpp/yaml.h>
@@ -110,7 +110,7 @@ class ManifestReader {
   void ReadScenarios(const YAML::Node& list, Manifest& m) {
     if (!list.IsSequence() || list.size() == 0)
       Fail(list, "scenarios", "expected a non-empty list of built-in names or YAML files");
-    const auto builtin = fusion::BuiltinScenarioNames();
+    const auto builtin = sim::BuiltinScenarioNames();
     std::string names;
     for (const auto& b : builtin) names += (names.empty() ? "" : ", ") + b;
     for (size_t i = 0; i < list.size(); ++i) {
@@ -129,7 +129,7 @@ class ManifestReader {
       }
       try {
         // The loader locaid-replay itself uses: what it refuses, the sweep refuses now.
-        const fusion::Scenario s = pipeline::LoadScenario(ref.arg);
+        const sim::Scenario s = pipeline::LoadScenario(ref.arg);
         ref.name = s.name;
         ref.camera_faults = !s.camera_faults.empty();
       } catch (const std::exception& e) {

@@ -200,7 +200,7 @@ int main(int argc, char** argv) {
     socket_dir_guard.dir = socket_dir;
     config.listen_unix = (socket_dir / "locaid.sock").string();
   }
-  LocalizationServer server(config, [](const EstimatorSetup&) { return std::make_unique<ConstantEstimator>(); });
+  LocalizationServer server(config, [](const locaid::pipeline::EstimatorInputs&) { return std::make_unique<ConstantEstimator>(); });
   const std::string target = "127.0.0.1:" + std::to_string(server.port());
   const std::string sub_target = unix_socket ? server.unix_target() : target;
   // In-process TCP subscribers share the control stub's connection (channel 0), as before --unix existed.

@@ -9,7 +9,7 @@
 // thread, the session follower (gRPC) on its own thread, and main, which
 // waits for SIGTERM/SIGINT and then stops both. Exit status: 0 after a
 // signal, 1 when the WebSocket port cannot be opened, 2 for bad flags.
-#include "client/connection.hpp"
+#include "connection/connection.hpp"
 #include "foxglove/apps/session_follower.hpp"
 #include "output/channels.hpp"
 #include "foxglove/ws_server.hpp"
@@ -101,13 +101,13 @@ int main(int argc, char** argv) {
   }
   fx::FollowerOptions follow;
   try {
-    locaid::client::Connection connection;
+    locaid::connection::Connection connection;
     connection.server = server;
     connection.token_file = token_file;
     connection.tls_ca = tls_ca;
-    locaid::client::ResolveToken(connection);
+    locaid::connection::ResolveToken(connection);
     follow.token = connection.token;
-    follow.channel = locaid::client::MakeChannel(connection);
+    follow.channel = locaid::connection::MakeChannel(connection);
   } catch (const std::exception& e) {
     std::cerr << e.what() << "\n";
     return 2;

@@ -1,6 +1,6 @@
 #include "foxglove/apps/session_follower.hpp"
 
-#include "client/connection.hpp"
+#include "connection/connection.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -13,7 +13,7 @@ namespace {
 bool Live(v1::SessionState s) { return s == v1::SESSION_STATE_STARTING || s == v1::SESSION_STATE_RUNNING; }
 
 std::string Describe(const grpc::Status& s) {
-  const std::string name = client::StatusCodeName(s.error_code());
+  const std::string name = connection::StatusCodeName(s.error_code());
   return s.error_message().empty() ? name : name + ": " + s.error_message();
 }
 

@@ -11,7 +11,7 @@
 // lat/lon/alt go into the same frame, so the filter's own ENU origin (its
 // first degraded fix) does not enter the score.
 #include "core/timed_pose.hpp"
-#include "fusion/scenario.hpp"
+#include "sim/scenario.hpp"
 #include "kitti/dataset.hpp"
 #include "kitti/oxts_pose.hpp"
 #include "pipeline/replay_metrics.hpp"

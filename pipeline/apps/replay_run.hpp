@@ -4,7 +4,7 @@
 #pragma once
 
 #include "core/timed_pose.hpp"
-#include "fusion/scenario.hpp"
+#include "sim/scenario.hpp"
 #include "kitti/dataset.hpp"
 #include "pipeline/frame_loop.hpp"
 #include "pipeline/localizer.hpp"
@@ -26,7 +26,7 @@ class ReplayRun {
  public:
   // `dataset` (nullptr: a source without ground truth, e.g. a ROS 2 bag) and
   // `localizer` must outlive the run.
-  ReplayRun(const kitti::StereoDataset* dataset, const Localizer& localizer, const fusion::Scenario& scenario)
+  ReplayRun(const kitti::StereoDataset* dataset, const Localizer& localizer, const sim::Scenario& scenario)
       : dataset_(dataset), localizer_(localizer), scenario_(scenario) {}
 
   // One pose of the frame loop (kind kPose).
@@ -49,7 +49,7 @@ class ReplayRun {
   const kitti::StereoDataset* dataset_;
   std::optional<int64_t> t0_ns_;  // time of the first pose (no dataset)
   const Localizer& localizer_;
-  const fusion::Scenario scenario_;
+  const sim::Scenario scenario_;
   // Ground truth: every OXTS record in the filter's ENU frame, once it has one.
   std::optional<GeographicLib::LocalCartesian> gt_enu_;
   std::vector<TimedPose> gt_poses_;

@@ -5,7 +5,7 @@
 // KITTI or synthetic drive can so be replayed through a real gpsd (gpsfake).
 //
 //   locaid-nmea --drive DIR [--scenario NAME|FILE] [--seed N] [--start-utc 2024-05-17T12:00:00Z] --out F.nmea
-#include "fusion/scenario.hpp"
+#include "sim/scenario.hpp"
 #include "kitti/dataset.hpp"
 #include "kitti/oxts_pose.hpp"
 #include "sensors/nmea.hpp"
@@ -36,13 +36,13 @@ int main(int argc, char** argv) {
     const auto dataset = kitti::OpenDataset(drive_dir);
     const auto& oxts = dataset->oxts();
     if (oxts.empty()) throw std::runtime_error(drive_dir + ": no OXTS records");
-    fusion::Scenario scenario = pipeline::LoadScenario(scenario_arg);
+    sim::Scenario scenario = pipeline::LoadScenario(scenario_arg);
     if (seed >= 0) scenario.seed = static_cast<uint64_t>(seed);
     const double duration_s = static_cast<double>(oxts.back().t_ns - oxts.front().t_ns) * 1e-9;
-    scenario = fusion::PlaceOutagesForDrive(scenario, duration_s);
+    scenario = sim::PlaceOutagesForDrive(scenario, duration_s);
     const int64_t t0 = oxts.front().t_ns;
     const int64_t utc0 = start_utc.empty() ? t0 : sensors::ParseIso8601Utc(start_utc);
-    fusion::GpsScenario gps(scenario);
+    sim::GpsReceiverSim gps(scenario);
     std::ofstream out(out_path, std::ios::binary);
     if (!out) throw std::runtime_error(out_path + ": cannot write");
     int fixes = 0, outage_epochs = 0;

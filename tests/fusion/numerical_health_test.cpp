@@ -13,7 +13,7 @@
 // be refused (std::invalid_argument naming the field) or ignored/counted,
 // never absorbed into the state.
 #include "fusion/ekf.hpp"
-#include "fusion/scenario.hpp"
+#include "sim/scenario.hpp"
 #include "sim.hpp"
 
 #include <Eigen/Cholesky>
@@ -130,14 +130,14 @@ RunResult Drive(Ekf& ekf, const std::vector<SimEvent>& events, const Torture& t,
   RunResult r;
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> angle(0, 2 * M_PI);
-  Scenario mems;
-  mems.imu_grade = ImuGrade::kMems;
+  sim::Scenario mems;
+  mems.imu_grade = sim::ImuGrade::kMems;
   mems.imu_accel_bias_sigma_mps2 = 0.2;       // poor consumer MEMS
   mems.imu_gyro_bias_sigma_radps = 0.005;     // ~0.3 deg/s
   mems.imu_accel_noise_mps2_sqrt_hz = 0.05;
   mems.imu_gyro_noise_radps_sqrt_hz = 0.003;
   mems.seed = seed;
-  ImuDegrader degrader(mems);
+  sim::ImuDegrader degrader(mems);
   int burst_left = 0;
   double next_burst_s = t.jump_every_s;
   Eigen::Vector2d jump = Eigen::Vector2d::Zero();

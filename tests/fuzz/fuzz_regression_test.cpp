@@ -1,7 +1,7 @@
 // Inputs the fuzzers found (fuzz/corpus/<target>/, also the regression corpus
 // every fuzz run starts from) replayed through the parsers in the ordinary
 // test build, so a regression fails here even without clang.
-#include "fusion/scenario.hpp"
+#include "sim/scenario.hpp"
 #include "pipeline/live_frame_source.hpp"
 #include "pipeline/scenario_yaml.hpp"
 #include "server/live_source_request.hpp"
@@ -74,10 +74,10 @@ TEST(FuzzRegression, ScenarioRatesAndDurationsThatOverflowInt64AreRefused) {
     }
   }
   // The bounds themselves are accepted.
-  fusion::Scenario s;
+  sim::Scenario s;
   s.gps_rate_hz = 1000;
   s.jump_duration_s = 1e6;
-  EXPECT_NO_THROW(fusion::ValidateScenario(s));
+  EXPECT_NO_THROW(sim::ValidateScenario(s));
 }
 
 // Found by fuzz_push_sensors (fuzz/corpus/push_sensors/crash-zero-variance-

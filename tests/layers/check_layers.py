@@ -4,7 +4,7 @@
 The layers are the table of docs/architecture.md ("Module map"), repeated
 here as LAYERS: a module's libraries may include their own module and the
 modules of lower layers only. Programs (a module's apps/ folder, clients/)
-may also use the output and client libraries, never the server's or the
+may also use the output and connection libraries, never the server's or the
 Foxglove bridge's, nor another folder of programs. tests/, bench/ and fuzz/
 may include anything.
 
@@ -19,17 +19,17 @@ import tempfile
 # Layer of each library module (lower number = lower layer).
 LAYERS = {
     "core": 0, "fusion": 0, "record": 0, "locaid": 0,  # "locaid/v1/...": the generated API (proto/)
-    "kitti": 1, "bag": 1, "sensors": 2,
+    "kitti": 1, "bag": 1, "sim": 1, "sensors": 2,
     "synth": 3, "eval": 3, "vo": 3,
     "pipeline": 4,
-    "output": 5, "client": 5, "sweep": 5,
+    "output": 5, "connection": 5, "sweep": 5,
     "server": 6, "foxglove": 6,
 }
-PROGRAMS = 5.5   # apps/ folders and clients/: above output/ and client/, below server/ and foxglove/
+PROGRAMS = 5.5   # apps/ folders and clients/: above output/ and connection/, below server/ and foxglove/
 ANYTHING = 100   # tests/, bench/, fuzz/
 LAYERS["clients"] = PROGRAMS
-SCANNED = ["core", "fusion", "record", "kitti", "bag", "sensors", "synth", "eval", "vo", "pipeline", "output",
-           "client", "sweep", "server", "foxglove", "clients", "tests", "bench", "fuzz"]
+SCANNED = ["core", "fusion", "record", "kitti", "bag", "sim", "sensors", "synth", "eval", "vo", "pipeline", "output",
+           "connection", "sweep", "server", "foxglove", "clients", "tests", "bench", "fuzz"]
 INCLUDE = re.compile(r'^\s*#\s*include\s+"(([a-z_0-9]+)/[^"]*)"')
 
 

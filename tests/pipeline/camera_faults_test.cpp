@@ -16,8 +16,8 @@
 namespace locaid::pipeline {
 namespace {
 
-using fusion::CameraFaultKind;
-using fusion::CameraFaultWindow;
+using sim::CameraFaultKind;
+using sim::CameraFaultWindow;
 
 constexpr int64_t kT0 = 5'000'000'000'000;  // first frame, ns
 constexpr int64_t kPeriod = 100'000'000;    // 10 Hz
@@ -42,8 +42,8 @@ CameraFaultWindow Fault(CameraFaultKind kind, double start_s, double duration_s)
   return w;
 }
 
-fusion::Scenario WithFaults(std::vector<CameraFaultWindow> faults, uint64_t seed = 1) {
-  fusion::Scenario s;
+sim::Scenario WithFaults(std::vector<CameraFaultWindow> faults, uint64_t seed = 1) {
+  sim::Scenario s;
   s.name = "test";
   s.camera_faults = std::move(faults);
   s.seed = seed;
@@ -233,7 +233,7 @@ TEST(CameraFaults, SetScenarioKeepsTheClockAndTheInjectedFaults) {
 }
 
 TEST(CameraFaults, OutOfRangeValuesAreRefusedNamingTheField) {
-  fusion::Scenario s = WithFaults({Fault(CameraFaultKind::kDark, 0, 10)});
+  sim::Scenario s = WithFaults({Fault(CameraFaultKind::kDark, 0, 10)});
   s.camera_faults[0].gain = 1.5;
   try {
     CameraFaultStage stage(s);

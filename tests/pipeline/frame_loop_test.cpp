@@ -124,7 +124,7 @@ constexpr int64_t kPeriod = 100'000'000;    // 10 Hz
 // The loop with the real scenario stage: `scenario` with no noise worth
 // speaking of, so the fixes it makes are where the reference was.
 FrameLoop MakeLoop(std::deque<SourceItem> items, std::shared_ptr<RecordingEstimator::Log> log,
-                   fusion::Scenario scenario = {}) {
+                   sim::Scenario scenario = {}) {
   return FrameLoop(std::make_unique<ScriptedSource>(std::move(items)), ScenarioStage(std::move(scenario)),
                    std::make_unique<RecordingEstimator>(std::move(log)));
 }
@@ -174,8 +174,8 @@ std::deque<SourceItem> FramesWithImages(int n) {
   return items;
 }
 
-fusion::CameraFaultWindow CameraFault(fusion::CameraFaultKind kind, double start_s, double duration_s) {
-  fusion::CameraFaultWindow w;
+sim::CameraFaultWindow CameraFault(sim::CameraFaultKind kind, double start_s, double duration_s) {
+  sim::CameraFaultWindow w;
   w.kind = kind;
   w.start_s = start_s;
   w.duration_s = duration_s;
@@ -184,20 +184,20 @@ fusion::CameraFaultWindow CameraFault(fusion::CameraFaultKind kind, double start
 
 TEST(FrameLoop, CameraFaultsOfTheScenarioInjectedAndReplacedReachTheEstimator) {
   auto log = std::make_shared<RecordingEstimator::Log>();
-  fusion::Scenario scenario;
-  scenario.camera_faults = {CameraFault(fusion::CameraFaultKind::kDrop, 0.2, 0.2)};  // frames 2, 3
+  sim::Scenario scenario;
+  scenario.camera_faults = {CameraFault(sim::CameraFaultKind::kDrop, 0.2, 0.2)};  // frames 2, 3
   FrameLoop loop = MakeLoop(FramesWithImages(20), log, scenario);
-  loop.InjectCameraFault(CameraFaultAction::kWindow, CameraFault(fusion::CameraFaultKind::kLeftOnly, 0.5, 0.1));
+  loop.InjectCameraFault(CameraFaultAction::kWindow, CameraFault(sim::CameraFaultKind::kLeftOnly, 0.5, 0.1));
   for (StepResult r = loop.Step(); r.kind != StepResult::Kind::kEnd; r = loop.Step()) {
     ASSERT_EQ(r.kind, StepResult::Kind::kPose);
     if (r.frame_index == 7) loop.InjectCameraFault(CameraFaultAction::kStartNow,
-                                                   CameraFault(fusion::CameraFaultKind::kRightOnly, 0, 0.2));
+                                                   CameraFault(sim::CameraFaultKind::kRightOnly, 0, 0.2));
     if (r.frame_index == 10) {
       // The new scenario's faults on the same clock (from frame 0); the injected ones stay.
-      fusion::Scenario next;
-      next.camera_faults = {CameraFault(fusion::CameraFaultKind::kDrop, 1.5, 0.1)};  // frame 15
+      sim::Scenario next;
+      next.camera_faults = {CameraFault(sim::CameraFaultKind::kDrop, 1.5, 0.1)};  // frame 15
       loop.SetScenario(next);
-      loop.InjectCameraFault(CameraFaultAction::kStartNow, CameraFault(fusion::CameraFaultKind::kDrop, 0, 0));
+      loop.InjectCameraFault(CameraFaultAction::kStartNow, CameraFault(sim::CameraFaultKind::kDrop, 0, 0));
     }
     if (r.frame_index == 12) loop.InjectCameraFault(CameraFaultAction::kStop, {});
   }
@@ -209,8 +209,8 @@ TEST(FrameLoop, CameraFaultsOfTheScenarioInjectedAndReplacedReachTheEstimator) {
     EXPECT_EQ(log->had_left[static_cast<size_t>(i)], left) << "frame " << i;
     EXPECT_EQ(log->had_right[static_cast<size_t>(i)], right) << "frame " << i;
   }
-  fusion::Scenario bad;
-  bad.camera_faults = {CameraFault(fusion::CameraFaultKind::kDark, 0, 1)};
+  sim::Scenario bad;
+  bad.camera_faults = {CameraFault(sim::CameraFaultKind::kDark, 0, 1)};
   bad.camera_faults[0].gain = 0;
   EXPECT_THROW(loop.SetScenario(bad), std::invalid_argument);
 }

@@ -10,10 +10,10 @@
 namespace locaid::pipeline {
 namespace {
 
-using fusion::CameraFaultKind;
+using sim::CameraFaultKind;
 
 TEST(ScenarioYamlCamera, LoadsEveryFaultWithItsParametersAndDefaults) {
-  const fusion::Scenario s = ParseScenarioYaml(
+  const sim::Scenario s = ParseScenarioYaml(
       "camera: [{start_s: 20, duration_s: 10, fault: dark, gain: 0.12, noise_dn: 2},\n"
       "         {start_s: 40, end_s: 50, fault: frozen},\n"
       "         {start_s: 1, duration_s: 2, fault: dark},\n"

@@ -12,20 +12,20 @@ namespace locaid::pipeline {
 namespace {
 
 TEST(ScenarioYamlSpeed, LoadsTheSensorAndItsDefaults) {
-  const fusion::Scenario s =
+  const sim::Scenario s =
       ParseScenarioYaml("speed: {rate_hz: 20, sigma_mps: 0.1, scale_error: 0.005}\n", "speed.yaml");
   ASSERT_TRUE(s.speed.has_value());
   EXPECT_DOUBLE_EQ(s.speed->rate_hz, 20);
   EXPECT_DOUBLE_EQ(s.speed->sigma_mps, 0.1);
   EXPECT_DOUBLE_EQ(s.speed->scale_error, 0.005);
 
-  const fusion::Scenario d = ParseScenarioYaml("speed: {}\n", "speed.yaml");
+  const sim::Scenario d = ParseScenarioYaml("speed: {}\n", "speed.yaml");
   ASSERT_TRUE(d.speed.has_value()) << "an empty mapping is a sensor with the defaults";
   EXPECT_DOUBLE_EQ(d.speed->rate_hz, 50);
   EXPECT_DOUBLE_EQ(d.speed->sigma_mps, 0.05);
   EXPECT_DOUBLE_EQ(d.speed->scale_error, 0);
 
-  const fusion::Scenario neg = ParseScenarioYaml("speed: {scale_error: -0.02}\n", "speed.yaml");
+  const sim::Scenario neg = ParseScenarioYaml("speed: {scale_error: -0.02}\n", "speed.yaml");
   ASSERT_TRUE(neg.speed.has_value());
   EXPECT_DOUBLE_EQ(neg.speed->scale_error, -0.02) << "a tyre that reads low";
 

@@ -31,7 +31,7 @@ TEST(ScenarioYaml, ShippedExamplesLoad) {
     EXPECT_NO_THROW(LoadScenario(e.path().string())) << e.path();
   }
   EXPECT_GE(files, 5);
-  const auto builtin = fusion::BuiltinScenario("urban-canyon");
+  const auto builtin = sim::BuiltinScenario("urban-canyon");
   const auto per_axis = LoadScenario((dir / "urban-canyon.yaml").string());
   const auto two_d = LoadScenario((dir / "urban-canyon-2drms.yaml").string());
   EXPECT_DOUBLE_EQ(per_axis.gps_sigma_h_m, builtin.gps_sigma_h_m);
@@ -53,15 +53,15 @@ TEST(ScenarioYaml, LoadsAGoodFile) {
   EXPECT_EQ(s.name, "good");
   EXPECT_DOUBLE_EQ(s.gps_rate_hz, 2);
   EXPECT_DOUBLE_EQ(s.gps_sigma_h_m, 4.5);
-  EXPECT_DOUBLE_EQ(s.jump_size_m, fusion::BuiltinScenario("urban-canyon").jump_size_m);
-  EXPECT_EQ(s.imu_grade, fusion::ImuGrade::kMems);
+  EXPECT_DOUBLE_EQ(s.jump_size_m, sim::BuiltinScenario("urban-canyon").jump_size_m);
+  EXPECT_EQ(s.imu_grade, sim::ImuGrade::kMems);
   ASSERT_EQ(s.outages.size(), 2u);
   EXPECT_DOUBLE_EQ(s.outages[1].duration_s, 12);
   EXPECT_EQ(s.seed, 17u);
 }
 
 TEST(ScenarioYaml, BuiltinNames) {
-  for (const auto& n : fusion::BuiltinScenarioNames()) EXPECT_EQ(LoadScenario(n).name, n);
+  for (const auto& n : sim::BuiltinScenarioNames()) EXPECT_EQ(LoadScenario(n).name, n);
   EXPECT_THROW(LoadScenario("no-such-scenario"), ScenarioError);
 }
 

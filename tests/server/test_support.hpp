@@ -116,10 +116,11 @@ class FakeEstimator : public pipeline::Estimator {
 
 // VO method "fake-fail-at-3" gives an estimator that throws on frame 3.
 inline EstimatorFactory FakeFactory() {
-  return [](const EstimatorSetup& setup) -> std::unique_ptr<pipeline::Estimator> {
-    if (setup.vo_method == "fake-fail-at-3") return std::make_unique<FakeEstimator>(3);
-    if (setup.vo_method != "default" && setup.vo_method != "thesis") {
-      throw std::invalid_argument("unknown VO method '" + setup.vo_method + "'");
+  return [](const pipeline::EstimatorInputs& in) -> std::unique_ptr<pipeline::Estimator> {
+    const std::string& vo_method = in.localizer.vo_method;
+    if (vo_method == "fake-fail-at-3") return std::make_unique<FakeEstimator>(3);
+    if (vo_method != "default" && vo_method != "thesis") {
+      throw std::invalid_argument("unknown VO method '" + vo_method + "'");
     }
     return std::make_unique<FakeEstimator>();
   };

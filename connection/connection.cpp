@@ -1,4 +1,4 @@
-#include "client/connection.hpp"
+#include "connection/connection.hpp"
 
 #include <cctype>
 #include <chrono>
@@ -6,7 +6,7 @@
 #include <sstream>
 #include <stdexcept>
 
-namespace locaid::client {
+namespace locaid::connection {
 namespace {
 
 std::string ReadFile(const std::string& path, const char* what) {
@@ -75,4 +75,4 @@ const char* StatusCodeName(grpc::StatusCode code) {
   }
 }
 
-}  // namespace locaid::client
+}  // namespace locaid::connection

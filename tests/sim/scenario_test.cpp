@@ -1,6 +1,6 @@
 // GPS/IMU degradation scenarios and scenario files.
 #include "fusion/geodesy.hpp"
-#include "fusion/scenario.hpp"
+#include "sim/scenario.hpp"
 
 #include <gtest/gtest.h>
 
@@ -11,7 +11,8 @@
 #include <string>
 #include <vector>
 
-namespace locaid::fusion {
+namespace locaid::sim {
+using fusion::EnuFrame;
 namespace {
 
 constexpr double kLat = 49.0, kLon = 8.4, kAlt = 110.0;
@@ -22,7 +23,7 @@ struct Collected {
   std::vector<Eigen::Vector3d> errors;
 };
 
-Collected RunScenario(GpsScenario& gps, double duration_s) {
+Collected RunScenario(GpsReceiverSim& gps, double duration_s) {
   EnuFrame enu;
   enu.SetOrigin(kLat, kLon, kAlt);
   Collected c;
@@ -35,10 +36,10 @@ Collected RunScenario(GpsScenario& gps, double duration_s) {
   return c;
 }
 
-TEST(GpsScenario, RateNoiseAndRepeatability) {
+TEST(GpsReceiverSim, RateNoiseAndRepeatability) {
   Scenario s = BuiltinScenario("urban-canyon");
   s.jump_probability = 0;
-  GpsScenario a(s), b(s);
+  GpsReceiverSim a(s), b(s);
   const auto ca = RunScenario(a, 600), cb = RunScenario(b, 600);
   // 1 Hz over 600 s.
   EXPECT_NEAR(static_cast<double>(ca.fixes.size()), 601, 2);
@@ -51,15 +52,15 @@ TEST(GpsScenario, RateNoiseAndRepeatability) {
   EXPECT_NEAR(sigma, s.gps_sigma_h_m, kSigmaTolFraction * s.gps_sigma_h_m);
   Scenario other = s;
   other.seed = 2;
-  GpsScenario c(other);
+  GpsReceiverSim c(other);
   EXPECT_NE(RunScenario(c, 10).fixes[0].lat_deg, ca.fixes[0].lat_deg);
 }
 
-TEST(GpsScenario, AReceiverCanStateOtherNoiseThanItHas) {
+TEST(GpsReceiverSim, AReceiverCanStateOtherNoiseThanItHas) {
   Scenario s = BuiltinScenario("urban-canyon");
   s.jump_probability = 0;
   s.gps_stated_sigma_scale = 1.0 / 3.0;
-  GpsScenario gps(s);
+  GpsReceiverSim gps(s);
   const auto c = RunScenario(gps, 600);
   ASSERT_FALSE(c.fixes.empty());
   EXPECT_NEAR(c.fixes[0].sigma_h_m, s.gps_sigma_h_m / 3, 1e-9) << "it claims a third";
@@ -71,10 +72,10 @@ TEST(GpsScenario, AReceiverCanStateOtherNoiseThanItHas) {
   EXPECT_THROW(ValidateScenario(s), std::invalid_argument);
 }
 
-TEST(GpsScenario, OutagesDropFixes) {
+TEST(GpsReceiverSim, OutagesDropFixes) {
   Scenario s = BuiltinScenario("open-sky");
   s.outages = {{10.0, 5.0}};
-  GpsScenario gps(s);
+  GpsReceiverSim gps(s);
   gps.ScheduleOutage(5'000'000'000LL + 30'000'000'000LL, 5'000'000'000LL + 32'000'000'000LL);
   const auto c = RunScenario(gps, 40);
   for (const auto& f : c.fixes) {
@@ -92,9 +93,9 @@ TEST(GpsScenario, OutagesDropFixes) {
 // drives: intervals 90-110 ms). At gps_rate_hz 10 every record must give a
 // fix; the old "at least 95 % of a period since the last fix" rule dropped
 // 7-9 % of them, and the filter's mode flickered to VO_ONLY at each gap.
-TEST(GpsScenario, JitteredRecordsAtTheGpsRateAllGiveFixes) {
+TEST(GpsReceiverSim, JitteredRecordsAtTheGpsRateAllGiveFixes) {
   Scenario s = BuiltinScenario("open-sky");
-  GpsScenario gps(s);
+  GpsReceiverSim gps(s);
   std::mt19937_64 rng(7);
   std::uniform_int_distribution<int64_t> jitter_ns(-10'000'000, 10'000'000);
   constexpr int kRecords = 3000;
@@ -111,10 +112,10 @@ TEST(GpsScenario, JitteredRecordsAtTheGpsRateAllGiveFixes) {
 
 // Denser records are decimated to the rate: at most one fix per period and
 // none missing, also across a gap in the records.
-TEST(GpsScenario, DenseRecordsAreDecimatedToTheRate) {
+TEST(GpsReceiverSim, DenseRecordsAreDecimatedToTheRate) {
   Scenario s = BuiltinScenario("intermittent");  // 5 Hz
   s.outages.clear();
-  GpsScenario gps(s);
+  GpsReceiverSim gps(s);
   std::vector<int64_t> fix_t;
   for (int64_t t = 0; t <= 20'000'000'000LL; t += 10'000'000) {  // 100 Hz for 20 s
     if (t > 8'000'000'000LL && t < 9'230'000'000LL) continue;      // a 1.23 s gap
@@ -145,13 +146,13 @@ TEST(GpsScenario, DenseRecordsAreDecimatedToTheRate) {
   EXPECT_EQ(FixSlot(290'000'000, 5), 1);
 }
 
-TEST(GpsScenario, JumpsHaveTheConfiguredSize) {
+TEST(GpsReceiverSim, JumpsHaveTheConfiguredSize) {
   Scenario s = BuiltinScenario("urban-canyon");
   s.gps_sigma_h_m = 0.01;
   s.gps_sigma_v_m = 0.01;
   s.jump_probability = 0.2;
   s.jump_size_m = 25;
-  GpsScenario gps(s);
+  GpsReceiverSim gps(s);
   const auto c = RunScenario(gps, 300);
   int jumps = 0;
   for (const auto& e : c.errors) {
@@ -319,4 +320,4 @@ TEST(Scenario, SpeedValidationNamesTheFieldAndTheRule) {
 }
 
 }  // namespace
-}  // namespace locaid::fusion
+}  // namespace locaid::sim

@@ -1,6 +1,8 @@
-// GPS/IMU degradation scenarios: how the consumer-grade GPS (and optionally a
-// MEMS IMU) that the filter sees is produced from the untouched OXTS RT3003
-// solution. The OXTS fix is ground truth and never reaches the filter as is.
+// Sensor simulators: a scenario (GPS receiver, outages, IMU grade, speed
+// sensor, camera faults) and the simulators that make, from the untouched
+// reference unit (KITTI's OXTS RT3003), what the filter sees: a receiver's
+// fixes, a MEMS IMU, a speed sensor. The reference is ground truth and never
+// reaches the filter as is. The filter (fusion/) does not include this.
 #pragma once
 
 #include "fusion/types.hpp"
@@ -13,7 +15,12 @@
 #include <string>
 #include <vector>
 
-namespace locaid::fusion {
+namespace locaid::sim {
+
+// What the simulators make: the filter's own measurement types.
+using fusion::GpsFix;
+using fusion::ImuSample;
+using fusion::SpeedSample;
 
 // A GPS outage, relative to the drive start (time of the first sample seen).
 struct OutageWindow {
@@ -121,14 +128,14 @@ std::string OutageCoverageWarning(const Scenario& scenario, double drive_duratio
 
 // Decimation slot of a sample t_since_start_ns after the drive start: the
 // nearest whole number of GPS periods (slot k covers [k - 1/2, k + 1/2)
-// periods). GpsScenario emits at most one fix per slot.
+// periods). GpsReceiverSim emits at most one fix per slot.
 int64_t FixSlot(int64_t t_since_start_ns, double rate_hz);
 
 // Degrades OXTS fixes into GpsFix: decimation to gps_rate_hz, white noise,
 // bias, multipath jumps, scheduled and run-time outages. Seeded, repeatable.
-class GpsScenario {
+class GpsReceiverSim {
  public:
-  explicit GpsScenario(Scenario scenario);
+  explicit GpsReceiverSim(Scenario scenario);
 
   // Feed every OXTS position in time order; returns a degraded fix when one is
   // due and GPS is not in an outage. The first call fixes the drive start.
@@ -203,4 +210,4 @@ class ImuDegrader {
   std::optional<int64_t> last_ns_;
 };
 
-}  // namespace locaid::fusion
+}  // namespace locaid::sim

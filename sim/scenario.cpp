@@ -1,4 +1,4 @@
-#include "fusion/scenario.hpp"
+#include "sim/scenario.hpp"
 
 #include <GeographicLib/LocalCartesian.hpp>
 
@@ -8,7 +8,7 @@
 #include <sstream>
 #include <stdexcept>
 
-namespace locaid::fusion {
+namespace locaid::sim {
 namespace {
 
 constexpr double kNsPerS = 1e9;
@@ -194,13 +194,13 @@ std::string OutageCoverageWarning(const Scenario& s, double drive_duration_s) {
   return text;
 }
 
-// ---------------------------------------------------------------- GpsScenario
+// ---------------------------------------------------------------- GpsReceiverSim
 
-GpsScenario::GpsScenario(Scenario scenario) : scenario_(std::move(scenario)), rng_(scenario_.seed) {
+GpsReceiverSim::GpsReceiverSim(Scenario scenario) : scenario_(std::move(scenario)), rng_(scenario_.seed) {
   ValidateScenario(scenario_);
 }
 
-bool GpsScenario::InOutage(int64_t t_ns) const {
+bool GpsReceiverSim::InOutage(int64_t t_ns) const {
   if (forced_outage_) return true;
   for (const auto& [a, b] : runtime_outages_)
     if (t_ns >= a && t_ns < b) return true;
@@ -211,7 +211,7 @@ bool GpsScenario::InOutage(int64_t t_ns) const {
   return false;
 }
 
-void GpsScenario::ScheduleOutage(int64_t start_ns, int64_t end_ns) {
+void GpsReceiverSim::ScheduleOutage(int64_t start_ns, int64_t end_ns) {
   if (end_ns <= start_ns)
     throw std::invalid_argument("outage end (" + std::to_string(end_ns) +
                                 " ns) must be after its start (" + std::to_string(start_ns) + " ns)");
@@ -223,7 +223,7 @@ int64_t FixSlot(int64_t t_since_start_ns, double rate_hz) {
   return static_cast<int64_t>(std::floor(periods + 0.5));
 }
 
-std::optional<GpsFix> GpsScenario::Apply(int64_t t_ns, double lat, double lon, double alt,
+std::optional<GpsFix> GpsReceiverSim::Apply(int64_t t_ns, double lat, double lon, double alt,
                                          const Eigen::Matrix3d* R_enu_body) {
   if (!drive_start_ns_) SetDriveStart(t_ns);
   if (!bias_initialized_) {
@@ -336,4 +336,4 @@ std::vector<SpeedSample> SpeedSimulator::Apply(int64_t t_ns, double v_mps) {
   return out;
 }
 
-}  // namespace locaid::fusion
+}  // namespace locaid::sim

@@ -7,7 +7,7 @@
 #include <memory>
 #include <string>
 
-namespace locaid::client {
+namespace locaid::connection {
 
 struct Connection {
   std::string server = "127.0.0.1:50051";
@@ -25,4 +25,4 @@ void Prepare(const Connection& c, grpc::ClientContext* ctx, double timeout_s);
 // The status code's name as gRPC spells it ("NOT_FOUND"), "?" for others.
 const char* StatusCodeName(grpc::StatusCode code);
 
-}  // namespace locaid::client
+}  // namespace locaid::connection
