@@ -182,11 +182,17 @@ TEST(LearnedVoNoise, TheFixedModelStaysAsConfigured) {
 // the learner's scale and the adaptation's; the translation axes are the
 // learner's. learn = false: the learner held at the model (min = max = 1),
 // the adaptation alone; the fixed model is learn_vo_noise = false.
-Vec6 ScaleWithAdaptiveRotation(double reported_factor, double max_scale, bool learn = true, bool adapt = true) {
+// The drive of these tests: 4 min, VO translation noise 2 cm.
+SimConfig RotationNoiseDrive() {
   SimConfig c;
   c.duration_s = 240;
   c.seed = 21;
   c.vo_sigma_t_m = 0.02;
+  return c;
+}
+
+Vec6 ScaleWithAdaptiveRotation(double reported_factor, double max_scale, bool learn = true, bool adapt = true) {
+  const SimConfig c = RotationNoiseDrive();
   EkfConfig config = ExactVoModel(c);
   if (!learn) config.vo_noise_scale_min = config.vo_noise_scale_max = 1.0;
   config.adaptive_vo_rotation_noise = adapt;
@@ -226,10 +232,7 @@ TEST(AdaptiveVoRotationNoise, AClampOfOneLeavesTheRotationAxesToTheLearner) {
 }
 
 TEST(AdaptiveVoRotationNoise, TheFixedModelHasNoAdaptation) {
-  SimConfig c;
-  c.duration_s = 240;
-  c.seed = 21;
-  c.vo_sigma_t_m = 0.02;
+  const SimConfig c = RotationNoiseDrive();
   EkfConfig config = ExactVoModel(c);
   config.adaptive_vo_rotation_noise = true;
   config.learn_vo_noise = false;
