@@ -12,17 +12,17 @@ using namespace detail;
 Ekf::Ekf(EkfConfig config)
     : config_(config),
       model_(MakeProcessModel(config_)),
-      gps_noise_h_(1, {.prior_samples = 2 * config_.gps_noise_prior_fixes,  // E and N: 2 samples per fix
-                       .window_samples = 2 * config_.gps_noise_window_fixes,
-                       .min_scale = config_.gps_noise_scale_min,
-                       .max_scale = config_.gps_noise_scale_max}),
-      gps_noise_v_(1, {.prior_samples = config_.gps_noise_prior_fixes,
-                       .window_samples = config_.gps_noise_window_fixes,
-                       .min_scale = config_.gps_noise_scale_min,
-                       .max_scale = config_.gps_noise_scale_max}) {
-  gate_h_ = ChiSquareQuantile(config_.gps_gate_probability, 2);
-  gate_v_ = ChiSquareQuantile(config_.gps_gate_probability, 1);
-  zupt_gate_ = ChiSquareQuantile(config_.speed_gate_probability, 3);
+      gps_noise_h_(1, {.prior_samples = 2 * config_.gps.noise_prior_fixes,  // E and N: 2 samples per fix
+                       .window_samples = 2 * config_.gps.noise_window_fixes,
+                       .min_scale = config_.gps.noise_scale_min,
+                       .max_scale = config_.gps.noise_scale_max}),
+      gps_noise_v_(1, {.prior_samples = config_.gps.noise_prior_fixes,
+                       .window_samples = config_.gps.noise_window_fixes,
+                       .min_scale = config_.gps.noise_scale_min,
+                       .max_scale = config_.gps.noise_scale_max}) {
+  gate_h_ = ChiSquareQuantile(config_.gps.gate_probability, 2);
+  gate_v_ = ChiSquareQuantile(config_.gps.gate_probability, 1);
+  zupt_gate_ = ChiSquareQuantile(config_.vehicle.speed_gate_probability, 3);
 }
 
 Mat6 Ekf::VoNoise(const Mat6& reported, const Eigen::Isometry3d& motion) const {
@@ -37,7 +37,7 @@ void Ekf::PropagateImu(const ImuSample& sample) {
     return;
   }
   last_imu_ns_ = sample.t_ns;
-  stillness_.Add(sample, config_.zupt_window_s);
+  stillness_.Add(sample, config_.vehicle.zupt_window_s);
 }
 
 // ------------------------------------------------------------------ VO
@@ -137,8 +137,8 @@ VoUpdate Ekf::ApplyVoUpdate(const VoMeasurement& m, const VoPlan& plan, VoUpdate
 bool Ekf::LearningVoNoise(int64_t t_ns) const {
   // GPS holds the state: the last accepted fix is no older than the mode's
   // VO_ONLY threshold (Output).
-  return config_.learn_vo_noise && config_.use_imu && s_.initialized && last_gps_accepted_ns_ &&
-         Seconds(t_ns, *last_gps_accepted_ns_) <= config_.vo_only_after_periods * gps_period_s_ + 2 * gps_lag_s_;
+  return config_.vo.learn_noise && config_.imu.enabled && s_.initialized && last_gps_accepted_ns_ &&
+         Seconds(t_ns, *last_gps_accepted_ns_) <= config_.gps.vo_only_after_periods * gps_period_s_ + 2 * gps_lag_s_;
 }
 
 // ------------------------------------------------------------------ output
@@ -178,11 +178,11 @@ FusedPose Ekf::Output(int64_t t_ns, bool vo_ok) const {
   out.gps_noise_scale_h = gps_noise_h_.scale(0);
   out.gps_noise_scale_v = gps_noise_v_.scale(0);
   out.vo_noise_learning = LearningVoNoise(t_ns);
-  if (out.seconds_since_gps > config_.vo_only_after_periods * gps_period_s_ + 2 * gps_lag_s_) {
+  if (out.seconds_since_gps > config_.gps.vo_only_after_periods * gps_period_s_ + 2 * gps_lag_s_) {
     // Without GPS: VO, else the IMU while its samples keep coming.
-    const bool imu_alive = config_.use_imu && last_imu_ns_ && Seconds(t_ns, *last_imu_ns_) <= config_.max_imu_gap_s;
+    const bool imu_alive = config_.imu.enabled && last_imu_ns_ && Seconds(t_ns, *last_imu_ns_) <= config_.imu.max_gap_s;
     out.mode = vo_ok ? Mode::kVoOnly : imu_alive ? Mode::kDeadReckoning : Mode::kLost;
-  } else if (last_gps_rejected_ns_ && Seconds(t_ns, *last_gps_rejected_ns_) < config_.degraded_hold_s) {
+  } else if (last_gps_rejected_ns_ && Seconds(t_ns, *last_gps_rejected_ns_) < config_.gps.degraded_hold_s) {
     out.mode = Mode::kGpsDegraded;
   } else {
     out.mode = Mode::kGpsFused;

@@ -73,9 +73,9 @@ Ekf::GpsModel Ekf::PredictGps(const GpsFix& fix) const {
   // data, as live fixes do) is compared with where the antenna was then.
   GpsModel m;
   m.late_s = model_->GpsLateness(s_, fix.t_ns);
-  const double latency_s = config_.gps_latency_s + m.late_s;
+  const double latency_s = config_.gps.latency_s + m.late_s;
   m.predicted =
-      GpsAntennaPrediction(s_.x.p_enu_m, s_.x.v_enu_mps, s_.x.R_enu_body, config_.gps_lever_arm_body_m, latency_s);
+      GpsAntennaPrediction(s_.x.p_enu_m, s_.x.v_enu_mps, s_.x.R_enu_body, config_.gps.lever_arm_body_m, latency_s);
   m.R = Mat3::Zero();
   if (fix.cov_enu_m2) {
     m.R = *fix.cov_enu_m2;
@@ -87,7 +87,7 @@ Ekf::GpsModel Ekf::PredictGps(const GpsFix& fix) const {
   const double h = std::sqrt(gps_noise_h_.scale(0));
   const Vec3 d(h, h, std::sqrt(gps_noise_v_.scale(0)));
   m.R = d.asDiagonal() * m.R * d.asDiagonal();
-  m.H = model_->GpsJacobian(s_, GpsAntennaJacobian(s_.x.R_enu_body, config_.gps_lever_arm_body_m, latency_s));
+  m.H = model_->GpsJacobian(s_, GpsAntennaJacobian(s_.x.R_enu_body, config_.gps.lever_arm_body_m, latency_s));
   return m;
 }
 
@@ -103,7 +103,7 @@ GpsUpdate Ekf::GateAndFuse(const GpsFix& fix, const Vec3& y, const GpsModel& m) 
   // receiver does not fail 3 times in a row at the 0.1 % gate): reset the
   // rejected component's position covariance to cover the innovation, so the
   // fix is taken and the state snaps back to GPS. Counted on the pose.
-  const int reset_after = std::max(1, config_.gps_reset_after_rejections);
+  const int reset_after = std::max(1, config_.gps.reset_after_rejections);
   const bool reset_h = !use_h && std::isfinite(gate.nis_h) && ++rejections_h_ > reset_after;
   const bool reset_v = fuse_v && !use_v && std::isfinite(gate.nis_v) && ++rejections_v_ > reset_after;
   // The reset uses the fix for its component(s); a passing other component
@@ -122,7 +122,7 @@ void Ekf::LearnGpsNoise(const Vec3& y, const GpsModel& m, const GpsGateResult& g
   // start-up). E and N are two samples of the horizontal scale. A receiver
   // that understates its noise still teaches it: the fixes it gets through
   // the gate grow the scale, which lets more through (3x: scale ~9).
-  if (!config_.learn_gps_noise) return;
+  if (!config_.gps.learn_noise) return;
   const Vec3& hph = gate.predicted_var;
   for (int i = 0; i < 3; ++i) {
     if (!(i < 2 ? gate.h_ok : gate.v_ok && has_altitude)) continue;

@@ -17,14 +17,14 @@ using namespace detail;
 
 void Ekf::TryInitialize(int64_t t_ns) {
   const std::vector<const InitFix*> fixes = ChainedInitFixes();
-  const int min_fixes = std::max(2, config_.init_min_fixes);
+  const int min_fixes = std::max(2, config_.startup.min_fixes);
   if (static_cast<int>(fixes.size()) < min_fixes) return;
   const double sigma_h = fixes.back()->sigma_h;
-  const double min_baseline = std::max(config_.init_min_baseline_m, config_.init_min_baseline_sigmas * sigma_h);
+  const double min_baseline = std::max(config_.startup.min_baseline_m, config_.startup.min_baseline_sigmas * sigma_h);
   if (!InitBaselineReached(fixes, min_baseline)) return;
   // Roll / pitch of the start frame from gravity (IMU), else level.
   Mat3 R_level_start = Mat3::Identity();
-  double tilt_var = std::pow(config_.init_roll_pitch_sigma_rad, 2);
+  double tilt_var = std::pow(config_.startup.roll_pitch_sigma_rad, 2);
   model_->LevelStart(R_level_start, tilt_var);
   const HeadingFit fit = FitHeading(fixes, R_level_start, sigma_h);
   if (fit.used < min_fixes || fit.spread2 < min_baseline * min_baseline / 4) return;
@@ -38,9 +38,9 @@ void Ekf::TryInitialize(int64_t t_ns) {
   const double scatter = std::sqrt(fit.residual_var);
   const double sigma_eff = scatter > 2 * sigma_h ? scatter : sigma_h;
   if (sigma_eff > sigma_h &&
-      !InitBaselineReached(fixes, std::max(config_.init_min_baseline_m, config_.init_min_baseline_sigmas * sigma_eff)))
+      !InitBaselineReached(fixes, std::max(config_.startup.min_baseline_m, config_.startup.min_baseline_sigmas * sigma_eff)))
     return;
-  if (config_.learn_gps_noise && sigma_h > 0) {
+  if (config_.gps.learn_noise && sigma_h > 0) {
     // The fit's residuals teach the GPS scales too (one sample per fix and
     // axis; the prediction is the fit itself).
     const double sigma_v = fixes.back()->sigma_v;  // NaN for a 2-D fix
@@ -139,7 +139,7 @@ void Ekf::InitializeState(const HeadingFit& fit, const Mat3& R_level_start, doub
   s_.x.R_enu_body = R_enu_start * T_start_body_.linear();
   s_.x.v_enu_mps = s_.x.R_enu_body * last_vo_velocity_body_mps_;
   // Covariance: centroid noise + yaw lever arm.
-  const double k = std::max(1.0, config_.init_cov_inflation);
+  const double k = std::max(1.0, config_.startup.cov_inflation);
   const double var_c = k * sigma_h * sigma_h / fit.used;
   const double sigma_psi = std::sqrt(k) * sigma_h / std::sqrt(fit.spread2);
   const Vec3 lever(p_now_xy.x() - fit.p_mean.x(), p_now_xy.y() - fit.p_mean.y(), 0);

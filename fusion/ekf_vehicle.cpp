@@ -58,7 +58,7 @@ bool ImuStillness::Still(const StillnessThresholds& t) const {
 
 SpeedUpdate Ekf::UpdateSpeed(const SpeedSample& reading) {
   SpeedUpdate out;
-  const double sigma = reading.sigma_mps > 0 ? reading.sigma_mps : config_.speed_sigma_mps;
+  const double sigma = reading.sigma_mps > 0 ? reading.sigma_mps : config_.vehicle.speed_sigma_mps;
   if (!s_.initialized) return out;  // nothing to measure yet: neither used nor refused
   if (!std::isfinite(reading.speed_mps) || !std::isfinite(sigma) || !(sigma > 0)) {
     out.rejected = true;
@@ -69,13 +69,13 @@ SpeedUpdate Ekf::UpdateSpeed(const SpeedSample& reading) {
   last_speed_ns_ = reading.t_ns;
   last_speed_mps_ = reading.speed_mps;
   std::optional<VehicleGate> gate;
-  if (config_.vehicle_constraints && std::abs(reading.speed_mps) < config_.zupt_speed_mps) {
+  if (config_.vehicle.constraints && std::abs(reading.speed_mps) < config_.vehicle.zupt_speed_mps) {
     // Gated: a sensor stuck at 0 must not stop a car the filter knows is moving.
-    gate = model_->FuseZeroVelocity(s_, config_.zupt_sigma_mps, zupt_gate_);
+    gate = model_->FuseZeroVelocity(s_, config_.vehicle.zupt_sigma_mps, zupt_gate_);
     out.zupt = gate && !gate->rejected;
     if (out.zupt) ++stats_.zupt_updates;
   } else {
-    gate = model_->FuseSpeed(s_, reading.speed_mps, sigma, config_.R_vehicle_body);
+    gate = model_->FuseSpeed(s_, reading.speed_mps, sigma, config_.vehicle.R_vehicle_body);
   }
   if (!gate) {
     out.rejected = true;
@@ -95,9 +95,9 @@ bool Ekf::Standstill(int64_t t_ns) const {
   // (nearly) stopped.
   constexpr double kSpeedReadingFreshS = 0.2;
   if (FreshSpeedReading(t_ns, kSpeedReadingFreshS)) return false;
-  const StillnessThresholds thresholds{config_.zupt_window_s, config_.zupt_gyro_radps, config_.zupt_accel_mps2,
-                                       config_.zupt_min_samples};
-  return s_.x.v_enu_mps.norm() < config_.zupt_max_estimated_speed_mps && stillness_.Still(thresholds);
+  const StillnessThresholds thresholds{config_.vehicle.zupt_window_s, config_.vehicle.zupt_gyro_radps, config_.vehicle.zupt_accel_mps2,
+                                       config_.vehicle.zupt_min_samples};
+  return s_.x.v_enu_mps.norm() < config_.vehicle.zupt_max_estimated_speed_mps && stillness_.Still(thresholds);
 }
 
 std::optional<double> Ekf::FreshSpeedReading(int64_t t_ns, double max_age_s) const {
@@ -109,7 +109,7 @@ bool Ekf::SurelyMovingFasterThan(int64_t t_ns, double speed_mps) const {
   constexpr double kSpeedReadingFreshS = 0.5;  // a few readings of a CAN speed sensor
   if (const std::optional<double> reading = FreshSpeedReading(t_ns, kSpeedReadingFreshS))
     return std::abs(*reading) > speed_mps;
-  if (!config_.use_imu || !s_.initialized) return false;
+  if (!config_.imu.enabled || !s_.initialized) return false;
   const double v = s_.x.v_enu_mps.norm();
   if (!(v > speed_mps)) return false;
   const Vec3 along = s_.x.v_enu_mps / v;
@@ -118,19 +118,19 @@ bool Ekf::SurelyMovingFasterThan(int64_t t_ns, double speed_mps) const {
 }
 
 bool Ekf::VehicleConstraintsActive() const {
-  return config_.vehicle_constraints && (!config_.vehicle_constraints_need_speed || stats_.speed_used > 0);
+  return config_.vehicle.constraints && (!config_.vehicle.constraints_need_speed || stats_.speed_used > 0);
 }
 
 void Ekf::ApplyVehicleConstraints(int64_t t_ns) {
   if (!VehicleConstraintsActive() || !s_.initialized) return;
   if (Standstill(t_ns)) {
     // Stillness only holds a car already believed stopped: no gate.
-    if (const auto g = model_->FuseZeroVelocity(s_, config_.zupt_sigma_mps, 0); g && !g->rejected)
+    if (const auto g = model_->FuseZeroVelocity(s_, config_.vehicle.zupt_sigma_mps, 0); g && !g->rejected)
       ++stats_.zupt_updates;
     return;
   }
-  const auto g = model_->FuseNonHolonomic(s_, config_.R_vehicle_body,
-                                          {config_.nhc_sigma_lateral_mps, config_.nhc_sigma_vertical_mps});
+  const auto g = model_->FuseNonHolonomic(s_, config_.vehicle.R_vehicle_body,
+                                          {config_.vehicle.nhc_sigma_lateral_mps, config_.vehicle.nhc_sigma_vertical_mps});
   if (g && !g->rejected) ++stats_.nhc_updates;
 }
 

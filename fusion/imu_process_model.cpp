@@ -21,20 +21,20 @@ class ImuProcessModel final : public ProcessModel {
  public:
   explicit ImuProcessModel(const EkfConfig& config)
       : config_(config),
-        vo_gate_(ChiSquareQuantile(config.vo_gate_probability, 6)),
-        gate_vel_(ChiSquareQuantile(config.gps_gate_probability, 3)),
-        speed_gate_(ChiSquareQuantile(config.speed_gate_probability, 1)),
-        vo_noise_(6, {.prior_samples = config.vo_noise_prior_frames,
-                      .window_samples = config.vo_noise_window_frames,
-                      .min_scale = config.vo_noise_scale_min,
-                      .max_scale = config.vo_noise_scale_max}) {}
+        vo_gate_(ChiSquareQuantile(config.vo.gate_probability, 6)),
+        gate_vel_(ChiSquareQuantile(config.gps.gate_probability, 3)),
+        speed_gate_(ChiSquareQuantile(config.vehicle.speed_gate_probability, 1)),
+        vo_noise_(6, {.prior_samples = config.vo.noise_prior_frames,
+                      .window_samples = config.vo.noise_window_frames,
+                      .min_scale = config.vo.noise_scale_min,
+                      .max_scale = config.vo.noise_scale_max}) {}
 
   int StateSize() const override { return kImuStates + kCloneStates + kVoCalibStates + kSpeedStates; }
   int AttitudeIndex() const override { return kTh; }
 
   Mat6 VoNoise(const Mat6& reported, const Eigen::Isometry3d& motion) const override {
     // The per-metre term: VO is a measurement checked against the IMU here.
-    const Vec3 per_m(config_.vo_sigma_t_per_m, config_.vo_sigma_lateral_per_m, config_.vo_sigma_vertical_per_m);
+    const Vec3 per_m(config_.vo.sigma_t_per_m, config_.vo.sigma_lateral_per_m, config_.vo.sigma_vertical_per_m);
     const Mat6 model = ScaledVoNoise(config_, reported, per_m * motion.translation().norm());
     const Vec6 d = vo_noise_scale_.cwiseSqrt();
     return d.asDiagonal() * model * d.asDiagonal();
@@ -83,19 +83,19 @@ class ImuProcessModel final : public ProcessModel {
   void LevelStart(Mat3& R_level_start, double& tilt_var) const override {
     const GravityFit gravity = FitGravity(init_gravity_);
     if (!gravity.ok) return;
-    tilt_var += std::pow(gravity.accel_sigma_mps2 / config_.gravity_mps2, 2);
+    tilt_var += std::pow(gravity.accel_sigma_mps2 / config_.imu.gravity_mps2, 2);
     const Vec3 up = gravity.up_start;  // "up" in start axes
     R_level_start = Eigen::Quaterniond::FromTwoVectors(up, Vec3::UnitZ()).toRotationMatrix();
   }
 
   void Initialize(FilterState& s) override {
     Eigen::MatrixXd& P = s.P;
-    P.block<3, 3>(kV, kV).diagonal().setConstant(std::pow(config_.init_velocity_sigma_mps, 2));
-    P.block<3, 3>(kBa, kBa).diagonal().setConstant(std::pow(config_.init_accel_bias_sigma_mps2, 2));
-    P.block<3, 3>(kBg, kBg).diagonal().setConstant(std::pow(config_.init_gyro_bias_sigma_radps, 2));
-    P.block<3, 3>(kCal, kCal).diagonal().setConstant(std::pow(config_.vo_boresight_sigma_rad, 2));
-    P(kCal + 3, kCal + 3) = std::pow(config_.vo_scale_sigma, 2);
-    P(kSpd, kSpd) = std::pow(config_.speed_scale_sigma, 2);
+    P.block<3, 3>(kV, kV).diagonal().setConstant(std::pow(config_.startup.velocity_sigma_mps, 2));
+    P.block<3, 3>(kBa, kBa).diagonal().setConstant(std::pow(config_.startup.accel_bias_sigma_mps2, 2));
+    P.block<3, 3>(kBg, kBg).diagonal().setConstant(std::pow(config_.startup.gyro_bias_sigma_radps, 2));
+    P.block<3, 3>(kCal, kCal).diagonal().setConstant(std::pow(config_.vo.boresight_sigma_rad, 2));
+    P(kCal + 3, kCal + 3) = std::pow(config_.vo.scale_sigma, 2);
+    P(kSpd, kSpd) = std::pow(config_.vehicle.speed_scale_sigma, 2);
     R_boresight_ = Mat3::Identity();
     vo_scale_error_ = 0;
     speed_scale_error_ = 0;
@@ -105,25 +105,25 @@ class ImuProcessModel final : public ProcessModel {
   void PropagateTo(FilterState& s, int64_t t_ns) override {
     if (!s.initialized || t_ns <= s.t_ns) return;
     const double total = Seconds(t_ns, s.t_ns);
-    const Vec3 f = last_imu_ ? last_imu_->accel_mps2 : Vec3(0, 0, config_.gravity_mps2);
+    const Vec3 f = last_imu_ ? last_imu_->accel_mps2 : Vec3(0, 0, config_.imu.gravity_mps2);
     const Vec3 w = last_imu_ ? last_imu_->gyro_radps : Vec3::Zero();
-    const Vec3 g(0, 0, -config_.gravity_mps2);
+    const Vec3 g(0, 0, -config_.imu.gravity_mps2);
     // Long gaps: the held sample is stale; inflate the noise accordingly.
-    const double gap_scale = total > config_.max_imu_gap_s ? total / config_.max_imu_gap_s : 1.0;
+    const double gap_scale = total > config_.imu.max_gap_s ? total / config_.imu.max_gap_s : 1.0;
     // The IMU's own noise densities when its samples state them.
     const double accel_noise = last_imu_ && last_imu_->accel_noise_mps2_sqrt_hz > 0
                                    ? last_imu_->accel_noise_mps2_sqrt_hz
-                                   : config_.accel_noise_mps2_sqrt_hz;
+                                   : config_.imu.accel_noise_mps2_sqrt_hz;
     const double gyro_noise = last_imu_ && last_imu_->gyro_noise_radps_sqrt_hz > 0
                                   ? last_imu_->gyro_noise_radps_sqrt_hz
-                                  : config_.gyro_noise_radps_sqrt_hz;
+                                  : config_.imu.gyro_noise_radps_sqrt_hz;
     const int steps = std::max(1, static_cast<int>(std::ceil(total / kMaxImuStepS)));
     const double dt = total / steps;
     Eigen::MatrixXd& P = s.P;
     for (int i = 0; i < steps; ++i) {
       const Mat15 F = ImuTransitionJacobian(s.x, f, w, dt);
       const Mat15 Q = ImuProcessNoise(s.x, dt, accel_noise * gap_scale, gyro_noise * gap_scale,
-                                      config_.accel_bias_walk_mps3_sqrt_hz, config_.gyro_bias_walk_radps2_sqrt_hz);
+                                      config_.imu.accel_bias_walk_mps3_sqrt_hz, config_.imu.gyro_bias_walk_radps2_sqrt_hz);
       s.x = fusion::PropagateImu(s.x, f, w, dt, g);
       const Eigen::MatrixXd P15 = P.topLeftCorner<15, 15>();
       const Eigen::Index rest = P.cols() - 15;  // clone and VO calibration
@@ -167,7 +167,7 @@ class ImuProcessModel final : public ProcessModel {
     // gyro's rate (bias removed) gives that part.
     if (!s.initialized) return std::nullopt;
     const Vec3 w = last_imu_ ? Vec3(last_imu_->gyro_radps - s.x.gyro_bias_radps) : Vec3::Zero();
-    const Vec3 predicted = s.x.v_enu_mps + s.x.R_enu_body * w.cross(config_.gps_lever_arm_body_m);
+    const Vec3 predicted = s.x.v_enu_mps + s.x.R_enu_body * w.cross(config_.gps.lever_arm_body_m);
     const Vec3 y = *fix.v_enu_mps - predicted;
     Eigen::MatrixXd H = Eigen::MatrixXd::Zero(3, s.P.rows());
     H.middleCols<3>(kV).setIdentity();
@@ -188,7 +188,7 @@ class ImuProcessModel final : public ProcessModel {
       P.row(kPc + i).setZero();
       P.col(kPc + i).setZero();
       P(kPc + i, kPc + i) = P(i, kPc + i) = P(kPc + i, i) = R(i, i);
-      P(kV + i, kV + i) += std::pow(config_.init_velocity_sigma_mps, 2) + std::pow(jump[i] / gap_s, 2);
+      P(kV + i, kV + i) += std::pow(config_.startup.velocity_sigma_mps, 2) + std::pow(jump[i] / gap_s, 2);
     }
   }
 
@@ -287,7 +287,7 @@ class ImuProcessModel final : public ProcessModel {
 
   void LearnVoNoise(const Vec6& r, const Mat6& S, const Mat6& Rvo, const Vec6& applied) {
     // The model's own variance is Rvo / the scale it carries.
-    if (!config_.learn_vo_noise) return;
+    if (!config_.vo.learn_noise) return;
     for (int i = 0; i < 6; ++i) vo_noise_.Add(i, r[i], S(i, i) - Rvo(i, i), Rvo(i, i) / applied[i]);
     vo_noise_scale_ = vo_noise_.scale();
   }
@@ -297,7 +297,7 @@ class ImuProcessModel final : public ProcessModel {
     // Per body axis: mean normalised squared rotation innovation (1 when
     // consistent); one outlier moves it by at most 10 x the rate.
     constexpr double kRate = 0.05;
-    const double max_scale = std::max(1.0, config_.adaptive_vo_rotation_noise_max_scale);
+    const double max_scale = std::max(1.0, config_.vo.adaptive_rotation_noise_max_scale);
     for (int i = 0; i < 3; ++i) {
       const double q = r_rot[i] * r_rot[i] / S_rot(i, i);
       if (!std::isfinite(q)) return;
@@ -342,10 +342,10 @@ class ImuProcessModel final : public ProcessModel {
   double vo_scale_error_ = 0;
   double speed_scale_error_ = 0;  // speed sensor: reads (1 + error) x true speed
   int vo_consecutive_rejections_ = 0;
-  NoiseScaleEstimator vo_noise_;          // learn_vo_noise
+  NoiseScaleEstimator vo_noise_;          // vo.learn_noise
   Vec6 vo_noise_scale_ = Vec6::Ones();    // its scale, applied by VoNoise
-  // adaptive_vo_rotation_noise, part of the learned VO noise: off with the fixed model (learn_vo_noise false)
-  const bool adapt_rotation_ = config_.adaptive_vo_rotation_noise && config_.learn_vo_noise;
+  // vo.adaptive_rotation_noise, part of the learned VO noise: off with the fixed model (vo.learn_noise false)
+  const bool adapt_rotation_ = config_.vo.adaptive_rotation_noise && config_.vo.learn_noise;
   Vec3 rotation_scale_ = Vec3::Ones(), rotation_nis_mean_ = Vec3::Ones();
   Vec6 reported_scale_ = Vec6::Ones();    // both, as vo_noise_scale() shows them
 };

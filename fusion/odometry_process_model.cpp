@@ -37,7 +37,7 @@ class OdometryProcessModel final : public ProcessModel {
     if (!vo.vo_ok) {
       // Coasting: velocity noise for the lost frames.
       Rvo.setZero();
-      Rvo.topLeftCorner<3, 3>().diagonal().setConstant(std::pow(config_.no_imu_lost_sigma_mps * vo.dt_s, 2));
+      Rvo.topLeftCorner<3, 3>().diagonal().setConstant(std::pow(config_.vo.lost_sigma_no_imu_mps * vo.dt_s, 2));
       Rvo.bottomRightCorner<3, 3>().diagonal().setConstant(std::pow(0.05 * vo.dt_s, 2));
     }
     OdometryPropagate(s.x.p_enu_m, s.x.R_enu_body, vo.step);

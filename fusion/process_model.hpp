@@ -1,5 +1,5 @@
 // The EKF's process model: what moves the state between camera frames and
-// what the error state holds. Two kinds, chosen once from EkfConfig::use_imu
+// what the error state holds. Two kinds, chosen once from EkfConfig imu.enabled
 // (MakeProcessModel); the filter (fusion/ekf.hpp) never asks which it has.
 //
 //   ImuProcessModel (imu_process_model.cpp): strapdown IMU propagation; error
@@ -67,7 +67,7 @@ class ProcessModel {
   virtual int AttitudeIndex() const = 0;
 
   // The filter's VO noise (body axes, [dt, dtheta]) for one motion: the
-  // model times the learned scale (EkfConfig::learn_vo_noise).
+  // model times the learned scale (EkfConfig vo.learn_noise).
   virtual Mat6 VoNoise(const Mat6& reported, const Eigen::Isometry3d& motion) const = 0;
 
   // ---- Before initialisation
@@ -124,13 +124,13 @@ class ProcessModel {
   virtual void BoxPlus(FilterState& s, const Eigen::VectorXd& dx) = 0;
 };
 
-// ImuProcessModel when config.use_imu, else OdometryProcessModel.
+// ImuProcessModel when config.imu.enabled, else OdometryProcessModel.
 std::unique_ptr<ProcessModel> MakeProcessModel(const EkfConfig& config);
 std::unique_ptr<ProcessModel> MakeImuProcessModel(const EkfConfig& config);
 std::unique_ptr<ProcessModel> MakeOdometryProcessModel(const EkfConfig& config);
 
-// VO noise shared by both models: reported * vo_cov_scale, plus sigma_rel^2 on
-// the translation axes, floored at vo_min_sigma_t_m / vo_min_sigma_rot_rad.
+// VO noise shared by both models: reported * vo.cov_scale, plus sigma_rel^2 on
+// the translation axes, floored at vo.min_sigma_t_m / vo.min_sigma_rot_rad.
 Mat6 ScaledVoNoise(const EkfConfig& config, const Mat6& reported, const Vec3& sigma_rel);
 
 }  // namespace locaid::fusion

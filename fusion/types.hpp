@@ -48,7 +48,7 @@ struct ImuSample {
 struct SpeedSample {
   int64_t t_ns = 0;
   double speed_mps = 0;
-  double sigma_mps = 0;  // 1-sigma of this reading; 0 = EkfConfig::speed_sigma_mps
+  double sigma_mps = 0;  // 1-sigma of this reading; 0 = EkfConfig vehicle.speed_sigma_mps
 };
 
 // Where a reference unit (a recorded drive's OXTS RT3003: ground truth) says
@@ -95,7 +95,7 @@ struct FusedPose {
   // (1 + error) x true speed) and the readings fused so far (cumulative).
   double speed_scale_error = 0;
   int speed_used = 0;
-  // Learned noise (EkfConfig::learn_vo_noise / learn_gps_noise): variance
+  // Learned noise (EkfConfig vo.learn_noise / gps.learn_noise): variance
   // multiples of the VO noise model per body axis [dt x, y, z, dtheta x, y, z]
   // and of the fixes' stated covariance (horizontal, vertical); 1 = the model.
   // vo_noise_learning: the VO noise is being learnt (GPS holds the state);

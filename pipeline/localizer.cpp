@@ -23,10 +23,10 @@ constexpr double kMovingMps = 1.5;
 
 fusion::EkfConfig EkfConfigForScenario(fusion::EkfConfig c, const sim::Scenario& s) {
   if (s.imu_grade == sim::ImuGrade::kMems) {
-    c.accel_noise_mps2_sqrt_hz = std::max(c.accel_noise_mps2_sqrt_hz, 2 * s.imu_accel_noise_mps2_sqrt_hz);
-    c.gyro_noise_radps_sqrt_hz = std::max(c.gyro_noise_radps_sqrt_hz, 2 * s.imu_gyro_noise_radps_sqrt_hz);
-    c.init_accel_bias_sigma_mps2 = std::max(c.init_accel_bias_sigma_mps2, 2 * s.imu_accel_bias_sigma_mps2);
-    c.init_gyro_bias_sigma_radps = std::max(c.init_gyro_bias_sigma_radps, 2 * s.imu_gyro_bias_sigma_radps);
+    c.imu.accel_noise_mps2_sqrt_hz = std::max(c.imu.accel_noise_mps2_sqrt_hz, 2 * s.imu_accel_noise_mps2_sqrt_hz);
+    c.imu.gyro_noise_radps_sqrt_hz = std::max(c.imu.gyro_noise_radps_sqrt_hz, 2 * s.imu_gyro_noise_radps_sqrt_hz);
+    c.startup.accel_bias_sigma_mps2 = std::max(c.startup.accel_bias_sigma_mps2, 2 * s.imu_accel_bias_sigma_mps2);
+    c.startup.gyro_bias_sigma_radps = std::max(c.startup.gyro_bias_sigma_radps, 2 * s.imu_gyro_bias_sigma_radps);
   }
   return c;
 }

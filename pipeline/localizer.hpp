@@ -26,7 +26,7 @@ namespace locaid::pipeline {
 
 struct LocalizerOptions {
   std::string vo_method = "default";  // vo::MakeStereoOdometry method; "none": no VO
-  fusion::EkfConfig ekf;               // ekf.use_imu false: VO + GPS only (the filter ignores IMU)
+  fusion::EkfConfig ekf;               // ekf.imu.enabled false: VO + GPS only (the filter ignores IMU)
 };
 
 // The filter's noise for a scenario that simulates a worse IMU than the

@@ -55,7 +55,7 @@ struct ReplayMetrics {
 };
 
 // VO relative-motion error against ground truth, used to calibrate the filter's
-// VO noise model (EkfConfig::vo_cov_scale / vo_min_sigma_*). Error of a frame:
+// VO noise model (EkfConfig vo.cov_scale / vo.min_sigma_*). Error of a frame:
 // E = T_gt^-1 * T_vo (right perturbation in body axes of the current frame),
 // d = [E.translation(), Log(E.rotation())].
 struct VoErrorPair {

@@ -129,14 +129,14 @@ pipeline::RunOptions RunOptionsOf(const EstimatorSetup& setup) {
   run.scenario = setup.scenario;
   pipeline::LocalizerOptions& options = run.localizer;
   options.vo_method = setup.vo_method;
-  options.ekf.gps_lever_arm_body_m = setup.gps_antenna_body_m;
-  options.ekf.vehicle_constraints = setup.vehicle_constraints;
-  options.ekf.vehicle_constraints_need_speed = setup.vehicle_constraints_need_speed;
-  options.ekf.R_vehicle_body = setup.R_vehicle_body;
-  options.ekf.learn_vo_noise = setup.learn_vo_noise;
-  options.ekf.learn_gps_noise = setup.learn_gps_noise;
-  if (setup.speed_sigma_mps > 0) options.ekf.speed_sigma_mps = setup.speed_sigma_mps;
-  if (setup.speed_scale_sigma > 0) options.ekf.speed_scale_sigma = setup.speed_scale_sigma;
+  options.ekf.gps.lever_arm_body_m = setup.gps_antenna_body_m;
+  options.ekf.vehicle.constraints = setup.vehicle_constraints;
+  options.ekf.vehicle.constraints_need_speed = setup.vehicle_constraints_need_speed;
+  options.ekf.vehicle.R_vehicle_body = setup.R_vehicle_body;
+  options.ekf.vo.learn_noise = setup.learn_vo_noise;
+  options.ekf.gps.learn_noise = setup.learn_gps_noise;
+  if (setup.speed_sigma_mps > 0) options.ekf.vehicle.speed_sigma_mps = setup.speed_sigma_mps;
+  if (setup.speed_scale_sigma > 0) options.ekf.vehicle.speed_scale_sigma = setup.speed_scale_sigma;
   return run;
 }
 

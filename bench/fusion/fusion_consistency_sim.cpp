@@ -36,11 +36,11 @@ struct Run {
 
 Run RunOnce(const test::SimConfig& c) {
   EkfConfig config;
-  config.accel_noise_mps2_sqrt_hz = c.accel_noise;
-  config.gyro_noise_radps_sqrt_hz = c.gyro_noise;
-  config.init_accel_bias_sigma_mps2 = 0.05;
-  config.init_gyro_bias_sigma_radps = 0.001;
-  config.vo_boresight_sigma_rad = 0;  // the simulated VO has none
+  config.imu.accel_noise_mps2_sqrt_hz = c.accel_noise;
+  config.imu.gyro_noise_radps_sqrt_hz = c.gyro_noise;
+  config.startup.accel_bias_sigma_mps2 = 0.05;
+  config.startup.gyro_bias_sigma_radps = 0.001;
+  config.vo.boresight_sigma_rad = 0;  // the simulated VO has none
   Ekf ekf(config);
   Run run;
   double nees = 0;

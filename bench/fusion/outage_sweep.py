@@ -43,7 +43,7 @@ import subprocess
 import sys
 import tempfile
 
-GATE_PROBABILITY = 0.999  # EkfConfig::gps_gate_probability (each of the two gates)
+GATE_PROBABILITY = 0.999  # EkfConfig gps.gate_probability (each of the two gates)
 
 
 def percentile(values, q):

@@ -24,7 +24,6 @@
 #include <chrono>
 #include <filesystem>
 #include <iostream>
-#include <map>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -35,60 +34,14 @@ using namespace locaid;
 
 namespace {
 
-// "--ekf name=value": the numeric EkfConfig fields a filter experiment tunes.
+// "--ekf NAME=VALUE": a numeric filter setting (fusion/ekf_config.hpp), by
+// its name "model.field" or its earlier flat name.
 void ApplyEkfSetting(fusion::EkfConfig& c, const std::string& setting) {
-  const std::map<std::string, double*> fields = {
-      {"accel_noise_mps2_sqrt_hz", &c.accel_noise_mps2_sqrt_hz},
-      {"gyro_noise_radps_sqrt_hz", &c.gyro_noise_radps_sqrt_hz},
-      {"accel_bias_walk_mps3_sqrt_hz", &c.accel_bias_walk_mps3_sqrt_hz},
-      {"gyro_bias_walk_radps2_sqrt_hz", &c.gyro_bias_walk_radps2_sqrt_hz},
-      {"vo_cov_scale", &c.vo_cov_scale},
-      {"vo_sigma_t_per_m", &c.vo_sigma_t_per_m},
-      {"vo_sigma_lateral_per_m", &c.vo_sigma_lateral_per_m},
-      {"vo_sigma_vertical_per_m", &c.vo_sigma_vertical_per_m},
-      {"vo_min_sigma_t_m", &c.vo_min_sigma_t_m},
-      {"vo_min_sigma_rot_rad", &c.vo_min_sigma_rot_rad},
-      {"vo_gate_probability", &c.vo_gate_probability},
-      {"gps_gate_probability", &c.gps_gate_probability},
-      {"init_cov_inflation", &c.init_cov_inflation},
-      {"init_velocity_sigma_mps", &c.init_velocity_sigma_mps},
-      {"init_roll_pitch_sigma_rad", &c.init_roll_pitch_sigma_rad},
-      {"init_accel_bias_sigma_mps2", &c.init_accel_bias_sigma_mps2},
-      {"init_gyro_bias_sigma_radps", &c.init_gyro_bias_sigma_radps},
-      {"max_imu_gap_s", &c.max_imu_gap_s},
-      {"gravity_mps2", &c.gravity_mps2},
-      {"vo_boresight_sigma_rad", &c.vo_boresight_sigma_rad},
-      {"vo_scale_sigma", &c.vo_scale_sigma},
-      {"gps_lever_arm_x_m", &c.gps_lever_arm_body_m.x()},
-      {"gps_lever_arm_y_m", &c.gps_lever_arm_body_m.y()},
-      {"gps_lever_arm_z_m", &c.gps_lever_arm_body_m.z()},
-      {"gps_latency_s", &c.gps_latency_s},
-      {"vo_noise_prior_frames", &c.vo_noise_prior_frames},
-      {"adaptive_vo_rotation_noise_max_scale", &c.adaptive_vo_rotation_noise_max_scale},
-      {"vo_noise_window_frames", &c.vo_noise_window_frames},
-      {"vo_noise_scale_min", &c.vo_noise_scale_min},
-      {"vo_noise_scale_max", &c.vo_noise_scale_max},
-      {"gps_noise_prior_fixes", &c.gps_noise_prior_fixes},
-      {"gps_noise_window_fixes", &c.gps_noise_window_fixes},
-      {"gps_noise_scale_min", &c.gps_noise_scale_min},
-      {"gps_noise_scale_max", &c.gps_noise_scale_max},
-      {"no_imu_lost_sigma_mps", &c.no_imu_lost_sigma_mps},
-      {"degraded_hold_s", &c.degraded_hold_s},
-      {"vo_only_after_periods", &c.vo_only_after_periods},
-      {"nhc_sigma_lateral_mps", &c.nhc_sigma_lateral_mps},
-      {"nhc_sigma_vertical_mps", &c.nhc_sigma_vertical_mps},
-      {"zupt_speed_mps", &c.zupt_speed_mps},
-      {"zupt_sigma_mps", &c.zupt_sigma_mps},
-      {"zupt_max_estimated_speed_mps", &c.zupt_max_estimated_speed_mps},
-      {"speed_sigma_mps", &c.speed_sigma_mps},
-      {"speed_scale_sigma", &c.speed_scale_sigma},
-  };
   const auto eq = setting.find('=');
-  const std::string name = setting.substr(0, eq);
-  const auto it = fields.find(name);
-  if (eq == std::string::npos || it == fields.end()) {
+  double* field = eq == std::string::npos ? nullptr : fusion::FindEkfSetting(c, setting.substr(0, eq));
+  if (field == nullptr) {
     std::string known;
-    for (const auto& [k, v] : fields) known += (known.empty() ? "" : ", ") + k;
+    for (const auto& s : fusion::NumericEkfSettings(c)) known += (known.empty() ? "" : ", ") + s.name;
     throw std::runtime_error("--ekf " + setting + ": expected NAME=VALUE with NAME one of " + known);
   }
   double value = 0;
@@ -97,8 +50,9 @@ void ApplyEkfSetting(fusion::EkfConfig& c, const std::string& setting) {
     throw std::runtime_error("--ekf " + setting + ": value must be a finite number >= 0 (it " + why + ")");
   }
   if (value < 0) throw std::runtime_error("--ekf " + setting + ": value must be a finite number >= 0");
-  *it->second = value;
+  *field = value;
 }
+
 // Everything the command line says.
 struct ReplayArgs {
   std::string drive_dir, bag_path, bag_topics_path, scenario = "open-sky", vo_method = "default";
@@ -235,13 +189,13 @@ pipeline::RunOptions RunOptionsOf(const ReplayArgs& a, const pipeline::BagFrameS
   if (a.seed >= 0) run.scenario.seed = static_cast<uint64_t>(a.seed);
   pipeline::LocalizerOptions& options = run.localizer;
   options.vo_method = a.vo_method;
-  options.ekf.use_imu = !a.no_imu;
-  options.ekf.learn_vo_noise = !a.fixed_vo_noise;
-  options.ekf.learn_gps_noise = !a.fixed_gps_noise;
-  options.ekf.adaptive_vo_rotation_noise = a.vo_rotation_noise == "adaptive";
-  options.ekf.vehicle_constraints = a.vehicle_constraints != "off";
-  options.ekf.vehicle_constraints_need_speed = a.vehicle_constraints == "auto";
-  if (bag) options.ekf.gps_lever_arm_body_m = bag->gps_lever_arm_body_m();
+  options.ekf.imu.enabled = !a.no_imu;
+  options.ekf.vo.learn_noise = !a.fixed_vo_noise;
+  options.ekf.gps.learn_noise = !a.fixed_gps_noise;
+  options.ekf.vo.adaptive_rotation_noise = a.vo_rotation_noise == "adaptive";
+  options.ekf.vehicle.constraints = a.vehicle_constraints != "off";
+  options.ekf.vehicle.constraints_need_speed = a.vehicle_constraints == "auto";
+  if (bag) options.ekf.gps.lever_arm_body_m = bag->gps_lever_arm_body_m();
   for (const auto& setting : a.ekf_settings) ApplyEkfSetting(options.ekf, setting);
   return run;
 }

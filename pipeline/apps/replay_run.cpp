@@ -168,8 +168,8 @@ nlohmann::json ReplayRun::Summary(const ReplayMetrics& metrics, double wall_s) c
                   {"speed_scale_error", ekf.speed_scale_error()},
                   {"zupt_updates", st.zupt_updates},
                   {"nhc_updates", st.nhc_updates},
-                  {"constraints", !ekf.config().vehicle_constraints        ? "off"
-                                  : ekf.config().vehicle_constraints_need_speed ? "auto"
+                  {"constraints", !ekf.config().vehicle.constraints        ? "off"
+                                  : ekf.config().vehicle.constraints_need_speed ? "auto"
                                                                                 : "on"}};
   j["modes"] = mode_counts_;
   j["vo_health"] = vo_health_counts_;

@@ -64,7 +64,7 @@ TEST(EkfAccuracy, UrbanCanyonGpsIsSmoothed) {
     double rmse[2];
     for (bool learn : {false, true}) {
       EkfConfig config = ConfigFor(c, imu);
-      config.learn_vo_noise = config.learn_gps_noise = learn;
+      config.vo.learn_noise = config.gps.learn_noise = learn;
       Ekf ekf(config);
       const auto s = RunFilter(ekf, ev, c);
       rmse[learn] = std::sqrt(s.rmse_h_sum2 / s.rmse_n);

@@ -23,10 +23,10 @@ double LeverArmRmse(bool use_imu, bool modelled) {
   c.seed = 6;
   const Vec3 lever(1.2, 0.9, 0.0);
   EkfConfig config;
-  config.use_imu = use_imu;
-  config.accel_noise_mps2_sqrt_hz = c.accel_noise;
-  config.gyro_noise_radps_sqrt_hz = c.gyro_noise;
-  if (modelled) config.gps_lever_arm_body_m = lever;
+  config.imu.enabled = use_imu;
+  config.imu.accel_noise_mps2_sqrt_hz = c.accel_noise;
+  config.imu.gyro_noise_radps_sqrt_hz = c.gyro_noise;
+  if (modelled) config.gps.lever_arm_body_m = lever;
   Ekf ekf(config);
   EnuFrame geo;
   geo.SetOrigin(test::kLat0, test::kLon0, test::kAlt0);

@@ -32,9 +32,9 @@ StepRun RunWithStep(bool use_imu, const Vec3& offset_enu_m) {
   c.duration_s = 60;
   c.seed = 4;  // no gate false alarm between kStepAtS and kEndS on consistent fixes
   EkfConfig config;
-  config.use_imu = use_imu;
-  config.accel_noise_mps2_sqrt_hz = c.accel_noise;
-  config.gyro_noise_radps_sqrt_hz = c.gyro_noise;
+  config.imu.enabled = use_imu;
+  config.imu.accel_noise_mps2_sqrt_hz = c.accel_noise;
+  config.imu.gyro_noise_radps_sqrt_hz = c.gyro_noise;
   Ekf ekf(config);
   StepRun out;
   int run = 0;

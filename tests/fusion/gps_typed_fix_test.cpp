@@ -21,8 +21,8 @@ struct Errors {
 
 EkfConfig SimEkfConfig(const test::SimConfig& c) {
   EkfConfig config;
-  config.accel_noise_mps2_sqrt_hz = c.accel_noise;
-  config.gyro_noise_radps_sqrt_hz = c.gyro_noise;
+  config.imu.accel_noise_mps2_sqrt_hz = c.accel_noise;
+  config.imu.gyro_noise_radps_sqrt_hz = c.gyro_noise;
   return config;
 }
 

@@ -1,5 +1,5 @@
-// Learned measurement noise (fusion/noise_scale.hpp, EkfConfig::learn_vo_noise
-// / learn_gps_noise): the estimator on its own, then the filter on simulated
+// Learned measurement noise (fusion/noise_scale.hpp, EkfConfig vo.learn_noise
+// / gps.learn_noise): the estimator on its own, then the filter on simulated
 // drives whose VO and GPS noise differ from what they state by a known factor.
 #include "fusion/ekf.hpp"
 #include "fusion/noise_scale.hpp"
@@ -76,14 +76,14 @@ TEST(NoiseScaleEstimator, IgnoresNonFiniteAndMeaninglessInput) {
 // the VO's true noise and the covariance it reports.
 EkfConfig ExactVoModel(const SimConfig& c) {
   EkfConfig e = test::SimEkfConfig(c, /*use_imu=*/true);
-  e.vo_cov_scale = 1.0;
-  e.vo_sigma_t_per_m = e.vo_sigma_lateral_per_m = e.vo_sigma_vertical_per_m = 0.0;
-  e.vo_min_sigma_t_m = e.vo_min_sigma_rot_rad = 1e-9;
-  e.vo_boresight_sigma_rad = 0.0;
-  e.vo_gate_probability = 1.0 - 1e-12;  // a model 3x off must not be gated away before it is learnt
-  e.vo_noise_scale_min = 0.01;
-  e.vo_noise_window_frames = 600;
-  e.adaptive_vo_rotation_noise = false;  // the learner takes all six axes (AdaptiveVoRotationNoise below: not)
+  e.vo.cov_scale = 1.0;
+  e.vo.sigma_t_per_m = e.vo.sigma_lateral_per_m = e.vo.sigma_vertical_per_m = 0.0;
+  e.vo.min_sigma_t_m = e.vo.min_sigma_rot_rad = 1e-9;
+  e.vo.boresight_sigma_rad = 0.0;
+  e.vo.gate_probability = 1.0 - 1e-12;  // a model 3x off must not be gated away before it is learnt
+  e.vo.noise_scale_min = 0.01;
+  e.vo.noise_window_frames = 600;
+  e.vo.adaptive_rotation_noise = false;  // the learner takes all six axes (AdaptiveVoRotationNoise below: not)
   return e;
 }
 
@@ -166,8 +166,8 @@ TEST(LearnedVoNoise, TheFixedModelStaysAsConfigured) {
   c.duration_s = 60;
   c.seed = 2;
   EkfConfig config = ExactVoModel(c);
-  config.learn_vo_noise = false;
-  config.learn_gps_noise = false;
+  config.vo.learn_noise = false;
+  config.gps.learn_noise = false;
   Ekf ekf(config);
   const DriveResult r = Drive(ekf, Simulate(c), 1.0 / 4.0);
   ASSERT_FALSE(r.scale_at_frame.empty());
@@ -181,7 +181,7 @@ TEST(LearnedVoNoise, TheFixedModelStaysAsConfigured) {
 // With the adaptation on (the default), a rotation axis takes the larger of
 // the learner's scale and the adaptation's; the translation axes are the
 // learner's. learn = false: the learner held at the model (min = max = 1),
-// the adaptation alone; the fixed model is learn_vo_noise = false.
+// the adaptation alone; the fixed model is vo.learn_noise = false.
 // The drive of these tests: 4 min, VO translation noise 2 cm.
 SimConfig RotationNoiseDrive() {
   SimConfig c;
@@ -194,9 +194,9 @@ SimConfig RotationNoiseDrive() {
 Vec6 ScaleWithAdaptiveRotation(double reported_factor, double max_scale, bool learn = true, bool adapt = true) {
   const SimConfig c = RotationNoiseDrive();
   EkfConfig config = ExactVoModel(c);
-  if (!learn) config.vo_noise_scale_min = config.vo_noise_scale_max = 1.0;
-  config.adaptive_vo_rotation_noise = adapt;
-  config.adaptive_vo_rotation_noise_max_scale = max_scale;
+  if (!learn) config.vo.noise_scale_min = config.vo.noise_scale_max = 1.0;
+  config.vo.adaptive_rotation_noise = adapt;
+  config.vo.adaptive_rotation_noise_max_scale = max_scale;
   Ekf ekf(config);
   Drive(ekf, Simulate(c), reported_factor);
   EXPECT_TRUE(ekf.initialized());
@@ -234,8 +234,8 @@ TEST(AdaptiveVoRotationNoise, AClampOfOneLeavesTheRotationAxesToTheLearner) {
 TEST(AdaptiveVoRotationNoise, TheFixedModelHasNoAdaptation) {
   const SimConfig c = RotationNoiseDrive();
   EkfConfig config = ExactVoModel(c);
-  config.adaptive_vo_rotation_noise = true;
-  config.learn_vo_noise = false;
+  config.vo.adaptive_rotation_noise = true;
+  config.vo.learn_noise = false;
   Ekf ekf(config);
   Drive(ekf, Simulate(c), 1.0 / 4.0);
   EXPECT_EQ(ekf.vo_noise_scale(), Vec6::Ones());
@@ -259,7 +259,7 @@ TEST(LearnedGpsNoise, AReceiverThatClaimsAThirdOfItsNoiseIsFound) {
     e.gps.sigma_v_m /= 3;
   }
   EkfConfig config = test::SimEkfConfig(c, /*use_imu=*/true);
-  config.gps_noise_window_fixes = 150;
+  config.gps.noise_window_fixes = 150;
   Ekf ekf(config);
   Drive(ekf, ev, 1.0);
   ASSERT_TRUE(ekf.initialized());

@@ -268,7 +268,7 @@ TEST_P(EkfNumericalHealth, CovarianceStaysSymmetricPositiveDefiniteAndOutputsFin
     SCOPED_TRACE(c.name);
     const auto events = Simulate(c.sim);
     EkfConfig config;  // production defaults: the filter does not know the data is bad
-    config.use_imu = use_imu;
+    config.imu.enabled = use_imu;
     Ekf ekf(config);
     HealthMonitor health(std::string(use_imu ? "imu/" : "no-imu/") + c.name);
     const RunResult r = Drive(ekf, events, c.torture, health, c.sim.seed);
@@ -350,7 +350,7 @@ void FeedUntil(Ekf& ekf, const std::vector<SimEvent>& ev, size_t* next, SimEvent
 
 Ekf EkfFor(bool use_imu) {
   EkfConfig config;
-  config.use_imu = use_imu;
+  config.imu.enabled = use_imu;
   return Ekf(config);
 }
 

@@ -68,13 +68,13 @@ inline GpsFix NoisyFix(const EnuFrame& geo, const SimConfig& c, int64_t t_ns, co
 // camera's anisotropic model).
 inline EkfConfig SimEkfConfig(const SimConfig& c, bool use_imu) {
   EkfConfig e;
-  e.use_imu = use_imu;
-  e.accel_noise_mps2_sqrt_hz = c.accel_noise;
-  e.gyro_noise_radps_sqrt_hz = c.gyro_noise;
-  e.init_accel_bias_sigma_mps2 = 0.05;
-  e.init_gyro_bias_sigma_radps = 0.001;
-  e.vo_cov_scale = 5.0;
-  e.vo_sigma_lateral_per_m = e.vo_sigma_vertical_per_m = e.vo_sigma_t_per_m;
+  e.imu.enabled = use_imu;
+  e.imu.accel_noise_mps2_sqrt_hz = c.accel_noise;
+  e.imu.gyro_noise_radps_sqrt_hz = c.gyro_noise;
+  e.startup.accel_bias_sigma_mps2 = 0.05;
+  e.startup.gyro_bias_sigma_radps = 0.001;
+  e.vo.cov_scale = 5.0;
+  e.vo.sigma_lateral_per_m = e.vo.sigma_vertical_per_m = e.vo.sigma_t_per_m;
   return e;
 }
 

@@ -251,7 +251,7 @@ Mode LastModeInOutage(bool use_imu, bool vo_lost) {
   const SimConfig c = OutageToTheEnd(55, 40, 4);
   const auto ev = Simulate(c);
   EkfConfig config = ConfigFor(c);
-  config.use_imu = use_imu;
+  config.imu.enabled = use_imu;
   Ekf ekf(config);
   Mode last = Mode::kGpsFused;
   DriveHooks h;
@@ -284,7 +284,7 @@ TEST(VehicleModes, DeadReckoningEndsWhenTheImuStops) {
   Drive(ekf, ev, h);
   const int64_t t_end = ev.back().truth.t_ns;
   EXPECT_EQ(ekf.Output(t_end, false).mode, Mode::kDeadReckoning);
-  const auto gap_ns = static_cast<int64_t>((ekf.config().max_imu_gap_s + 0.5) * kNsPerS);
+  const auto gap_ns = static_cast<int64_t>((ekf.config().imu.max_gap_s + 0.5) * kNsPerS);
   EXPECT_EQ(ekf.Output(t_end + gap_ns, false).mode, Mode::kLost);
 }
 
@@ -304,7 +304,7 @@ NhcRun OutageWithVoLost(bool constraints) {
   c.gps_sigma_h_m = 1.5;
   const auto ev = Simulate(c);
   EkfConfig config = ConfigFor(c);
-  config.vehicle_constraints = constraints;
+  config.vehicle.constraints = constraints;
   Ekf ekf(config);
   NhcRun run;
   DriveHooks h;
@@ -407,7 +407,7 @@ TEST(VehicleConstraints, ByDefaultTheyWaitForASpeedSensor) {
   const auto ev = Simulate(c);
   auto nhc_updates = [&](bool need_speed) {
     EkfConfig config = ConfigFor(c);
-    config.vehicle_constraints_need_speed = need_speed;
+    config.vehicle.constraints_need_speed = need_speed;
     Ekf ekf(config);
     Drive(ekf, ev, DriveHooks{});
     EXPECT_TRUE(ekf.initialized());

@@ -75,9 +75,13 @@ TEST_F(ReplayCli, VoCacheReproducesTheFilterResultWithoutVo) {
   EXPECT_NEAR(std::stod(rmse1), std::stod(rmse2), 1e-9);
   EXPECT_EQ(JsonField(first.out, "frames"), JsonField(second.out, "frames"));
   // A filter setting changes the result while the cache is reused.
-  const auto tuned = RunCommand(Replay("--vo-cache " + cache.string() + " --ekf vo_cov_scale=50"));
+  const auto tuned = RunCommand(Replay("--vo-cache " + cache.string() + " --ekf vo.cov_scale=50"));
   ASSERT_EQ(tuned.exit_code, 0) << tuned.out;
   EXPECT_NE(JsonField(tuned.out, "rmse_gps_m"), rmse1);
+  // The setting's flat name of earlier versions sets the same field.
+  const auto flat = RunCommand(Replay("--vo-cache " + cache.string() + " --ekf vo_cov_scale=50"));
+  ASSERT_EQ(flat.exit_code, 0) << flat.out;
+  EXPECT_EQ(JsonField(flat.out, "rmse_gps_m"), JsonField(tuned.out, "rmse_gps_m"));
 }
 
 // Learned noise (docs/api.md "Learned noise") in the JSON, and the two flags
@@ -152,8 +156,12 @@ TEST_F(ReplayCli, BadEkfSettingsNameTheProblem) {
   const auto unknown = RunCommand(Replay("--max-frames 5 --ekf no_such_field=1"));
   EXPECT_NE(unknown.exit_code, 0);
   EXPECT_NE(unknown.out.find("no_such_field=1: expected NAME=VALUE"), std::string::npos) << unknown.out;
-  EXPECT_NE(unknown.out.find("vo_cov_scale"), std::string::npos) << unknown.out;
-  for (const std::string bad : {"vo_cov_scale=abc", "vo_cov_scale=nan", "vo_cov_scale=-1", "vo_cov_scale=1x"}) {
+  for (const std::string model : {"imu.", "gps.", "vo.", "vehicle.", "startup."}) {
+    EXPECT_NE(unknown.out.find(model), std::string::npos) << "the settings of each model are listed: " << unknown.out;
+  }
+  EXPECT_NE(unknown.out.find("vo.cov_scale"), std::string::npos) << unknown.out;
+  EXPECT_NE(RunCommand(Replay("--max-frames 5 --ekf vo.cov_scale")).exit_code, 0) << "a name without a value";
+  for (const std::string bad : {"vo.cov_scale=abc", "vo_cov_scale=nan", "vo.cov_scale=-1", "vo_cov_scale=1x"}) {
     const auto r = RunCommand(Replay("--max-frames 5 --ekf " + bad));
     EXPECT_NE(r.exit_code, 0) << bad;
     EXPECT_NE(r.out.find("value must be a finite number >= 0"), std::string::npos) << bad << ": " << r.out;

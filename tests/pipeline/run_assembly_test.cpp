@@ -93,19 +93,19 @@ TEST(AssembleRun, TheScenariosFilterSettingsComeOnTopOfTheCallers) {
   RunOptions options;
   options.scenario.imu_grade = sim::ImuGrade::kMems;
   options.scenario.imu_accel_noise_mps2_sqrt_hz = 0.5;
-  options.localizer.ekf.accel_noise_mps2_sqrt_hz = 0.01;  // the caller's, lower than the grade needs
-  options.localizer.ekf.learn_gps_noise = false;          // the caller's, kept
+  options.localizer.ekf.imu.accel_noise_mps2_sqrt_hz = 0.01;  // the caller's, lower than the grade needs
+  options.localizer.ekf.gps.learn_noise = false;          // the caller's, kept
   std::optional<EstimatorInputs> seen;
   AssembleRun(std::make_unique<RigOnlySource>(60), options, [&](const EstimatorInputs& in) {
     seen = in;
     return std::make_unique<NullEstimator>();
   });
   ASSERT_TRUE(seen);
-  EXPECT_DOUBLE_EQ(seen->localizer.ekf.accel_noise_mps2_sqrt_hz, 1.0);  // 2x the MEMS grade's
-  EXPECT_FALSE(seen->localizer.ekf.learn_gps_noise);
+  EXPECT_DOUBLE_EQ(seen->localizer.ekf.imu.accel_noise_mps2_sqrt_hz, 1.0);  // 2x the MEMS grade's
+  EXPECT_FALSE(seen->localizer.ekf.gps.learn_noise);
   // The same settings for a rig alone (a synthetic session checks them before its render).
   const EstimatorInputs early = EstimatorInputsFor(seen->camera, seen->T_cam0_imu, options);
-  EXPECT_DOUBLE_EQ(early.localizer.ekf.accel_noise_mps2_sqrt_hz, 1.0);
+  EXPECT_DOUBLE_EQ(early.localizer.ekf.imu.accel_noise_mps2_sqrt_hz, 1.0);
 }
 
 TEST(AssembleRun, WhatTheMakerThrowsComesOut) {
