@@ -3,6 +3,7 @@
 // failed write leaves the file valid up to the last complete pose.
 #pragma once
 
+#include "output/enum_names.hpp"
 #include "output/mcap_recording.hpp"
 #include "locaid/v1/localization.pb.h"
 
@@ -26,15 +27,7 @@ namespace locaid::clients {
 
 namespace v1 = locaid::v1;
 
-inline const char* ModeName(v1::Mode m) {
-  switch (m) {
-    case v1::MODE_GPS_FUSED: return "GPS_FUSED";
-    case v1::MODE_GPS_DEGRADED: return "GPS_DEGRADED";
-    case v1::MODE_VO_ONLY: return "VO_ONLY";
-    case v1::MODE_LOST: return "LOST";
-    default: return "UNSPECIFIED";
-  }
-}
+using output::ModeName;  // every format names the modes as the proto does
 
 // Column list shared with clients/python/locaid_client.py (CSV_COLUMNS).
 inline const char* kCsvHeader =

@@ -1,5 +1,6 @@
 #include "output/channels.hpp"
 
+#include "output/enum_names.hpp"
 #include "output/json_schemas.hpp"
 #include "output/static_transforms.hpp"
 
@@ -109,13 +110,6 @@ void PutLocationFix(json& body, int64_t t_ns, const char* frame_id, double lat, 
   for (size_t k = 0; k < covariance.size(); ++k) Element(c, k) = covariance[k];
   PutInt(body, "position_covariance_type", covariance_type);
   PutColor(body, color);
-}
-
-// The enum value's name without its prefix: MODE_GPS_FUSED -> GPS_FUSED.
-std::string_view EnumName(const std::string& full, std::string_view prefix) {
-  std::string_view name(full);
-  if (name.substr(0, prefix.size()) == prefix) name.remove_prefix(prefix.size());
-  return name;
 }
 
 OutMessage Json(Topic topic, int64_t t_ns, const json& body) {
@@ -233,10 +227,10 @@ void StatusJson(const v1::PoseUpdate& p, json& body) {
   PutString(body, "session_id", p.session_id());
   PutUint(body, "sequence", p.sequence());
   PutInt(body, "frame_index", p.frame_index());
-  PutString(body, "mode", EnumName(v1::Mode_Name(p.mode()), "MODE_"));
-  PutString(body, "vo_status", EnumName(v1::VoStatus_Name(p.vo_status()), "VO_STATUS_"));
+  PutString(body, "mode", ModeName(p.mode()));
+  PutString(body, "vo_status", VoStatusName(p.vo_status()));
   PutInt(body, "vo_inliers", p.vo_inliers());
-  PutString(body, "vo_health", EnumName(v1::VoHealth_Name(p.vo_health()), "VO_HEALTH_"));
+  PutString(body, "vo_health", VoHealthName(p.vo_health()));
   PutUint(body, "speed_samples_used", p.speed_samples_used());
   Put(body, "speed_scale_error", p.speed_scale_error());
   Member(body, "vo_noise_scale") = std::vector<double>(p.noise().vo_scale().begin(), p.noise().vo_scale().end());

@@ -1,5 +1,6 @@
 #include "output/ros2_recording.hpp"
 
+#include "output/enum_names.hpp"
 #include "output/ros2_schemas.hpp"
 #include "output/static_transforms.hpp"
 
@@ -115,15 +116,6 @@ std::string Number(double v) {
   return text;
 }
 
-// An enum value's name without its prefix ("MODE_GPS_FUSED" -> "GPS_FUSED");
-// the number for a value the proto does not know.
-std::string EnumName(const std::string& name, const std::string& prefix, int value) {
-  if (name.empty()) return std::to_string(value);
-  return name.rfind(prefix, 0) == 0 ? name.substr(prefix.size()) : name;
-}
-
-std::string ModeName(v1::Mode mode) { return EnumName(v1::Mode_Name(mode), "MODE_", mode); }
-
 uint8_t Level(v1::Mode mode) {
   switch (mode) {
     case v1::MODE_GPS_FUSED: return kLevelOk;
@@ -149,8 +141,8 @@ std::vector<std::pair<std::string, std::string>> StatusValues(const v1::PoseUpda
       {"session_id", p.session_id()},
       {"sequence", std::to_string(p.sequence())},
       {"frame_index", std::to_string(p.frame_index())},
-      {"vo_status", EnumName(v1::VoStatus_Name(p.vo_status()), "VO_STATUS_", p.vo_status())},
-      {"vo_health", EnumName(v1::VoHealth_Name(p.vo_health()), "VO_HEALTH_", p.vo_health())},
+      {"vo_status", VoStatusName(p.vo_status())},
+      {"vo_health", VoHealthName(p.vo_health())},
       {"vo_inliers", std::to_string(p.vo_inliers())},
       {"gps_outage_active", p.gps_outage_active() ? "true" : "false"},
       {"seconds_since_gps", Number(p.seconds_since_gps())},

@@ -30,7 +30,13 @@ CSV_COLUMNS = [
     "processing_latency_ms", "delay_ms", "dropped", "gps_resets",
 ]
 
-MODE_NAMES = {0: "UNSPECIFIED", 1: "GPS_FUSED", 2: "GPS_DEGRADED", 3: "VO_ONLY", 4: "LOST"}
+
+def mode_name(pb2, mode):
+    """The proto's name of a mode without its prefix (as the C++ client writes it); the number if unknown."""
+    try:
+        return pb2.Mode.Name(mode).removeprefix("MODE_")
+    except ValueError:
+        return str(mode)
 
 
 def _import_stubs(stubs_dir):
@@ -59,7 +65,7 @@ def metadata(args):
     return [("authorization", "Bearer " + args.token)] if args.token else []
 
 
-def pose_row(p, delay_ms):
+def pose_row(pb2, p, delay_ms):
     cov = list(p.covariance)
     sigma = [math.sqrt(max(0.0, cov[i * 7])) if len(cov) == 36 else float("nan") for i in range(3)]
     return [
@@ -69,7 +75,7 @@ def pose_row(p, delay_ms):
         p.orientation_enu_body.w, p.orientation_enu_body.x, p.orientation_enu_body.y, p.orientation_enu_body.z,
         p.velocity_enu_mps.x, p.velocity_enu_mps.y, p.velocity_enu_mps.z,
         sigma[0], sigma[1], sigma[2],
-        MODE_NAMES.get(p.mode, str(p.mode)), p.seconds_since_gps, p.vo_inliers, p.gps_used, p.gps_rejected,
+        mode_name(pb2, p.mode), p.seconds_since_gps, p.vo_inliers, p.gps_used, p.gps_rejected,
         1 if p.gps_outage_active else 0, p.processing_latency_ms, delay_ms, p.dropped_for_subscriber,
         p.gps_resets,
     ]
@@ -129,11 +135,11 @@ def subscribe(args, pb2, pb2_grpc):
             delay_ms = (time.time_ns() - p.published_unix_ns) * 1e-6
             n += 1
             if recorder:
-                recorder.write(pose_row(p, delay_ms))
+                recorder.write(pose_row(pb2, p, delay_ms))
             else:
                 print("seq=%d t=%.3f enu=(%.3f,%.3f,%.3f) mode=%s delay_ms=%.3f dropped=%d" % (
                     p.sequence, p.t_ns * 1e-9, p.position_enu_m.x, p.position_enu_m.y, p.position_enu_m.z,
-                    MODE_NAMES.get(p.mode, "?"), delay_ms, p.dropped_for_subscriber), flush=True)
+                    mode_name(pb2, p.mode), delay_ms, p.dropped_for_subscriber), flush=True)
             if args.max and n >= args.max:
                 break
     except grpc.RpcError as e:

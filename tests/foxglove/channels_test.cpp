@@ -2,6 +2,8 @@
 // topics and schema names, field names, covariance layout, timestamps,
 // which channels a pose feeds, and the bounded /locaid/path.
 #include "output/channels.hpp"
+#include "clients/recorder.hpp"
+#include "temp_dir.hpp"
 #include "output/json_schemas.hpp"
 #include "output/static_transforms.hpp"
 #include "foxglove/ws_server.hpp"
@@ -11,6 +13,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
+#include <sstream>
 #include <map>
 
 namespace fx = locaid::output;  // the channels are output/'s
@@ -360,4 +364,28 @@ TEST(FoxgloveChannels, Base64MatchesRfc4648Vectors) {
   EXPECT_EQ(locaid::foxglove::Base64("foob"), "Zm9vYg==");
   EXPECT_EQ(locaid::foxglove::Base64("foobar"), "Zm9vYmFy");
   EXPECT_EQ(locaid::foxglove::Base64(std::string("\xff\x00\x80", 3)), "/wCA");
+}
+
+// Every mode the proto has, DEAD_RECKONING included, is written by its own
+// name in the status channel and in `locaid subscribe`'s CSV, never as
+// UNSPECIFIED: the names come from the proto, not from a table of our own.
+TEST(OutputEnumNames, EveryModeIsWrittenByTheProtosName) {
+  const locaid::test_support::ScopedTempDir dir("enum_names");
+  const auto* modes = v1::Mode_descriptor();
+  for (int i = 0; i < modes->value_count(); ++i) {
+    const auto mode = static_cast<v1::Mode>(modes->value(i)->number());
+    const std::string name = modes->value(i)->name().substr(std::string("MODE_").size());
+    EXPECT_EQ(Body(fx::StatusJson, SamplePose(1, mode))["mode"], name);
+    const std::string csv = (dir.path() / (name + ".csv")).string();
+    {
+      locaid::clients::Recorder recorder("csv", csv);
+      recorder.Add(SamplePose(1, mode), 0.0);
+      recorder.Close();
+    }
+    std::ifstream in(csv);
+    std::stringstream text;
+    text << in.rdbuf();
+    EXPECT_NE(text.str().find("," + name + ","), std::string::npos) << text.str();
+  }
+  EXPECT_EQ(fx::ModeName(static_cast<v1::Mode>(99)), "99") << "a value this build does not know: its number";
 }
