@@ -2,7 +2,7 @@
 // with start, frame, oxts, imu, gps or speed), as the server turns them into
 // pipeline input: a first 'start' carrying a LiveSource through
 // server/live_source_request.hpp LiveSourceFromProto, the typed messages
-// through server/sensor_requests.hpp ImuItemFromProto / GpsItemFromProto,
+// through server/push_requests.hpp ImuItemFromProto / GpsItemFromProto,
 // then the session's pipeline::LiveFrameSource (ordering, OXTS line parsing,
 // frame decoding).
 //
@@ -42,7 +42,7 @@
 #include "pipeline/frame_source.hpp"
 #include "pipeline/live_frame_source.hpp"
 #include "server/live_source_request.hpp"
-#include "server/sensor_requests.hpp"
+#include "server/push_requests.hpp"
 
 #include "locaid/v1/localization.pb.h"
 

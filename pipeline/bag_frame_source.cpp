@@ -195,7 +195,7 @@ SourceItem BagFrameSource::Next() {
       }
       if (!sensors_.empty()) {
         SourceItem s;
-        s.kind = SourceItem::Kind::kSensors;
+        s.kind = SourceItem::Kind::kSamples;
         s.t_ns = newest_stamp_ns_;
         s.sensors = std::exchange(sensors_, {});
         ready_.push_back(std::move(s));

@@ -118,7 +118,7 @@ class BagFrameSource : public FrameSource {
   int64_t newest_stamp_ns_ = INT64_MIN, released_stamp_ns_ = INT64_MIN;
   bool bag_done_ = false;
   std::optional<Pending> left_, right_;
-  SensorBatch sensors_;
+  SampleBatch sensors_;
   int64_t last_imu_ns_ = INT64_MIN, last_gps_ns_ = INT64_MIN, last_speed_ns_ = INT64_MIN;
   int64_t last_frame_ns_ = INT64_MIN;
   int64_t next_index_ = 0;

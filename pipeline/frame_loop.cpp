@@ -21,7 +21,7 @@ StepResult FrameLoop::Step() {
     RecordFixLatency(item.sensors);
   }
   switch (item.kind) {
-    case SourceItem::Kind::kSensors: r.kind = StepResult::Kind::kFused; return r;
+    case SourceItem::Kind::kSamples: r.kind = StepResult::Kind::kFused; return r;
     case SourceItem::Kind::kEnd: r.kind = StepResult::Kind::kEnd; return r;
     case SourceItem::Kind::kIdle: r.kind = StepResult::Kind::kIdle; return r;
     case SourceItem::Kind::kSkipped: r.kind = StepResult::Kind::kSkipped; return r;
@@ -45,7 +45,7 @@ void FrameLoop::SetScenario(const sim::Scenario& scenario) {
   camera_faults_.SetScenario(scenario);
 }
 
-void FrameLoop::RecordFixLatency(const SensorBatch& sensors) {
+void FrameLoop::RecordFixLatency(const SampleBatch& sensors) {
   const auto now = std::chrono::steady_clock::now().time_since_epoch();
   const auto now_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(now).count();
   std::lock_guard lock(latency_mu_);

@@ -136,7 +136,7 @@ class FrameLoop final : public Pipeline {
 
  private:
   // Records each received fix's time from arrival to use.
-  void RecordFixLatency(const SensorBatch& sensors);
+  void RecordFixLatency(const SampleBatch& sensors);
   // The truth pose in the filter's ENU frame (no T_enu_body before it has an origin).
   TruthPose Truth(const fusion::ReferencePose& reference) const;
 

@@ -12,7 +12,7 @@
 #include "fusion/types.hpp"
 #include "kitti/dataset.hpp"
 #include "kitti/types.hpp"
-#include "pipeline/sensors.hpp"
+#include "pipeline/samples.hpp"
 
 #include <opencv2/core.hpp>
 
@@ -39,14 +39,14 @@ struct LiveInputStats {
 };
 
 struct SourceItem {
-  // kSensors: typed IMU / GPS data between frames, to fuse now (live input).
-  enum class Kind { kFrame, kSkipped, kCorrupt, kIdle, kEnd, kSensors };
+  // kSamples: samples (IMU / GPS / speed) between frames, to fuse now (live input).
+  enum class Kind { kFrame, kSkipped, kCorrupt, kIdle, kEnd, kSamples };
   Kind kind = Kind::kIdle;
   int64_t index = -1;
   int64_t t_ns = 0;
   cv::Mat left, right;                         // kFrame: CV_8UC1, camera size
   // Sensor data since the previous item, typed (t <= t_ns for frames).
-  SensorBatch sensors;
+  SampleBatch sensors;
   std::optional<fusion::ReferencePose> truth;  // recorded drives: the reference at the frame time
   int oxts_bad_lines = 0;
   std::string error;                           // why skipped/corrupt, last bad OXTS line

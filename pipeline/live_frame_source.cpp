@@ -235,7 +235,7 @@ SourceItem LiveFrameSource::Next() {
       }
       if (queue_.empty() && HasReleasable()) {
         // Typed data between frames is fused now, not at the next frame.
-        out.kind = SourceItem::Kind::kSensors;
+        out.kind = SourceItem::Kind::kSamples;
         out.t_ns = sensor_time_ns_;
         Release(sensor_time_ns_, out);
         return out;

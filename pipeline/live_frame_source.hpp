@@ -22,7 +22,7 @@
 namespace locaid::pipeline {
 
 // One item pushed by a client (values already validated, see the server's
-// sensor_requests.cpp; ordering is checked here).
+// push_requests.cpp; ordering is checked here).
 struct LiveItem {
   enum class Kind { kFrame, kOxts, kImu, kGps, kSpeed };
   Kind kind = Kind::kFrame;
@@ -98,7 +98,7 @@ class LiveFrameSource : public FrameSource {
   std::function<void()> resume_;
   bool closed_ = false, cancelled_ = false, woken_ = false;
   // Consumer state.
-  SensorBatch reference_;  // pushed OXTS as reference samples, up to the next frame
+  SampleBatch reference_;  // pushed OXTS as reference samples, up to the next frame
   std::optional<int64_t> last_oxts_t_ns_;  // newest record accepted (ordering check)
   int bad_lines_ = 0;
   std::string last_error_;

@@ -11,7 +11,7 @@
 #include "fusion/ekf.hpp"
 #include "sim/scenario.hpp"
 #include "fusion/types.hpp"
-#include "pipeline/sensors.hpp"
+#include "pipeline/samples.hpp"
 #include "vo/stereo_odometry.hpp"
 
 #include <Eigen/Geometry>

@@ -17,7 +17,7 @@ fusion::ReferencePose OxtsReferencePose(int64_t t_ns, const kitti::OxtsRecord& r
           Eigen::Vector3d(r.vf_mps, r.vl_mps, r.vu_mps)};
 }
 
-void AppendOxts(const kitti::OxtsSample& s, SensorBatch& batch) {
+void AppendOxts(const kitti::OxtsSample& s, SampleBatch& batch) {
   batch.reference_imu.push_back(OxtsImu(s.t_ns, s.record));
   batch.reference_poses.push_back(OxtsReferencePose(s.t_ns, s.record));
 }

@@ -27,7 +27,7 @@ void ScenarioStage::RebuildDegradation(std::optional<int64_t> drive_start_ns) {
   gps_->SetForcedOutage(forced_);
 }
 
-void ScenarioStage::BeginFrame(int64_t t_ns, const SensorBatch& its_sensors) {
+void ScenarioStage::BeginFrame(int64_t t_ns, const SampleBatch& its_sensors) {
   // Without reference samples the scenario's drive clock starts at the first frame.
   if (!gps_->drive_start_ns() && its_sensors.reference_poses.empty()) gps_->SetDriveStart(t_ns);
   last_frame_ns_ = t_ns;
@@ -36,7 +36,7 @@ void ScenarioStage::BeginFrame(int64_t t_ns, const SensorBatch& its_sensors) {
   for (const auto& [start_s, duration_s] : std::exchange(early_windows_, {})) AddOutageWindow(start_s, duration_s);
 }
 
-Measurements ScenarioStage::Apply(const SensorBatch& batch) {
+Measurements ScenarioStage::Apply(const SampleBatch& batch) {
   if (batch.receiver_has_fix) receiver_has_fix_ = *batch.receiver_has_fix;
   Measurements out;
   out.imu.reserve(batch.imu.size() + batch.reference_imu.size());

@@ -12,7 +12,7 @@
 #pragma once
 
 #include "sim/scenario.hpp"
-#include "pipeline/sensors.hpp"
+#include "pipeline/samples.hpp"
 
 #include <cstdint>
 #include <memory>
@@ -29,9 +29,9 @@ class ScenarioStage {
 
   // A frame at t_ns comes next: the first one starts the clock of run-time
   // windows (and the scenario's, unless a reference sample came first).
-  void BeginFrame(int64_t t_ns, const SensorBatch& its_sensors);
+  void BeginFrame(int64_t t_ns, const SampleBatch& its_sensors);
   // Everything a source delivered with one item, in its order.
-  Measurements Apply(const SensorBatch& batch);
+  Measurements Apply(const SampleBatch& batch);
   // Whether GPS is out at t_ns: a scheduled, run-time or forced outage, or
   // the receiver's last report was "no fix".
   bool InOutage(int64_t t_ns) const;

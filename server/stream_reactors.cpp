@@ -1,7 +1,7 @@
 #include "server/stream_reactors.hpp"
 
 #include "pipeline/live_frame_source.hpp"
-#include "server/sensor_requests.hpp"
+#include "server/push_requests.hpp"
 #include "server/status.hpp"
 
 #include <deque>

@@ -5,7 +5,7 @@
 #include "pipeline/live_frame_source.hpp"
 #include "pipeline/scenario_yaml.hpp"
 #include "server/live_source_request.hpp"
-#include "server/sensor_requests.hpp"
+#include "server/push_requests.hpp"
 
 #include <gtest/gtest.h>
 

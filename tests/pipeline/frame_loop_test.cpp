@@ -218,7 +218,7 @@ TEST(FrameLoop, CameraFaultsOfTheScenarioInjectedAndReplacedReachTheEstimator) {
 TEST(FrameLoop, SensorDataReachesTheFilterBeforeItsFrameAndFixesComeWithThePose) {
   auto log = std::make_shared<RecordingEstimator::Log>();
   SourceItem between;  // sensor data between frames: fused, no pose
-  between.kind = SourceItem::Kind::kSensors;
+  between.kind = SourceItem::Kind::kSamples;
   between.t_ns = kT0 + 50'000'000;
   between.sensors.gps = {Fix(kT0 + 40'000'000)};
   SourceItem frame = Frame(1, kT0 + kPeriod);

@@ -14,8 +14,8 @@ namespace locaid::pipeline {
 namespace {
 
 // 10 s of measured fixes at 10 Hz, 1 m sigma, all at one place.
-SensorBatch TenSecondsOfFixes() {
-  SensorBatch b;
+SampleBatch TenSecondsOfFixes() {
+  SampleBatch b;
   for (int i = 0; i < 100; ++i) {
     ArrivedFix f;
     f.fix.t_ns = int64_t{i} * 100'000'000;
@@ -31,7 +31,7 @@ SensorBatch TenSecondsOfFixes() {
 
 Measurements Stage(const std::string& yaml) {
   ScenarioStage stage(ParseScenarioYaml(yaml, "s.yaml"));
-  const SensorBatch batch = TenSecondsOfFixes();
+  const SampleBatch batch = TenSecondsOfFixes();
   stage.BeginFrame(0, batch);
   return stage.Apply(batch);
 }

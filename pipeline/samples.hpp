@@ -1,7 +1,9 @@
-// Typed sensor data, the only kind that crosses the pipeline: a source
-// (recorded drive, frames and sensors a client pushes, gpsd) yields a
-// SensorBatch with each frame or between frames; the scenario stage
-// (scenario_stage.hpp) turns it into the Measurements the estimator fuses.
+// Samples: the timed, typed data a source yields besides frames (IMU
+// samples, GPS fixes, speed readings, a reference unit's samples), the only
+// kind that crosses the pipeline. A source (recorded drive, frames and
+// sensors a client pushes, gpsd) yields a SampleBatch with each frame or
+// between frames; the scenario stage (scenario_stage.hpp) turns it into the
+// Measurements the estimator fuses.
 //
 // A recorded drive's reference unit (KITTI's OXTS: ground truth) is never
 // fused as such: its IMU and pose go into the reference lists, from which the
@@ -33,7 +35,7 @@ struct Measurements {
 };
 
 // What a source delivers with one item, each list in time order.
-struct SensorBatch {
+struct SampleBatch {
   std::vector<fusion::ImuSample> imu;  // measured IMU: fused as it is
   std::vector<ArrivedFix> gps;         // measured fixes: scenario outages apply, its noise does not
   std::vector<fusion::SpeedSample> speed;  // measured vehicle speed: fused as it is
@@ -50,7 +52,7 @@ struct SensorBatch {
            !receiver_has_fix;
   }
   // Moves the samples with t_ns <= t_ns of every list into `out` (appended).
-  void MoveUpTo(int64_t t_ns, SensorBatch& out);
+  void MoveUpTo(int64_t t_ns, SampleBatch& out);
 };
 
 }  // namespace locaid::pipeline

@@ -1,4 +1,4 @@
-#include "pipeline/sensors.hpp"
+#include "pipeline/samples.hpp"
 
 #include <algorithm>
 #include <iterator>
@@ -16,7 +16,7 @@ void MoveWhile(std::vector<T>& from, std::vector<T>& to, int64_t t_ns, Time time
 
 }  // namespace
 
-void SensorBatch::MoveUpTo(int64_t t_ns, SensorBatch& out) {
+void SampleBatch::MoveUpTo(int64_t t_ns, SampleBatch& out) {
   auto t = [](const auto& s) { return s.t_ns; };
   MoveWhile(imu, out.imu, t_ns, t);
   MoveWhile(gps, out.gps, t_ns, [](const ArrivedFix& f) { return f.fix.t_ns; });

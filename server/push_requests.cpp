@@ -1,4 +1,4 @@
-#include "server/sensor_requests.hpp"
+#include "server/push_requests.hpp"
 
 #include <Eigen/Cholesky>
 
