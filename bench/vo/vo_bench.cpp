@@ -38,7 +38,7 @@
 #include "kitti/pose_io.hpp"
 #include "kitti/raw_drive.hpp"
 #include "vo/apps/vo_flags.hpp"
-#include "vo/drive_runner.hpp"
+#include "vo/apps/drive_runner.hpp"
 #include "vo/stereo_odometry.hpp"
 
 #include <CLI/CLI.hpp>

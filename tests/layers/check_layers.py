@@ -20,7 +20,7 @@ import tempfile
 LAYERS = {
     "core": 0, "fusion": 0, "record": 0, "locaid": 0,  # "locaid/v1/...": the generated API (proto/)
     "kitti": 1, "bag": 1, "sim": 1, "sensors": 2,
-    "synth": 3, "eval": 3, "vo": 3,
+    "vo": 1, "synth": 3, "eval": 3,
     "pipeline": 4,
     "output": 5, "connection": 5, "sweep": 5,
     "server": 6, "foxglove": 6,

@@ -16,7 +16,7 @@
 #include "kitti/dataset.hpp"
 #include "kitti/pose_io.hpp"
 #include "vo/apps/vo_flags.hpp"
-#include "vo/drive_runner.hpp"
+#include "vo/apps/drive_runner.hpp"
 #include "vo/stereo_odometry.hpp"
 
 #include <CLI/CLI.hpp>

@@ -3,7 +3,7 @@
 // for their names, help, range checks and the DriveRunConfig they make.
 #pragma once
 
-#include "vo/drive_runner.hpp"
+#include "vo/apps/drive_runner.hpp"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>

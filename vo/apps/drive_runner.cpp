@@ -1,4 +1,4 @@
-#include "vo/drive_runner.hpp"
+#include "vo/apps/drive_runner.hpp"
 
 #include "kitti/types.hpp"
 #include "vo/stereo_geometry.hpp"
