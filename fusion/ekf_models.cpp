@@ -51,7 +51,7 @@ Eigen::Matrix<double, 15, 1> BoxMinus(const NominalState& x, const NominalState&
   return d;
 }
 
-NominalState PropagateImu(const NominalState& x, const Vec3& f_body, const Vec3& w_body,
+NominalState IntegrateImuStep(const NominalState& x, const Vec3& f_body, const Vec3& w_body,
                           double dt, const Vec3& g_enu) {
   NominalState y = x;
   const Vec3 a_enu = x.R_enu_body * (f_body - x.accel_bias_mps2) + g_enu;

@@ -48,9 +48,9 @@ Eigen::Matrix<double, 15, 1> BoxMinus(const NominalState& x, const NominalState&
 // One IMU step over dt_s with specific force f (body) and angular rate w
 // (body), both raw (biases removed inside), gravity g_enu (0, 0, -9.81):
 //   p' = p + v dt + 1/2 (R a + g) dt^2,  v' = v + (R a + g) dt,  R' = R Exp(w dt)
-NominalState PropagateImu(const NominalState& x, const Vec3& f_body_mps2,
+NominalState IntegrateImuStep(const NominalState& x, const Vec3& f_body_mps2,
                           const Vec3& w_body_radps, double dt_s, const Vec3& g_enu_mps2);
-// Exact Jacobian of PropagateImu w.r.t. the 15 error states.
+// Exact Jacobian of IntegrateImuStep w.r.t. the 15 error states.
 Mat15 ImuTransitionJacobian(const NominalState& x, const Vec3& f_body_mps2,
                             const Vec3& w_body_radps, double dt_s);
 // Discrete process noise for that step (white accel/gyro noise densities,

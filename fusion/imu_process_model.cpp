@@ -124,7 +124,7 @@ class ImuProcessModel final : public ProcessModel {
       const Mat15 F = ImuTransitionJacobian(s.x, f, w, dt);
       const Mat15 Q = ImuProcessNoise(s.x, dt, accel_noise * gap_scale, gyro_noise * gap_scale,
                                       config_.imu.accel_bias_walk_mps3_sqrt_hz, config_.imu.gyro_bias_walk_radps2_sqrt_hz);
-      s.x = fusion::PropagateImu(s.x, f, w, dt, g);
+      s.x = fusion::IntegrateImuStep(s.x, f, w, dt, g);
       const Eigen::MatrixXd P15 = P.topLeftCorner<15, 15>();
       const Eigen::Index rest = P.cols() - 15;  // clone and VO calibration
       P.topLeftCorner<15, 15>() = F * P15 * F.transpose() + Q;

@@ -34,13 +34,13 @@ TEST_P(ImuJacobianTest, MatchesFiniteDifferences) {
     const Vec3 f(2 * n01(rng), 2 * n01(rng), 9.81 + n01(rng));
     const Vec3 w(0.3 * n01(rng), 0.3 * n01(rng), 0.5 * n01(rng));
     const Mat15 F = ImuTransitionJacobian(x, f, w, dt);
-    const NominalState y0 = PropagateImu(x, f, w, dt, g);
+    const NominalState y0 = IntegrateImuStep(x, f, w, dt, g);
     Mat15 F_num;
     for (int j = 0; j < 15; ++j) {
       Eigen::Matrix<double, 15, 1> d = Eigen::Matrix<double, 15, 1>::Zero();
       d[j] = kStep;
-      const auto yp = PropagateImu(BoxPlus(x, d), f, w, dt, g);
-      const auto ym = PropagateImu(BoxPlus(x, -d), f, w, dt, g);
+      const auto yp = IntegrateImuStep(BoxPlus(x, d), f, w, dt, g);
+      const auto ym = IntegrateImuStep(BoxPlus(x, -d), f, w, dt, g);
       F_num.col(j) = (BoxMinus(yp, y0) - BoxMinus(ym, y0)) / (2 * kStep);
     }
     EXPECT_LT((F - F_num).cwiseAbs().maxCoeff(), kJacobianTol) << "dt " << dt << "\nF\n" << F << "\nnum\n" << F_num;
