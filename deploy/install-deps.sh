@@ -23,6 +23,7 @@ build_pkgs=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libyaml-cpp-dev nlohmann-json3-dev libcli11-dev prometheus-cpp-dev
   libgps-dev libzstd-dev liblz4-dev zlib1g-dev libboost-dev
+  libgstreamer1.0-dev libgstreamer-plugins-base1.0-dev   # cameras through GStreamer (sensors/gst_camera)
   python3 python3-matplotlib python3-grpcio python3-protobuf python3-grpc-tools
 )
 runtime_pkgs=(
@@ -35,6 +36,7 @@ runtime_pkgs=(
 test_pkgs=(
   prometheus                      # promtool (metrics test)
   gpsd gpsd-clients python3-gps   # gpsd + gpsfake (NMEA and gpsd tests)
+  gstreamer1.0-plugins-base gstreamer1.0-plugins-good  # videotestsrc, multifilesrc, pngdec, v4l2src (camera tests)
   openssl                         # self-signed certificates (TLS tests)
   clang libclang-rt-14-dev        # libFuzzer + sanitizer runtimes (fuzz/ targets and their test)
   podman runc debootstrap         # the container image test (deploy/test-image.sh), on every test run
