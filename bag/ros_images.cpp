@@ -247,4 +247,19 @@ StereoCamera StereoFromCameraInfo(const ros::CameraInfo& left, const ros::Camera
   return cam;
 }
 
+RectifiedStereo MakeRectifiedStereo(const ros::CameraInfo& left, const ros::CameraInfo& right) {
+  RectifiedStereo s{Rectifier(left), Rectifier(right), StereoFromCameraInfo(left, right), {}, {}};
+  s.crop = s.left.valid_region() & s.right.valid_region();
+  s.left.Crop(s.crop);
+  s.right.Crop(s.crop);
+  s.camera.cx -= s.crop.x;
+  s.camera.cy -= s.crop.y;
+  s.camera.width = s.crop.width;
+  s.camera.height = s.crop.height;
+  s.note = "rectified images cropped to " + std::to_string(s.crop.width) + "x" + std::to_string(s.crop.height) +
+           " at (" + std::to_string(s.crop.x) + ", " + std::to_string(s.crop.y) + ") of " +
+           std::to_string(left.width) + "x" + std::to_string(left.height) + " (no border)";
+  return s;
+}
+
 }  // namespace locaid::bag

@@ -57,6 +57,19 @@ class Rectifier {
 // positive.
 StereoCamera StereoFromCameraInfo(const ros::CameraInfo& left, const ros::CameraInfo& right);
 
+// Both cameras' rectifiers and the stereo model VO sees: the rectified
+// images keep only the part every pixel of which has a source in both raw
+// images (no border edge for VO to track; KITTI's rectified size for its
+// drives), and the model's principal point moves with that crop. One place,
+// for recorded bags and live cameras alike.
+struct RectifiedStereo {
+  Rectifier left, right;
+  StereoCamera camera;
+  cv::Rect crop;
+  std::string note;  // "rectified images cropped to WxH at (x, y) of WxH (no border)"
+};
+RectifiedStereo MakeRectifiedStereo(const ros::CameraInfo& left, const ros::CameraInfo& right);
+
 // The rotation from the left camera's optical frame into its rectified frame
 // (CameraInfo's R).
 Eigen::Matrix3d RectificationRotation(const ros::CameraInfo& info);

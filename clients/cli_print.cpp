@@ -49,6 +49,13 @@ void PrintStats(const v1::SessionStats& s) {
               << g.fix_latency_median_ms() << " fix_latency_max_ms=" << g.fix_latency_max_ms() << "\n";
     if (!g.last_error().empty()) std::cout << "gpsd_last_error " << g.last_error() << "\n";
   }
+  if (s.has_camera()) {
+    const auto& c = s.camera();
+    std::cout << "camera running=" << (c.running() ? "true" : "false") << " pairs=" << c.pairs()
+              << " unpaired=" << c.unpaired() << " dropped_late=" << c.dropped_late() << " restarts=" << c.restarts()
+              << "\n";
+    if (!c.last_error().empty()) std::cout << "camera_last_error " << c.last_error() << "\n";
+  }
   if (s.has_noise()) {
     const auto& n = s.noise();
     std::cout << "noise vo_scale=";

@@ -2,6 +2,8 @@
 //
 //   locaid health [--service NAME] [--wait S]
 //   locaid session start --kitti PATH | --bag PATH [--bag-topics F] | --synthetic SEED [--scenario NAME|--scenario-file F] [--vo M] [--rate R]
+//   locaid session start --live --camera-left P --camera-right P | --camera-stereo P
+//                        --camera-info-left F --camera-info-right F [--gpsd HOST:PORT]
 //   locaid session list | get ID | stop ID [--remove]
 //   locaid subscribe ID [--from-start] [--format print|tum|kitti|csv|geojson|mcap|ros2-mcap] [--out FILE] [--max N]
 //   locaid outage start ID [--duration S] | stop ID | window ID --start S --duration S
@@ -132,7 +134,33 @@ struct StartOptions {
   std::string scenario_name, scenario_file, vo_method;
   double rate = 0;
   bool fixed_vo_noise = false, fixed_gps_noise = false;  // StartSessionRequest.noise
+  // --live: the server reads its cameras through GStreamer (LiveSource.cameras).
+  bool live = false;
+  std::string camera_left, camera_right, camera_stereo, camera_info_left, camera_info_right, gpsd;
 };
+
+// --live: the cameras' pipelines and camera_info files (read here, sent as
+// text), and the gpsd the server reads GPS from ("HOST:PORT" or "HOST").
+void FillLiveCameras(const StartOptions& o, v1::LiveSource* live) {
+  v1::CameraSource* c = live->mutable_cameras();
+  c->set_left_pipeline(o.camera_left);
+  c->set_right_pipeline(o.camera_right);
+  c->set_stereo_pipeline(o.camera_stereo);
+  if (o.camera_info_left.empty() || o.camera_info_right.empty())
+    throw std::runtime_error("--live needs --camera-info-left FILE and --camera-info-right FILE");
+  c->set_left_camera_info(ReadFile(o.camera_info_left));
+  c->set_right_camera_info(ReadFile(o.camera_info_right));
+  if (o.gpsd.empty()) return;
+  v1::GpsdSource* g = live->mutable_gps_source()->mutable_gpsd();
+  const auto colon = o.gpsd.rfind(':');
+  g->set_host(o.gpsd.substr(0, colon));
+  if (colon != std::string::npos) {
+    const std::string port = o.gpsd.substr(colon + 1);
+    if (port.empty() || port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos)
+      throw std::runtime_error("--gpsd " + o.gpsd + ": expected HOST:PORT");
+    g->set_port(static_cast<uint32_t>(std::stoul(port)));
+  }
+}
 
 struct SubscribeOptions {
   std::string session_id;
@@ -225,8 +253,10 @@ int StartSession(const Common& c, v1::Localization::Stub& stub, const StartOptio
   } else if (o.synthetic) {
     req.mutable_synthetic()->set_seed(o.synth_seed);
     req.mutable_synthetic()->set_frames(o.synth_frames);
+  } else if (o.live) {
+    FillLiveCameras(o, req.mutable_live());
   } else {
-    std::cerr << "error: session start needs --kitti PATH, --bag PATH or --synthetic SEED\n";
+    std::cerr << "error: session start needs --kitti PATH, --bag PATH, --synthetic SEED or --live\n";
     return 2;
   }
   FillScenario(o.scenario_name, o.scenario_file, req.mutable_scenario());
@@ -365,6 +395,18 @@ int main(int argc, char** argv) {
   start->add_option("--bag-topics", so.bag_topics_file, "bag: YAML naming its topics (the keys of locaid-replay --bag-topics)")
       ->check(CLI::ExistingFile)->needs(o_bag);
   o_kitti->excludes(o_synth);
+  auto* o_live = start->add_flag("--live", so.live, "a live session whose stereo cameras the server reads through "
+                                                   "GStreamer (docs/api.md \"Cameras through GStreamer\")");
+  o_live->excludes(o_kitti)->excludes(o_synth)->excludes(o_bag);
+  start->add_option("--camera-left", so.camera_left, "live: the left camera's GStreamer pipeline (gst-launch syntax)");
+  start->add_option("--camera-right", so.camera_right, "live: the right camera's GStreamer pipeline");
+  start->add_option("--camera-stereo", so.camera_stereo,
+                    "live: one pipeline with two appsinks named left and right (instead of --camera-left/-right)");
+  start->add_option("--camera-info-left", so.camera_info_left, "live: the left camera's ROS camera_info YAML")
+      ->check(CLI::ExistingFile);
+  start->add_option("--camera-info-right", so.camera_info_right, "live: the right camera's ROS camera_info YAML")
+      ->check(CLI::ExistingFile);
+  start->add_option("--gpsd", so.gpsd, "live: GPS from the gpsd at HOST:PORT, read by the server");
   start->add_option("--frames", so.synth_frames, "synthetic: number of frames");
   start->add_option("--first", so.first_frame, "kitti: first frame");
   start->add_option("--last", so.last_frame, "kitti: last frame (default: to the end)");

@@ -88,6 +88,7 @@ class Recorder {
                 << t.x() << "," << t.y() << "," << t.z() << ") lat=" << std::setprecision(7) << p.latitude_deg()
                 << " lon=" << p.longitude_deg() << std::setprecision(3) << " mode=" << ModeName(p.mode())
                 << " since_gps=" << p.seconds_since_gps() << " inliers=" << p.vo_inliers()
+                << " vo_health=" << output::VoHealthName(p.vo_health())
                 << " latency_ms=" << p.processing_latency_ms() << " delay_ms=" << delay_ms
                 << " dropped=" << p.dropped_for_subscriber() << "\n"
                 << std::defaultfloat << std::flush;

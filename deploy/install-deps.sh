@@ -31,6 +31,8 @@ runtime_pkgs=(
   libopencv-features2d406 libopencv-calib3d406 libopencv-video406
   libgeographiclib23 libgrpc++1.51 libprotobuf32 libyaml-cpp0.7
   libprometheus-cpp-pull1.0 libprometheus-cpp-core1.0 libgps28 libzstd1 liblz4-1 zlib1g
+  libgstreamer1.0-0 libgstreamer-plugins-base1.0-0
+  gstreamer1.0-plugins-base gstreamer1.0-plugins-good   # cameras: v4l2src, jpegdec, videoconvert, appsink
 )
 
 test_pkgs=(

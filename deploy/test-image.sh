@@ -368,6 +368,31 @@ if [[ -n $bag ]]; then
   grep -q "bag" <<<"$bget" || fail "bag session $bid does not report its bag source: $bget"
   note "session start --bag $bag --rate 0: $bid, $nb poses streamed; last: $(tail -n1 <<<"$bposes")"
 fi
+# 5b. a live session on cameras the server reads through GStreamer inside
+#     the image: multifilesrc plays the demo drive's images at 10 Hz in place
+#     of two cameras, calibrated by camera_info files made on the host from
+#     the drive's calibration (clients/kitti_camera_info.py --rectified)
+calib=$(in_image cat "$(dirname "$drive")/calib_cam_to_cam.txt") || fail "reading the demo drive's calibration"
+mkdir -p "$STATE/cams" && printf '%s\n' "$calib" >"$STATE/cams/calib_cam_to_cam.txt"
+python3 "$ROOT/clients/kitti_camera_info.py" --rectified "$STATE/cams/calib_cam_to_cam.txt" "$STATE/cams" >/dev/null ||
+  fail "kitti_camera_info.py on the demo drive's calibration"
+for side in left right; do
+  in_image sh -c 'printf "%s" "$1" >"$2"' sh "$(cat "$STATE/cams/$side.yaml")" "$WORK/$side.yaml" ||
+    fail "writing $side.yaml into the image"
+done
+play() { echo "multifilesrc location=$drive/$1/data/%010d.png index=0 caps=image/png,framerate=10/1 ! pngdec"; }
+cid=$(in_image "${cli[@]}" session start --live --camera-left "$(play image_00)" --camera-right "$(play image_01)" \
+  --camera-info-left "$WORK/left.yaml" --camera-info-right "$WORK/right.yaml" 2>&1) ||
+  fail "session start --live with GStreamer cameras: $cid"
+cid=${cid%%[[:space:]]*}
+cposes=$(in_image "${cli[@]}" subscribe "$cid" --from-start --max 30 --stream-timeout-s 120) ||
+  fail "subscribe to the camera session: $cposes"
+ntrack=$(grep -c 'vo_health=TRACKING' <<<"$cposes" || true)
+((ntrack >= 25)) || { echo "$cposes" >&2; fail "camera session: $ntrack of 30 poses tracked (expected >= 25)"; }
+cstats=$(in_image "${cli[@]}" stats "$cid" | grep -E '^camera ' || true)
+[[ -n $cstats ]] || fail "camera session $cid: no camera line in its stats"
+in_image "${cli[@]}" session stop "$cid" >/dev/null || fail "session stop $cid"
+note "session start --live (two multifilesrc pipelines, camera_info from the drive's calib): $cid, $ntrack of 30 poses tracked; $cstats"
 in_image "${cli[@]}" session list | sed 's/^/test-image:   /'
 
 # 6. a small sweep inside the image (what a Kubernetes sweep task runs): the

@@ -34,6 +34,7 @@ locaid::v1::VoHealth ToProtoHealth(vo::Health h) {
     case vo::Health::kDark: return locaid::v1::VO_HEALTH_DARK;
     case vo::Health::kFrozen: return locaid::v1::VO_HEALTH_FROZEN;
     case vo::Health::kLost: return locaid::v1::VO_HEALTH_LOST;
+    case vo::Health::kNoImages: return locaid::v1::VO_HEALTH_NO_IMAGES;
   }
   return locaid::v1::VO_HEALTH_UNSPECIFIED;
 }

@@ -60,23 +60,9 @@ BagFrameSource::BagFrameSource(const std::filesystem::path& path, BagSourceOptio
     const bag::ros::CameraInfo& left = info(topics_.left_info);
     const bag::ros::CameraInfo& right = info(topics_.right_info);
     try {
-      rect_left_.emplace(left);
-      rect_right_.emplace(right);
-      camera_ = bag::StereoFromCameraInfo(left, right);
-      // Both images keep only the part every pixel of which has a source in
-      // both raw images (KITTI's rectified size, for its drives): no border
-      // edge for VO to track.
-      crop_ = rect_left_->valid_region() & rect_right_->valid_region();
-      rect_left_->Crop(crop_);
-      rect_right_->Crop(crop_);
-      camera_.cx -= crop_.x;
-      camera_.cy -= crop_.y;
-      camera_.width = crop_.width;
-      camera_.height = crop_.height;
-      setup_notes_.push_back("rectified images cropped to " + std::to_string(crop_.width) + "x" +
-                             std::to_string(crop_.height) + " at (" + std::to_string(crop_.x) + ", " +
-                             std::to_string(crop_.y) + ") of " + std::to_string(left.width) + "x" +
-                             std::to_string(left.height) + " (no border)");
+      rectified_.emplace(bag::MakeRectifiedStereo(left, right));
+      camera_ = rectified_->camera;
+      setup_notes_.push_back(rectified_->note);
     } catch (const std::runtime_error& e) {
       throw std::runtime_error(path.string() + ": " + topics_.left_info + " / " + topics_.right_info + ": " +
                                e.what());
@@ -278,10 +264,10 @@ SourceItem BagFrameSource::MakeFrame(Pending left, Pending right) {
     return item;
   }
   try {
-    pair_runner().Run([&] { item.left = Decode(left, *rect_left_); },
+    pair_runner().Run([&] { item.left = Decode(left, rectified_->left); },
                       [&] {
                         try {
-                          item.right = Decode(right, *rect_right_);
+                          item.right = Decode(right, rectified_->right);
                         } catch (const std::exception& e) {
                           throw std::runtime_error(right.where + ": " + e.what());
                         }

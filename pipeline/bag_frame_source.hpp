@@ -105,8 +105,7 @@ class BagFrameSource : public FrameSource {
   std::unique_ptr<bag::RosBag> bag_;
   bag::BagTopics topics_;
   StereoCamera camera_;
-  std::optional<bag::Rectifier> rect_left_, rect_right_;
-  cv::Rect crop_;  // of the rectified images: the part both cameras see without border
+  std::optional<bag::RectifiedStereo> rectified_;  // both rectifiers, cropped to what both cameras see
   Eigen::Isometry3d T_cam0_imu_ = Eigen::Isometry3d::Identity();
   Eigen::Vector3d lever_arm_ = Eigen::Vector3d::Zero();
   std::vector<std::string> setup_notes_;

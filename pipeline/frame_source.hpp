@@ -36,6 +36,10 @@ struct LiveInputStats {
   uint64_t gpsd_connects = 0, gpsd_losses = 0;
   std::string gpsd_error;
   double fix_latency_median_ms = 0, fix_latency_max_ms = 0;
+  // The server's own cameras (LiveSource.cameras).
+  bool has_camera = false, camera_running = false;
+  uint64_t camera_pairs = 0, camera_unpaired = 0, camera_dropped_late = 0, camera_restarts = 0;
+  std::string camera_error;
 };
 
 struct SourceItem {

@@ -36,6 +36,16 @@ std::string PngSizeMismatch(const std::string& bytes, const StereoCamera& camera
          std::to_string(camera.height) + " px";
 }
 
+// An image the server's cameras already rectified: checked, not copied.
+static cv::Mat CheckedLiveImage(const cv::Mat& image, const StereoCamera& camera, const char* which) {
+  if (image.type() != CV_8UC1 || image.cols != camera.width || image.rows != camera.height) {
+    throw std::invalid_argument(std::string(which) + " image: " + std::to_string(image.cols) + "x" +
+                                std::to_string(image.rows) + " type " + std::to_string(image.type()) + ", expected " +
+                                std::to_string(camera.width) + "x" + std::to_string(camera.height) + " CV_8UC1");
+  }
+  return image;
+}
+
 cv::Mat DecodeLiveImage(const std::string& bytes, bool png, const StereoCamera& camera,
                         const char* which) {
   const std::string prefix = std::string(which) + " image: ";
@@ -84,6 +94,15 @@ bool LiveFrameSource::Push(LiveItem item, std::function<void()> resume) {
   return false;
 }
 
+bool LiveFrameSource::TryPush(LiveItem item) {
+  std::lock_guard lock(mu_);
+  if (closed_ || cancelled_) return true;  // dropped: the session has ended
+  if (queue_.size() >= capacity_ || pending_) return false;
+  queue_.push_back(std::move(item));
+  cv_.notify_one();
+  return true;
+}
+
 void LiveFrameSource::PushAsyncFix(LiveItem fix) {
   std::lock_guard lock(mu_);
   if (closed_ || cancelled_) return;
@@ -102,7 +121,7 @@ LiveInputStats LiveFrameSource::input_stats() const {
     std::lock_guard lock(stats_mu_);
     stats = stats_;
   }
-  if (feeder_) feeder_->AddStats(stats);
+  for (const auto& feeder : feeders_) feeder->AddStats(stats);
   return stats;
 }
 
@@ -306,8 +325,15 @@ SourceItem LiveFrameSource::Next() {
       return out;
     }
     try {
-      pair_runner().Run([&] { out.left = DecodeLiveImage(item.left, item.png, setup_.camera, "left"); },
-                        [&] { out.right = DecodeLiveImage(item.right, item.png, setup_.camera, "right"); });
+      if (item.no_images) {
+        // a pose without VO: out.left / out.right stay empty
+      } else if (!item.left_image.empty() || !item.right_image.empty()) {
+        out.left = CheckedLiveImage(item.left_image, setup_.camera, "left");
+        out.right = CheckedLiveImage(item.right_image, setup_.camera, "right");
+      } else {
+        pair_runner().Run([&] { out.left = DecodeLiveImage(item.left, item.png, setup_.camera, "left"); },
+                          [&] { out.right = DecodeLiveImage(item.right, item.png, setup_.camera, "right"); });
+      }
       out.kind = SourceItem::Kind::kFrame;
       last_frame_ns_ = item.t_ns;
     } catch (const std::exception& e) {

@@ -29,6 +29,10 @@ struct LiveItem {
   int64_t t_ns = 0;
   bool png = true;          // frames: PNG/encoded bytes, else raw GRAY8
   std::string left, right;  // frames
+  // Frames from the server's own cameras: already rectified CV_8UC1 of the
+  // camera size (the bytes above stay empty); both empty with no_images.
+  cv::Mat left_image, right_image;
+  bool no_images = false;   // a tick while the cameras are down: a pose without VO
   std::string oxts_line;    // OXTS: the 30 fields
   fusion::ImuSample imu;    // kImu
   fusion::GpsFix gps;       // kGps (gps.t_ns == t_ns)
@@ -64,13 +68,17 @@ class LiveFrameSource : public FrameSource {
 
   // Producer side (any thread).
   bool Push(LiveItem item, std::function<void()> resume);
+  // A frame from a producer that must not wait (the server's cameras): false
+  // when the queue is full, and the item is not taken (the caller drops it).
+  bool TryPush(LiveItem item);
   // A fix from a receiver the server reads itself (gpsd): never blocks; at
   // most kMaxAsyncFixes wait, the oldest is dropped (counted late) beyond.
   static constexpr size_t kMaxAsyncFixes = 64;
   void PushAsyncFix(LiveItem fix);
   void CloseInput();  // half-close: Next() returns kEnd once drained
-  // Takes ownership of a feeder that calls PushAsyncFix (one at most).
-  void AttachFeeder(std::unique_ptr<InputFeeder> feeder) { feeder_ = std::move(feeder); }
+  // Takes ownership of a feeder (the gpsd receiver: PushAsyncFix; the
+  // cameras: TryPush). Before the first Next().
+  void AttachFeeder(std::unique_ptr<InputFeeder> feeder) { feeders_.push_back(std::move(feeder)); }
 
   // Consumer side (session thread). Waits up to ~50 ms for input.
   SourceItem Next() override;
@@ -115,7 +123,7 @@ class LiveFrameSource : public FrameSource {
   int64_t sensor_time_ns_ = INT64_MIN;  // newest frame or IMU time seen
   mutable std::mutex stats_mu_;
   LiveInputStats stats_;
-  std::unique_ptr<InputFeeder> feeder_;  // last member: destroyed (stopped) first
+  std::vector<std::unique_ptr<InputFeeder>> feeders_;  // last member: destroyed (stopped) first
 };
 
 // Width and height a PNG declares in its IHDR chunk (bytes 16..23, big

@@ -90,7 +90,7 @@ std::string GstCapture::BusError() {
   return text;
 }
 
-std::string GstCapture::Start(int timeout_ms) {
+std::string GstCapture::Start(int timeout_ms, int64_t base_time_ns) {
   Stop();
   if (!InitError().empty()) return camera_ + ": GStreamer cannot start: " + InitError();
   if (description_.find_first_not_of(" \t\r\n") == std::string::npos) {
@@ -125,6 +125,10 @@ std::string GstCapture::Start(int timeout_ms) {
     p_->sinks.push_back(GST_APP_SINK(sink));
   }
   gst_caps_unref(gray);
+  if (base_time_ns >= 0) {
+    gst_element_set_start_time(element, GST_CLOCK_TIME_NONE);  // keep the base time given
+    gst_element_set_base_time(element, static_cast<GstClockTime>(base_time_ns));
+  }
 
   if (gst_element_set_state(element, GST_STATE_PLAYING) == GST_STATE_CHANGE_FAILURE) {
     const std::string why = BusError();

@@ -59,7 +59,11 @@ class GstCapture {
   // <GStreamer's message>" (a bad description, a missing element, an
   // appsink that is not there, a device that cannot be opened). A capture
   // that failed to start may be started again.
-  std::string Start(int timeout_ms = 5000);
+  // `base_time_ns` >= 0: the pipeline's running time counts from that clock
+  // time instead of from when it starts playing. Captures started one after
+  // the other with one base time stamp the frames of one moment alike,
+  // whether live (a camera stamps its capture time) or played from files.
+  std::string Start(int timeout_ms = 5000, int64_t base_time_ns = -1);
   // Stops and frees the pipeline (Start() builds a new one: a restart).
   void Stop();
   bool running() const;

@@ -1,5 +1,7 @@
 #include "server/live_source_request.hpp"
 
+#include "bag/camera_info_yaml.hpp"
+#include "bag/ros_images.hpp"
 #include "server/quoted.hpp"
 
 #include <cmath>
@@ -88,6 +90,57 @@ std::string ParseSpeedSensor(const v1::LiveSource& l, LiveSourceSetup* out) {
   return "";
 }
 
+// LiveSource.cameras: the pipelines, the two camera_info files (the camera
+// model VO sees is theirs, rectified and cropped as a bag's), pairing and
+// stall bounds. The pipelines themselves are started by CameraFeeder.
+std::string ParseCameras(const v1::LiveSource& l, LiveSourceSetup* out) {
+  out->cameras.reset();
+  if (!l.has_cameras()) return "";
+  const v1::CameraSource& c = l.cameras();
+  if (l.fx() != 0 || l.fy() != 0 || l.cx() != 0 || l.cy() != 0 || l.baseline_m() != 0 || l.width() != 0 ||
+      l.height() != 0) {
+    return "live.cameras: leave live.fx .. height 0: the camera model comes from the camera_info files";
+  }
+  CameraSetup s;
+  const bool two = !c.left_pipeline().empty() || !c.right_pipeline().empty();
+  if (two == !c.stereo_pipeline().empty()) {
+    return "live.cameras: give left_pipeline and right_pipeline, or stereo_pipeline (two appsinks named left and "
+           "right), not both";
+  }
+  if (two && (c.left_pipeline().empty() || c.right_pipeline().empty())) {
+    return std::string("live.cameras.") + (c.left_pipeline().empty() ? "left" : "right") + "_pipeline: missing";
+  }
+  for (const auto& [name, v] : {std::pair{"left_pipeline", &c.left_pipeline()}, {"right_pipeline", &c.right_pipeline()},
+                                {"stereo_pipeline", &c.stereo_pipeline()}}) {
+    if (v->size() > 4096) return std::string("live.cameras.") + name + ": longer than 4096 bytes";
+  }
+  s.left_pipeline = c.left_pipeline();
+  s.right_pipeline = c.right_pipeline();
+  s.stereo_pipeline = c.stereo_pipeline();
+  try {
+    s.left_info = bag::ParseCameraInfoYaml(c.left_camera_info(), "live.cameras.left_camera_info");
+    s.right_info = bag::ParseCameraInfoYaml(c.right_camera_info(), "live.cameras.right_camera_info");
+  } catch (const std::exception& e) {
+    return std::string(e.what());  // names the field
+  }
+  try {
+    out->camera.camera = bag::MakeRectifiedStereo(s.left_info, s.right_info).camera;
+  } catch (const std::exception& e) {
+    return std::string("live.cameras: ") + e.what();
+  }
+  const double tol = c.pair_tolerance_ms(), stall = c.stall_timeout_s();
+  if (!Finite(tol) || tol < 0 || tol > 1000) {
+    return "live.cameras.pair_tolerance_ms: must be in [0, 1000] (0 = 10 ms), got " + Number(tol);
+  }
+  if (!Finite(stall) || (stall != 0 && (stall < 0.1 || stall > 60))) {
+    return "live.cameras.stall_timeout_s: must be 0 (1 s) or in [0.1, 60], got " + Number(stall);
+  }
+  s.pair_tolerance_s = tol == 0 ? 0.010 : tol * 1e-3;
+  s.stall_timeout_s = stall == 0 ? 1.0 : stall;
+  out->cameras = std::move(s);
+  return "";
+}
+
 std::string ParseGpsd(const v1::LiveSource& l, std::optional<GpsdEndpoint>* out) {
   out->reset();
   if (!l.has_gps_source() || l.gps_source().kind_case() == v1::GpsSource::KIND_NOT_SET) return "";
@@ -108,7 +161,20 @@ std::string ParseGpsd(const v1::LiveSource& l, std::optional<GpsdEndpoint>* out)
 
 std::string LiveSourceFromProto(const v1::LiveSource& in, const Eigen::Isometry3d& default_T_cam0_imu,
                                 LiveSourceSetup* out) {
-  if (std::string e = ParseCamera(in, default_T_cam0_imu, &out->camera); !e.empty()) return e;
+  if (in.has_cameras()) {
+    if (std::string e = ParseCameras(in, out); !e.empty()) return e;
+    v1::LiveSource rest = in;  // the rest of the camera setup (extrinsic, GPS delay) as for pushed frames
+    rest.set_fx(out->camera.camera.fx);
+    rest.set_fy(out->camera.camera.fy);
+    rest.set_cx(out->camera.camera.cx);
+    rest.set_cy(out->camera.camera.cy);
+    rest.set_baseline_m(out->camera.camera.baseline_m);
+    rest.set_width(out->camera.camera.width);
+    rest.set_height(out->camera.camera.height);
+    if (std::string e = ParseCamera(rest, default_T_cam0_imu, &out->camera); !e.empty()) return e;
+  } else if (std::string e = ParseCamera(in, default_T_cam0_imu, &out->camera); !e.empty()) {
+    return e;
+  }
   if (std::string e = ParseLeverArm(in, &out->gps_antenna_body_m); !e.empty()) return e;
   if (std::string e = ParseGpsd(in, &out->gpsd); !e.empty()) return e;
   return ParseSpeedSensor(in, out);

@@ -129,7 +129,8 @@ void AddSession(Families& f, const std::string& id, const Session::MetricsSnapsh
   f.Add("locaid_session_gps_gate", "The gate the NIS is held against (chi-square, 2 dof)", MetricType::Gauge, sid,
         m.gps_gate);
   f.Add("locaid_session_vo_inliers", "VO inlier tracks of the newest frame", MetricType::Gauge, sid, m.vo_inliers);
-  for (vo::Health h : {vo::Health::kTracking, vo::Health::kDark, vo::Health::kFrozen, vo::Health::kLost}) {
+  for (vo::Health h : {vo::Health::kTracking, vo::Health::kDark, vo::Health::kFrozen, vo::Health::kLost,
+                       vo::Health::kNoImages}) {
     f.Add("locaid_session_vo_health", "1 for what the cameras gave VO on the newest frame, 0 for the others",
           MetricType::Gauge, {{"session", id}, {"health", vo::ToString(h)}}, h == m.vo_health ? 1.0 : 0.0);
   }

@@ -234,6 +234,15 @@ locaid::v1::SessionStats Session::Stats() const {
     g->set_connection_losses(in.gpsd_losses);
     g->set_last_error(in.gpsd_error);
   }
+  if (in.has_camera) {
+    auto* c = s.mutable_camera();
+    c->set_running(in.camera_running);
+    c->set_pairs(in.camera_pairs);
+    c->set_unpaired(in.camera_unpaired);
+    c->set_dropped_late(in.camera_dropped_late);
+    c->set_restarts(in.camera_restarts);
+    c->set_last_error(in.camera_error);
+  }
   if (in.fix_latency_max_ms > 0) {
     auto* g = s.mutable_gpsd();
     g->set_fix_latency_median_ms(in.fix_latency_median_ms);

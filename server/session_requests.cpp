@@ -8,6 +8,7 @@
 #include "kitti/raw_drive.hpp"
 #include "pipeline/live_frame_source.hpp"
 #include "server/bag_source_request.hpp"
+#include "server/camera_feeder.hpp"
 #include "server/gps_receiver.hpp"
 #include "server/live_source_request.hpp"
 #include "server/status.hpp"
@@ -108,7 +109,7 @@ Status OpenKittiSource(const v1::KittiSource& k, std::unique_ptr<pipeline::Frame
 // A live source: camera, antenna lever arm, speed sensor and an optional gpsd
 // receiver (live_source_request.cpp checks them).
 Status OpenLiveSource(const v1::LiveSource& l, EstimatorSetup* setup, std::unique_ptr<pipeline::LiveFrameSource>* out,
-                      std::optional<GpsdEndpoint>* gpsd, std::string* name) {
+                      std::optional<GpsdEndpoint>* gpsd, std::optional<CameraSetup>* cameras, std::string* name) {
   LiveSourceSetup live;
   if (const std::string error = LiveSourceFromProto(l, KittiRigTcam0Imu(), &live); !error.empty()) {
     return Invalid(error);
@@ -117,8 +118,10 @@ Status OpenLiveSource(const v1::LiveSource& l, EstimatorSetup* setup, std::uniqu
   setup->speed_sigma_mps = live.speed_sigma_mps;
   setup->speed_scale_sigma = live.speed_scale_sigma;
   *gpsd = live.gpsd;
+  *cameras = live.cameras;
   *out = std::make_unique<pipeline::LiveFrameSource>(live.camera);
-  *name = *gpsd ? "live+gpsd:" + (*gpsd)->host + ":" + std::to_string((*gpsd)->port) : "live";
+  *name = std::string("live") + (*cameras ? "+cameras" : "") +
+          (*gpsd ? "+gpsd:" + (*gpsd)->host + ":" + std::to_string((*gpsd)->port) : "");
   return Status::OK;
 }
 
@@ -193,6 +196,7 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
   std::unique_ptr<pipeline::FrameSource> source;
   pipeline::LiveFrameSource* live = nullptr;
   std::optional<GpsdEndpoint> gpsd;
+  std::optional<CameraSetup> cameras;
   try {
     switch (req.source_case()) {
       case v1::StartSessionRequest::kKitti:
@@ -205,7 +209,7 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
         return StartSynthetic(req.synthetic(), std::move(options), std::move(setup), id);
       case v1::StartSessionRequest::kLive: {
         std::unique_ptr<pipeline::LiveFrameSource> src;
-        if (Status s = OpenLiveSource(req.live(), &setup, &src, &gpsd, &options.source); !s.ok()) return s;
+        if (Status s = OpenLiveSource(req.live(), &setup, &src, &gpsd, &cameras, &options.source); !s.ok()) return s;
         live = src.get();
         source = std::move(src);
         break;
@@ -225,6 +229,15 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
     loop = MakeFrameLoop(estimator_factory_, setup, std::move(source));
   } catch (const std::exception& e) {
     return Invalid(std::string("vo_method/scenario: ") + e.what());
+  }
+  if (cameras) {  // started last: frames flow from here on
+    CameraFeeder::OpenError error;
+    auto feeder = CameraFeeder::Open(*cameras, live, &error);
+    if (!feeder) {
+      return {error.invalid_argument ? StatusCode::INVALID_ARGUMENT : StatusCode::FAILED_PRECONDITION,
+              "live.cameras: " + error.message};
+    }
+    live->AttachFeeder(std::move(feeder));
   }
   if (gpsd) live->AttachFeeder(std::make_unique<GpsdReceiver>(*gpsd, live));
   return sessions_.Add(std::move(options), std::move(loop), live, id);

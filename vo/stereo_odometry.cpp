@@ -28,6 +28,7 @@ const char* ToString(Health health) {
     case Health::kDark: return "dark";
     case Health::kFrozen: return "frozen";
     case Health::kLost: return "lost";
+    case Health::kNoImages: return "no_images";
   }
   return "unknown";
 }

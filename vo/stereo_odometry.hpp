@@ -20,8 +20,10 @@ const char* ToString(Status status);
 // What the cameras gave VO on a frame: tracking (status OK / DEGRADED), too
 // dark or noisy to track, frozen (the same content as the previous frame with
 // a new time stamp: never taken as standstill), or lost for another reason.
-enum class Health { kTracking, kDark, kFrozen, kLost };
-const char* ToString(Health health);  // "tracking", "dark", "frozen", "lost"
+// kNoImages: the cameras delivered no frame at this time (a live camera that
+// stopped, failed or stalled): VO did not run.
+enum class Health { kTracking, kDark, kFrozen, kLost, kNoImages };
+const char* ToString(Health health);  // "tracking", "dark", "frozen", "lost", "no_images"
 
 struct StereoFrame {
   int64_t t_ns = 0;
