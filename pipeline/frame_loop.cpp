@@ -30,8 +30,8 @@ StepResult FrameLoop::Step() {
   }
   if (!std::exchange(had_frame_, true) && r.error.empty()) r.error = std::move(notice_);
   r.kind = StepResult::Kind::kPose;
-  vo::StereoFrame frame{item.t_ns, std::move(item.left), std::move(item.right)};
-  camera_faults_.Apply(frame);
+  vo::StereoFrame frame{item.t_ns, std::move(item.left), std::move(item.right), item.no_images};
+  if (!frame.no_images) camera_faults_.Apply(frame);  // nothing to degrade while the cameras are down
   r.frame = estimator_->Process(frame);
   r.frame.in_outage = scenario_.InOutage(item.t_ns);
   if (item.truth) r.truth = Truth(*item.truth);

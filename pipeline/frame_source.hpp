@@ -49,6 +49,7 @@ struct SourceItem {
   int64_t index = -1;
   int64_t t_ns = 0;
   cv::Mat left, right;                         // kFrame: CV_8UC1, camera size
+  bool no_images = false;                      // kFrame: a tick while the live cameras are down (no images)
   // Sensor data since the previous item, typed (t <= t_ns for frames).
   SampleBatch sensors;
   std::optional<fusion::ReferencePose> truth;  // recorded drives: the reference at the frame time

@@ -326,7 +326,7 @@ SourceItem LiveFrameSource::Next() {
     }
     try {
       if (item.no_images) {
-        // a pose without VO: out.left / out.right stay empty
+        out.no_images = true;  // a pose without VO: out.left / out.right stay empty
       } else if (!item.left_image.empty() || !item.right_image.empty()) {
         out.left = CheckedLiveImage(item.left_image, setup_.camera, "left");
         out.right = CheckedLiveImage(item.right_image, setup_.camera, "right");

@@ -72,13 +72,12 @@ void Localizer::FeedGps(const fusion::GpsFix& fix) {
 vo::RelativeMotion Localizer::TrackVo(const vo::StereoFrame& frame) {
   // A tick without images (a live camera that is down) never reaches VO:
   // its state stays at the last frame, so tracking resumes from there.
-  const bool no_images = frame.left.empty() && frame.right.empty();
-  if (vo_ && !no_images) return vo_->Track(frame);
+  if (vo_ && !frame.no_images) return vo_->Track(frame);
   vo::RelativeMotion m;
   m.t_ns = frame.t_ns;
   m.t_prev_ns = frame.t_ns;
   m.status = vo::Status::kLost;
-  if (no_images) m.health = vo::Health::kNoImages;
+  if (frame.no_images) m.health = vo::Health::kNoImages;
   return m;
 }
 

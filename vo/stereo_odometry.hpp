@@ -28,6 +28,9 @@ const char* ToString(Health health);  // "tracking", "dark", "frozen", "lost", "
 struct StereoFrame {
   int64_t t_ns = 0;
   cv::Mat left, right;  // rectified CV_8UC1; an empty Mat means "frame missing"
+  // The cameras delivered nothing at t_ns (a live camera that is down): the
+  // pipeline does not call Track; the frame's health is kNoImages.
+  bool no_images = false;
 };
 
 // Wall time of each pipeline stage for one frame, in milliseconds, in the
