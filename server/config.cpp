@@ -116,6 +116,51 @@ void CheckListenUnixPath(const std::string& path) {
   }
 }
 
+// `live_cameras:`, a map of the BootCameras keys (unknown ones refused).
+template <typename Real>
+BootCameras ParseBootCameras(const YAML::Node& n, const Real& real) {
+  if (!n.IsMap()) throw ConfigError("expected a map (left_pipeline, right_pipeline or stereo_pipeline, "
+                                    "left_camera_info, right_camera_info, gpsd, ...)");
+  BootCameras b;
+  const std::map<std::string, std::function<void(const YAML::Node&)>> keys = {
+      {"left_pipeline", [&](const YAML::Node& v) { b.left_pipeline = v.as<std::string>(); }},
+      {"right_pipeline", [&](const YAML::Node& v) { b.right_pipeline = v.as<std::string>(); }},
+      {"stereo_pipeline", [&](const YAML::Node& v) { b.stereo_pipeline = v.as<std::string>(); }},
+      {"left_camera_info", [&](const YAML::Node& v) { b.left_camera_info = v.as<std::string>(); }},
+      {"right_camera_info", [&](const YAML::Node& v) { b.right_camera_info = v.as<std::string>(); }},
+      {"gpsd", [&](const YAML::Node& v) { b.gpsd = v.as<std::string>(); }},
+      {"scenario", [&](const YAML::Node& v) { b.scenario = v.as<std::string>(); }},
+      {"pair_tolerance_ms", [&](const YAML::Node& v) { real(&b.pair_tolerance_ms)(v); }},
+      {"stall_timeout_s", [&](const YAML::Node& v) { real(&b.stall_timeout_s)(v); }},
+  };
+  for (const auto& kv : n) {
+    const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : "?";
+    const auto it = keys.find(key);
+    if (it == keys.end()) {
+      std::string known;
+      for (const auto& k : keys) known += " " + k.first;
+      throw ConfigError("live_cameras." + key + ": unknown (known:" + known + ")");
+    }
+    try {
+      it->second(kv.second);
+    } catch (const ConfigError& e) {
+      throw ConfigError("live_cameras." + key + ": " + e.what());
+    }
+  }
+  if (b.left_camera_info.empty() || b.right_camera_info.empty()) {
+    throw ConfigError("live_cameras: left_camera_info and right_camera_info are required (camera_info YAML files)");
+  }
+  const bool two = !b.left_pipeline.empty() || !b.right_pipeline.empty();
+  if (two == !b.stereo_pipeline.empty()) {
+    throw ConfigError("live_cameras: give left_pipeline and right_pipeline, or stereo_pipeline (not both)");
+  }
+  if (two && (b.left_pipeline.empty() || b.right_pipeline.empty())) {
+    throw ConfigError(std::string("live_cameras.") + (b.left_pipeline.empty() ? "left" : "right") +
+                      "_pipeline: missing");
+  }
+  return b;
+}
+
 void ApplyYamlConfig(const std::filesystem::path& file, ServerConfig* c) {
   YAML::Node root;
   try {
@@ -179,6 +224,7 @@ void ApplyYamlConfig(const std::filesystem::path& file, ServerConfig* c) {
       {"malloc_arena_max", size(&c->malloc_arena_max)},
       {"port_file", str(&c->port_file)},
       {"metrics_listen", str(&c->metrics_listen)},
+      {"live_cameras", [c, real](const YAML::Node& n) { c->live_cameras = ParseBootCameras(n, real); }},
   };
   for (const auto& kv : root) {
     if (!kv.first.IsScalar()) {  // `? [a]`, `? {a: 1}` or an empty `?` as a key

@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <filesystem>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -15,6 +16,19 @@ namespace locaid::server {
 class ConfigError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
+};
+
+// A live camera session the server starts itself, for a car that boots
+// into localisation (the YAML key `live_cameras`): the keys of
+// LiveSource.cameras, with the camera_info files as paths on the server, and
+// an optional gpsd. Started once the server listens, and retried every 5 s
+// while it cannot start (cameras that come up after the server).
+struct BootCameras {
+  std::string left_pipeline, right_pipeline, stereo_pipeline;
+  std::string left_camera_info, right_camera_info;  // camera_info YAML files
+  std::string gpsd;                                 // HOST:PORT or HOST; empty: no gpsd
+  double pair_tolerance_ms = 0, stall_timeout_s = 0;  // 0: the defaults (10 ms, 1 s)
+  std::string scenario;                             // empty: default_scenario
 };
 
 struct ServerConfig {
@@ -80,6 +94,7 @@ struct ServerConfig {
   // Plain HTTP without the token: bind it to loopback or a pod network.
   std::string metrics_listen;
   bool log_shutdown = false;               // print shutdown timings (locaid-server sets it)
+  std::optional<BootCameras> live_cameras;  // YAML only: a camera session started at boot
 };
 
 // Applies a YAML file (keys = field names above) onto `config`. Throws

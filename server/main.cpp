@@ -1,4 +1,5 @@
 // locaid-server: the gRPC localization service.
+#include "server/boot_session.hpp"
 #include "server/config.hpp"
 #include "server/malloc_arenas.hpp"
 #include "server/server.hpp"
@@ -9,6 +10,7 @@
 #include <csignal>
 #include <cstdio>
 #include <iostream>
+#include <optional>
 #include <thread>
 
 namespace {
@@ -149,8 +151,16 @@ int main(int argc, char** argv) {
                                             : "")
               << std::endl;
     server.WritePortFile();  // after the line: whoever waits for the file finds it in the log
+    std::optional<locaid::server::BootSession> boot;
+    if (config.live_cameras) {
+      boot.emplace(
+          *config.live_cameras,
+          [&server](const locaid::v1::StartSessionRequest& req, std::string* id) { return server.StartSession(req, id); },
+          [](const std::string& line) { std::cout << "locaid-server: " << line << std::endl; });
+    }
     const int sig = WaitForSignal();
     std::cout << "locaid-server: signal " << sig << ", shutting down" << std::endl;
+    boot.reset();  // stops retrying
     server.Shutdown();
   } catch (const std::exception& e) {
     std::cerr << "locaid-server: " << e.what() << "\n";

@@ -214,4 +214,8 @@ void LocalizationServer::Shutdown() {
 void LocalizationServer::Wait() { server_->Wait(); }
 
 
+grpc::Status LocalizationServer::StartSession(const locaid::v1::StartSessionRequest& req, std::string* id) {
+  return service_->StartLocal(req, id);
+}
+
 }  // namespace locaid::server

@@ -44,6 +44,8 @@ class LocalizationServer {
   // waits for the file finds that line already in the log. Throws
   // std::runtime_error naming the file when it cannot be written.
   void WritePortFile() const;
+  // StartSession from inside the server (ServerConfig::live_cameras).
+  grpc::Status StartSession(const locaid::v1::StartSessionRequest& req, std::string* id);
   // Port of the /metrics endpoint (0: metrics_listen not set).
   int metrics_port() const { return metrics_ ? metrics_->port() : 0; }
   // Health NOT_SERVING, sessions stopped, streams ended with UNAVAILABLE,

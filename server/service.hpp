@@ -139,6 +139,9 @@ class LocalizationService final
 
   // Everything /metrics serves, read now (server/metrics.hpp).
   std::vector<prometheus::MetricFamily> CollectMetrics() const;
+  // StartSession for the server itself (a session started at boot): the same
+  // checks and status codes, no caller to authorize.
+  grpc::Status StartLocal(const locaid::v1::StartSessionRequest& req, std::string* id) { return DoStart(req, id); }
 
  private:
   // ReactorHost.

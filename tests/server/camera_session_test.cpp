@@ -373,5 +373,62 @@ TEST_F(CameraSession, FusedWithPushedFixesLikeTheReplayOfTheSameDrive) {
   EXPECT_LE(end_session, 0.01 * outage_m);
 }
 
+// A car that boots into localisation: the server's YAML names the cameras
+// (`live_cameras`, the keys of `locaid session start --live`) and the server
+// starts the session itself; a camera that is not there yet is retried
+// while the server serves, and said in its log.
+TEST_F(CameraSession, TheServersYamlStartsACameraSessionAtBoot) {
+  const fs::path yaml = dir_ / "server.yaml";
+  std::ofstream(yaml) << "live_cameras:\n"
+                      << "  left_pipeline: \"" << Play("image_00", 60) << "\"\n"
+                      << "  right_pipeline: \"" << Play("image_01", 60) << "\"\n"
+                      << "  left_camera_info: " << (dir_ / "left.yaml").string() << "\n"
+                      << "  right_camera_info: " << (dir_ / "right.yaml").string() << "\n";
+  ServerProcess booted(dir_ / "booted", {"--config", yaml.string()});
+  ASSERT_GT(booted.port(), 0) << booted.log();
+  auto stub = v1::Localization::NewStub(booted.NewChannel());
+  v1::ListSessionsResponse list;
+  for (int i = 0; i < 300 && list.sessions_size() == 0; ++i) {  // at most 30 s
+    grpc::ClientContext ctx;
+    SetDeadline(&ctx);
+    ASSERT_TRUE(stub->ListSessions(&ctx, v1::ListSessionsRequest(), &list).ok());
+    if (list.sessions_size() == 0) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  ASSERT_EQ(list.sessions_size(), 1) << booted.log();
+  EXPECT_EQ(list.sessions(0).source(), "live+cameras");
+  PoseCollector poses(booted.NewChannel(1), list.sessions(0).id(), /*from_start=*/true);
+  ASSERT_TRUE(poses.WaitPoses(20, 30)) << poses.count();
+  EXPECT_GE(CountHealth(poses.poses(), v1::VO_HEALTH_TRACKING), 15u);
+  EXPECT_NE(booted.log().find("live camera session " + list.sessions(0).id() + " started (live_cameras)"),
+            std::string::npos)
+      << booted.log();
+
+  // Cameras that are not there: the server serves, logs why, and starts nothing yet.
+  const fs::path absent = dir_ / "absent.yaml";
+  std::ofstream(absent) << "live_cameras:\n"
+                        << "  left_pipeline: \"v4l2src device=/dev/locaid-no-such-video\"\n"
+                        << "  right_pipeline: \"v4l2src device=/dev/locaid-no-such-video\"\n"
+                        << "  left_camera_info: " << (dir_ / "left.yaml").string() << "\n"
+                        << "  right_camera_info: " << (dir_ / "right.yaml").string() << "\n";
+  ServerProcess waiting(dir_ / "waiting", {"--config", absent.string()});
+  ASSERT_GT(waiting.port(), 0) << waiting.log();
+  for (int i = 0; i < 100 && waiting.log().find("cannot start yet") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  EXPECT_NE(waiting.log().find("live_cameras: cannot start yet, retrying every 5 s: live.cameras: left camera: "
+                               "cannot start: "),
+            std::string::npos)
+      << waiting.log();
+  EXPECT_EQ(RunCli(waiting.port(), {"health"}).out, "SERVING\n");
+
+  // A YAML that names no camera_info is a config error: the server does not start.
+  const fs::path bad = dir_ / "bad.yaml";
+  std::ofstream(bad) << "live_cameras:\n  left_pipeline: videotestsrc\n  right_pipeline: videotestsrc\n";
+  const CliResult r = RunShell(ShellQuote(std::string(LOCAID_BIN_DIR) + "/locaid-server") + " --listen 127.0.0.1:0 "
+                               "--config " + ShellQuote(bad.string()));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("live_cameras: left_camera_info and right_camera_info are required"), std::string::npos) << r.err;
+}
+
 }  // namespace
 }  // namespace locaid::server::testing
