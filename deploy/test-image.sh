@@ -42,7 +42,7 @@ SKIP_BUILD=0
 RUN_MODE=auto
 PORT=50751
 KEEP=0
-MAX_IMAGE_MB=350
+MAX_IMAGE_MB=400
 ENGINE=${LOCAID_CONTAINER_ENGINE:-podman}
 BAG_DRIVE=${LOCAID_BAG_DRIVE:-$ROOT/../shared/data/kitti/raw/2011_09_26/2011_09_26_drive_unknown_extract}
 while (($#)); do

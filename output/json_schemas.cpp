@@ -129,7 +129,7 @@ std::string Status() {
        {"mode", Text("GPS_FUSED, GPS_DEGRADED, VO_ONLY, DEAD_RECKONING or LOST")},
        {"vo_status", Text("OK, DEGRADED or LOST")},
        {"vo_inliers", {{"type", "integer"}}},
-       {"vo_health", Text("TRACKING, DARK, FROZEN or LOST: what the cameras gave VO")},
+       {"vo_health", Text("TRACKING, DARK, FROZEN, LOST or NO_IMAGES: what the cameras gave VO")},
        {"speed_samples_used", {{"type", "integer"}}},
        {"speed_scale_error", Number("estimated speed sensor scale error")},
        {"vo_noise_scale", {{"type", "array"},
