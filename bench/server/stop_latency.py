@@ -11,8 +11,8 @@ clock, call to answer) and their min / median / max.
 
   bench/server/stop_latency.py [--rounds 5] [--renders 3] [--frames 2000] [--server build/bin/locaid-server]
 
-Needs the Python stubs the build generates (build/python). The contract is
-200 ms (docs/api.md); tests/server check that a stop cancels the render, not
+Needs the Python stubs the build generates (build/python). The target is
+200 ms (docs/benchmarks.md, "Service"); tests/server check that a stop cancels the render, not
 how fast it returns: timing is measured here.
 """
 import argparse
