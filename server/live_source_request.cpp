@@ -172,12 +172,15 @@ std::string LiveSourceFromProto(const v1::LiveSource& in, const Eigen::Isometry3
     rest.set_width(out->camera.camera.width);
     rest.set_height(out->camera.camera.height);
     if (std::string e = ParseCamera(rest, default_T_cam0_imu, &out->camera); !e.empty()) return e;
-    // T_cam0_imu is of the left camera's raw optical frame (as a ROS tf
-    // gives it); VO works in its rectified frame: rotated by camera_info's R,
-    // as a bag's extrinsic is.
-    Eigen::Isometry3d T_rect_cam = Eigen::Isometry3d::Identity();
-    T_rect_cam.linear() = bag::RectificationRotation(out->cameras->left_info);
-    out->camera.T_cam0_imu = T_rect_cam * out->camera.T_cam0_imu;
+    // A given T_cam0_imu is of the left camera's raw optical frame (as a ROS
+    // tf gives it); VO works in its rectified frame: rotated by camera_info's
+    // R, as a bag's extrinsic is. The default rig is KITTI's rectified cam0
+    // already.
+    if (in.t_cam0_imu_size() > 0) {
+      Eigen::Isometry3d T_rect_cam = Eigen::Isometry3d::Identity();
+      T_rect_cam.linear() = bag::RectificationRotation(out->cameras->left_info);
+      out->camera.T_cam0_imu = T_rect_cam * out->camera.T_cam0_imu;
+    }
   } else if (std::string e = ParseCamera(in, default_T_cam0_imu, &out->camera); !e.empty()) {
     return e;
   }

@@ -2,6 +2,7 @@
 // frames. The real server on 127.0.0.1 with the fake estimator: these tests
 // check the service's contract (validation, ordering, counters, the no-fix
 // outage); tests/server/gpsd_test.cpp runs the real filter with a real gpsd.
+#include "server/live_source_request.hpp"
 #include "test_support.hpp"
 
 #include <cmath>
@@ -194,6 +195,57 @@ TEST_F(TypedInput, LeverArmDelayAndGpsdSourceAreCheckedBeforeOk) {
   EXPECT_EQ(stats.gpsd().connects(), 0u);
   EXPECT_NE(stats.gpsd().last_error().find("gpsd at 127.0.0.1:1: cannot connect"), std::string::npos)
       << stats.gpsd().last_error();
+}
+
+}  // namespace
+}  // namespace locaid::server::testing
+
+namespace locaid::server::testing {
+namespace {
+
+// A camera_info of KITTI's 2011_09_26 raw cam0 or cam1 (R = R_rect_0x).
+std::string KittiCameraInfo(bool right) {
+  return std::string("image_width: 1392\nimage_height: 512\n") +
+         "camera_matrix: {rows: 3, cols: 3, data: [984.2439, 0, 690, 0, 980.8141, 233.1966, 0, 0, 1]}\n"
+         "distortion_model: plumb_bob\n"
+         "distortion_coefficients: {rows: 1, cols: 5, data: [-0.3728755, 0.2037299, 0.002219027, 0.001383707, "
+         "-0.07233722]}\n"
+         "rectification_matrix: {rows: 3, cols: 3, data: [0.9999239, 0.00983776, -0.007445048, -0.009869795, "
+         "0.9999421, -0.004278459, 0.007402527, 0.004351614, 0.9999631]}\n" +
+         (right ? "projection_matrix: {rows: 3, cols: 4, data: [721.5377, 0, 609.5593, -387.5744, 0, 721.5377, "
+                  "172.854, 0, 0, 0, 1, 0]}\n"
+                : "projection_matrix: {rows: 3, cols: 4, data: [721.5377, 0, 609.5593, 0, 0, 721.5377, 172.854, 0, "
+                  "0, 0, 1, 0]}\n");
+}
+
+// With cameras the server reads, the camera model comes from camera_info,
+// and a given extrinsic (of the raw left camera, as a ROS tf) is rotated
+// into the rectified frame by camera_info's R; the default rig is not.
+TEST(LiveSourceCameras, ModelFromCameraInfoAndExtrinsicIntoTheRectifiedFrame) {
+  v1::LiveSource l;
+  l.mutable_cameras()->set_left_pipeline("videotestsrc");
+  l.mutable_cameras()->set_right_pipeline("videotestsrc");
+  l.mutable_cameras()->set_left_camera_info(KittiCameraInfo(false));
+  l.mutable_cameras()->set_right_camera_info(KittiCameraInfo(true));
+  const Eigen::Isometry3d rig = Eigen::Isometry3d(Eigen::Translation3d(0.1, 0.2, 0.3));
+  LiveSourceSetup out;
+  ASSERT_EQ(LiveSourceFromProto(l, rig, &out), "");
+  ASSERT_TRUE(out.cameras.has_value());
+  EXPECT_DOUBLE_EQ(out.camera.camera.fx, 721.5377);
+  EXPECT_NEAR(out.camera.camera.baseline_m, 387.5744 / 721.5377, 1e-12);
+  EXPECT_LT(out.camera.camera.width, 1392) << "cropped to what both cameras see";
+  EXPECT_TRUE(out.camera.T_cam0_imu.isApprox(rig, 1e-12)) << "the default rig as it is";
+
+  for (int i = 0; i < 12; ++i) l.add_t_cam0_imu(i % 5 == 0 ? 1.0 : 0.0);  // identity, raw camera frame
+  ASSERT_EQ(LiveSourceFromProto(l, rig, &out), "");
+  Eigen::Matrix3d R_rect;
+  R_rect << 0.9999239, 0.00983776, -0.007445048, -0.009869795, 0.9999421, -0.004278459, 0.007402527, 0.004351614,
+      0.9999631;
+  EXPECT_TRUE(out.camera.T_cam0_imu.linear().isApprox(R_rect, 1e-6)) << out.camera.T_cam0_imu.linear();
+
+  l.set_fx(700);
+  EXPECT_EQ(LiveSourceFromProto(l, rig, &out),
+            "live.cameras: leave live.fx .. height 0: the camera model comes from the camera_info files");
 }
 
 }  // namespace
