@@ -12,10 +12,10 @@
 //   locaid scenario ID (--name NAME | --file YAML)
 //   locaid stats ID
 // Every call carries a deadline (--timeout-s; subscribe: --stream-timeout-s).
-#include "bag/bag_topics.hpp"
 #include "connection/connection.hpp"
 #include "clients/cli_camera_fault.hpp"
 #include "clients/cli_print.hpp"
+#include "clients/cli_session_start.hpp"
 #include "clients/recorder.hpp"
 #include "output/mcap_recording.hpp"
 #include "output/ros2_recording.hpp"
@@ -52,24 +52,22 @@
 namespace v1 = locaid::v1;
 using locaid::clients::AddCameraFaultCommand;
 using locaid::clients::CameraFaultCommand;
+using locaid::clients::AddStartOptions;
 using locaid::clients::CameraFaultMessage;
+using locaid::clients::FillScenario;
 using locaid::clients::ModeName;
 using locaid::clients::PrintSession;
 using locaid::clients::PrintStats;
 using locaid::clients::RecordError;
 using locaid::clients::Recorder;
+using locaid::clients::StartOptions;
+using locaid::clients::StartSessionRequest;
 
 namespace {
 
 struct Common : locaid::connection::Connection {
   double timeout_s = 10;
 };
-
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error("cannot read '" + path + "'");
-  return std::string(std::istreambuf_iterator<char>(in), {});
-}
 
 // Checks a --server address; returns "" when usable, else the reason.
 // Accepted: host:port (host a name, IPv4 or [IPv6], port 1-65535),
@@ -123,45 +121,6 @@ std::unique_ptr<grpc::ClientContext> g_stream_ctx;
 
 void OnSignal(int) { if (g_stream_ctx) g_stream_ctx->TryCancel(); }
 
-// What `session start` sends.
-struct StartOptions {
-  std::string kitti_path;
-  int64_t first_frame = 0, last_frame = -1;
-  std::string bag_path, bag_topics_file;  // a ROS 2 bag on the server; its topics as locaid-replay reads them
-  bool synthetic = false;
-  uint64_t synth_seed = 0;
-  uint32_t synth_frames = 0, history = 0;
-  std::string scenario_name, scenario_file, vo_method;
-  double rate = 0;
-  bool fixed_vo_noise = false, fixed_gps_noise = false;  // StartSessionRequest.noise
-  // --live: the server reads its cameras through GStreamer (LiveSource.cameras).
-  bool live = false;
-  std::string camera_left, camera_right, camera_stereo, camera_info_left, camera_info_right, gpsd;
-};
-
-// --live: the cameras' pipelines and camera_info files (read here, sent as
-// text), and the gpsd the server reads GPS from ("HOST:PORT" or "HOST").
-void FillLiveCameras(const StartOptions& o, v1::LiveSource* live) {
-  v1::CameraSource* c = live->mutable_cameras();
-  c->set_left_pipeline(o.camera_left);
-  c->set_right_pipeline(o.camera_right);
-  c->set_stereo_pipeline(o.camera_stereo);
-  if (o.camera_info_left.empty() || o.camera_info_right.empty())
-    throw std::runtime_error("--live needs --camera-info-left FILE and --camera-info-right FILE");
-  c->set_left_camera_info(ReadFile(o.camera_info_left));
-  c->set_right_camera_info(ReadFile(o.camera_info_right));
-  if (o.gpsd.empty()) return;
-  v1::GpsdSource* g = live->mutable_gps_source()->mutable_gpsd();
-  const auto colon = o.gpsd.rfind(':');
-  g->set_host(o.gpsd.substr(0, colon));
-  if (colon != std::string::npos) {
-    const std::string port = o.gpsd.substr(colon + 1);
-    if (port.empty() || port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos)
-      throw std::runtime_error("--gpsd " + o.gpsd + ": expected HOST:PORT");
-    g->set_port(static_cast<uint32_t>(std::stoul(port)));
-  }
-}
-
 struct SubscribeOptions {
   std::string session_id;
   std::string format = "print", out_path;
@@ -170,23 +129,6 @@ struct SubscribeOptions {
   uint32_t queue = 0;
   double stream_timeout_s = 24 * 3600;
 };
-
-// A built-in scenario by name or a YAML file sent as text (neither:
-// unchanged). A --scenario that names a file (ends in .yaml/.yml, or holds a
-// '/') is read as --scenario-file is.
-void FillScenario(const std::string& name, const std::string& file, v1::Scenario* out) {
-  auto ends_with = [&name](const char* tail) {
-    const std::string t(tail);
-    return name.size() >= t.size() && name.compare(name.size() - t.size(), t.size(), t) == 0;
-  };
-  if (!file.empty()) {
-    out->set_yaml(ReadFile(file));
-  } else if (ends_with(".yaml") || ends_with(".yml") || name.find('/') != std::string::npos) {
-    out->set_yaml(ReadFile(name));
-  } else if (!name.empty()) {
-    out->set_name(name);
-  }
-}
 
 // One unary call with the common deadline and credentials: prints the
 // response with `print` (exit 0) or the error status (exit 1).
@@ -234,39 +176,6 @@ int Health(const Common& c, const std::shared_ptr<grpc::Channel>& channel, const
   const bool serving = status == 1;
   std::cout << (serving ? "SERVING" : status == 2 ? "NOT_SERVING" : "UNKNOWN") << "\n";
   return serving ? 0 : 3;
-}
-
-int StartSession(const Common& c, v1::Localization::Stub& stub, const StartOptions& o) {
-  v1::StartSessionRequest req;
-  if (!o.kitti_path.empty()) {
-    // The server opens the path; a relative one means the caller's folder.
-    req.mutable_kitti()->set_path(std::filesystem::absolute(o.kitti_path).lexically_normal().string());
-    req.mutable_kitti()->set_first_frame(o.first_frame);
-    req.mutable_kitti()->set_last_frame(o.last_frame);
-  } else if (!o.bag_path.empty()) {
-    req.mutable_bag()->set_path(std::filesystem::absolute(o.bag_path).lexically_normal().string());
-    const auto t = o.bag_topics_file.empty() ? locaid::bag::BagTopics{} : locaid::bag::LoadBagTopics(o.bag_topics_file);
-    v1::BagTopics* topics = req.mutable_bag()->mutable_topics();
-    topics->set_left_image(t.left_image); topics->set_left_info(t.left_info); topics->set_imu(t.imu);
-    topics->set_right_image(t.right_image); topics->set_right_info(t.right_info); topics->set_gps(t.gps);
-    topics->set_speed(t.speed);
-  } else if (o.synthetic) {
-    req.mutable_synthetic()->set_seed(o.synth_seed);
-    req.mutable_synthetic()->set_frames(o.synth_frames);
-  } else if (o.live) {
-    FillLiveCameras(o, req.mutable_live());
-  } else {
-    std::cerr << "error: session start needs --kitti PATH, --bag PATH, --synthetic SEED or --live\n";
-    return 2;
-  }
-  FillScenario(o.scenario_name, o.scenario_file, req.mutable_scenario());
-  req.set_vo_method(o.vo_method);
-  req.set_playback_rate(o.rate);
-  req.set_history_size(o.history);
-  req.mutable_noise()->set_fixed_vo_noise(o.fixed_vo_noise);
-  req.mutable_noise()->set_fixed_gps_noise(o.fixed_gps_noise);
-  return Unary(c, stub, &v1::Localization::Stub::StartSession, req,
-               [](const v1::Session& s) { std::cout << s.id() << "\n"; });
 }
 
 // Streams a session's poses into the chosen format until the stream ends,
@@ -385,38 +294,7 @@ int main(int argc, char** argv) {
   session->require_subcommand(1);
   auto* start = session->add_subcommand("start", "start a session; prints its id");
   StartOptions so;
-  auto* o_kitti = start->add_option("--kitti", so.kitti_path,
-                                    "KITTI raw drive or odometry sequence folder, opened by the server (a relative "
-                                    "path is made absolute from this command's working directory)");
-  auto* o_synth = start->add_option("--synthetic", so.synth_seed, "render a synthetic drive with this seed");
-  auto* o_bag = start->add_option("--bag", so.bag_path, "ROS 2 bag (.mcap file or rosbag2 directory), opened by the server; "
-                                                       "a relative path is made absolute as --kitti's");
-  o_bag->excludes(o_kitti)->excludes(o_synth);
-  start->add_option("--bag-topics", so.bag_topics_file, "bag: YAML naming its topics (the keys of locaid-replay --bag-topics)")
-      ->check(CLI::ExistingFile)->needs(o_bag);
-  o_kitti->excludes(o_synth);
-  auto* o_live = start->add_flag("--live", so.live, "a live session whose stereo cameras the server reads through "
-                                                   "GStreamer (docs/api.md \"Cameras through GStreamer\")");
-  o_live->excludes(o_kitti)->excludes(o_synth)->excludes(o_bag);
-  start->add_option("--camera-left", so.camera_left, "live: the left camera's GStreamer pipeline (gst-launch syntax)");
-  start->add_option("--camera-right", so.camera_right, "live: the right camera's GStreamer pipeline");
-  start->add_option("--camera-stereo", so.camera_stereo,
-                    "live: one pipeline with two appsinks named left and right (instead of --camera-left/-right)");
-  start->add_option("--camera-info-left", so.camera_info_left, "live: the left camera's ROS camera_info YAML")
-      ->check(CLI::ExistingFile);
-  start->add_option("--camera-info-right", so.camera_info_right, "live: the right camera's ROS camera_info YAML")
-      ->check(CLI::ExistingFile);
-  start->add_option("--gpsd", so.gpsd, "live: GPS from the gpsd at HOST:PORT, read by the server");
-  start->add_option("--frames", so.synth_frames, "synthetic: number of frames");
-  start->add_option("--first", so.first_frame, "kitti: first frame");
-  start->add_option("--last", so.last_frame, "kitti: last frame (default: to the end)");
-  start->add_option("--scenario", so.scenario_name, "built-in GPS scenario, or a scenario YAML file (.yaml/.yml)");
-  start->add_option("--scenario-file", so.scenario_file, "scenario YAML file (sent as text)");
-  start->add_option("--vo", so.vo_method, "VO method");
-  start->add_option("--rate", so.rate, "playback: 0 = as fast as possible, 1 = real time, N = N x")->capture_default_str();
-  start->add_option("--history", so.history, "poses kept for --from-start subscribers");
-  start->add_flag("--fixed-vo-noise", so.fixed_vo_noise, "the fixed VO noise model, not learnt (docs/api.md)");
-  start->add_flag("--fixed-gps-noise", so.fixed_gps_noise, "the fixes' stated sigmas as they are, not learnt");
+  AddStartOptions(*start, so);
   auto* list = session->add_subcommand("list", "list sessions");
   auto* get = session->add_subcommand("get", "show one session");
   auto* stop = session->add_subcommand("stop", "stop a session");
@@ -478,7 +356,6 @@ int main(int argc, char** argv) {
   // A file size limit (RLIMIT_FSIZE) must show up as EFBIG from write(2),
   // handled like a full disk, not kill the recorder.
   std::signal(SIGXFSZ, SIG_IGN);
-  so.synthetic = o_synth->count() > 0;
 
   try {
     locaid::connection::ResolveToken(c);
@@ -490,7 +367,10 @@ int main(int argc, char** argv) {
     };
 
     if (health->parsed()) return Health(c, channel, health_service, health_wait_s);
-    if (start->parsed()) return StartSession(c, *stub, so);
+    if (start->parsed()) {
+      return Unary(c, *stub, &v1::Localization::Stub::StartSession, StartSessionRequest(so),
+                   [](const v1::Session& s) { std::cout << s.id() << "\n"; });
+    }
     if (subscribe->parsed()) return Subscribe(c, *stub, sub);
     if (list->parsed()) {
       return Unary(c, *stub, &v1::Localization::Stub::ListSessions, v1::ListSessionsRequest{},

@@ -1,5 +1,7 @@
 #include "server/boot_session.hpp"
 
+#include "connection/host_port.hpp"
+
 #include <cerrno>
 #include <chrono>
 #include <cstring>
@@ -34,16 +36,10 @@ locaid::v1::StartSessionRequest BootCamerasRequest(const BootCameras& boot) {
   c->set_pair_tolerance_ms(boot.pair_tolerance_ms);
   c->set_stall_timeout_s(boot.stall_timeout_s);
   if (!boot.gpsd.empty()) {
+    const connection::HostPort gpsd = connection::SplitHostPort(boot.gpsd, "live_cameras.gpsd");
     locaid::v1::GpsdSource* g = live->mutable_gps_source()->mutable_gpsd();
-    const auto colon = boot.gpsd.rfind(':');
-    g->set_host(boot.gpsd.substr(0, colon));
-    if (colon != std::string::npos) {
-      const std::string port = boot.gpsd.substr(colon + 1);
-      if (port.empty() || port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos) {
-        throw std::runtime_error("live_cameras.gpsd '" + boot.gpsd + "': expected HOST:PORT");
-      }
-      g->set_port(static_cast<uint32_t>(std::stoul(port)));
-    }
+    g->set_host(gpsd.host);
+    g->set_port(gpsd.port);
   }
   if (!boot.scenario.empty()) req.mutable_scenario()->set_name(boot.scenario);
   return req;

@@ -159,7 +159,7 @@ void CameraFeeder::Run() {
 }
 
 bool CameraFeeder::PullSide(Side& side) {
-  const std::string name = &side == &left_ ? "left camera" : "right camera";
+  const char* name = &side == &left_ ? "left camera" : "right camera";
   sensors::CameraFrame frame;
   std::string why;
   switch (side.capture->Pull(side.sink, kPullTimeoutNs, frame, why)) {
@@ -174,12 +174,12 @@ bool CameraFeeder::PullSide(Side& side) {
       return true;
     case sensors::PullResult::kTimeout:
       if (sensors::ClockNowNs() - side.last_frame_clock_ns > ToNs(setup_.stall_timeout_s)) {
-        GoDown(name + ": no frame for " + std::to_string(setup_.stall_timeout_s) + " s (stalled)");
+        GoDown(std::string(name) + ": no frame for " + std::to_string(setup_.stall_timeout_s) + " s (stalled)");
         return false;
       }
       return true;
     case sensors::PullResult::kEnded:
-      GoDown(name + ": end of stream");
+      GoDown(std::string(name) + ": end of stream");
       return false;
     case sensors::PullResult::kFailed:
       GoDown(why);

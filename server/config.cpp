@@ -1,5 +1,7 @@
 #include "server/config.hpp"
 
+#include "connection/host_port.hpp"
+
 #include <yaml-cpp/yaml.h>
 
 #include <charconv>
@@ -149,6 +151,13 @@ BootCameras ParseBootCameras(const YAML::Node& n, const Real& real) {
   }
   if (b.left_camera_info.empty() || b.right_camera_info.empty()) {
     throw ConfigError("live_cameras: left_camera_info and right_camera_info are required (camera_info YAML files)");
+  }
+  if (!b.gpsd.empty()) {
+    try {
+      connection::SplitHostPort(b.gpsd, "live_cameras.gpsd");
+    } catch (const std::invalid_argument& e) {
+      throw ConfigError(e.what());
+    }
   }
   const bool two = !b.left_pipeline.empty() || !b.right_pipeline.empty();
   if (two == !b.stereo_pipeline.empty()) {

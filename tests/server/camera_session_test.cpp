@@ -176,6 +176,9 @@ TEST_F(CameraSession, CamerasThatCannotStartAreRefusedByName) {
        "INVALID_ARGUMENT", "live.cameras: stereo camera: no appsink named 'right'"},
       {{"--camera-left", good}, "INVALID_ARGUMENT", "live.cameras.right_pipeline: missing"},
   };
+  std::string usage;
+  EXPECT_EQ(Start({"--camera-left", good, "--camera-right", good, "--gpsd", "127.0.0.1:gps"}, &usage), "");
+  EXPECT_EQ(usage, "error: --gpsd '127.0.0.1:gps': expected HOST:PORT\n") << "a usage error, before any call";
   for (const auto& c : cases) {
     std::string error;
     EXPECT_EQ(Start(c.flags, &error), "") << c.flags[1];
@@ -421,7 +424,15 @@ TEST_F(CameraSession, TheServersYamlStartsACameraSessionAtBoot) {
       << waiting.log();
   EXPECT_EQ(RunCli(waiting.port(), {"health"}).out, "SERVING\n");
 
-  // A YAML that names no camera_info is a config error: the server does not start.
+  // A YAML with a malformed gpsd, or without camera_info, is a config error: the server does not start.
+  const fs::path bad_gpsd = dir_ / "bad_gpsd.yaml";
+  std::ofstream(bad_gpsd) << Slurp(yaml) << "  gpsd: localhost:twenty\n";
+  const CliResult g = RunShell(ShellQuote(std::string(LOCAID_BIN_DIR) + "/locaid-server") +
+                               " --listen 127.0.0.1:0 --config " + ShellQuote(bad_gpsd.string()));
+  EXPECT_EQ(g.exit_code, 2);
+  EXPECT_NE(g.err.find("key 'live_cameras': live_cameras.gpsd 'localhost:twenty': expected HOST:PORT"),
+            std::string::npos)
+      << g.err;
   const fs::path bad = dir_ / "bad.yaml";
   std::ofstream(bad) << "live_cameras:\n  left_pipeline: videotestsrc\n  right_pipeline: videotestsrc\n";
   const CliResult r = RunShell(ShellQuote(std::string(LOCAID_BIN_DIR) + "/locaid-server") + " --listen 127.0.0.1:0 "
