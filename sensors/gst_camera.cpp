@@ -74,8 +74,9 @@ bool GstCapture::running() const { return p_ != nullptr; }
 
 void GstCapture::Stop() { p_.reset(); }
 
-std::string GstCapture::Fail(const std::string& what, const std::string& message) {
+std::string GstCapture::Fail(const std::string& what, const std::string& message, bool in_description) {
   Stop();
+  description_error_ = in_description;
   return camera_ + ": " + what + ": " + message;
 }
 
@@ -92,8 +93,10 @@ std::string GstCapture::BusError() {
 
 std::string GstCapture::Start(int timeout_ms, int64_t base_time_ns) {
   Stop();
+  description_error_ = false;
   if (!InitError().empty()) return camera_ + ": GStreamer cannot start: " + InitError();
   if (description_.find_first_not_of(" \t\r\n") == std::string::npos) {
+    description_error_ = true;
     return camera_ + ": empty pipeline description";
   }
   const std::string description =
@@ -102,11 +105,13 @@ std::string GstCapture::Start(int timeout_ms, int64_t base_time_ns) {
   GstElement* element = gst_parse_launch_full(description.c_str(), nullptr, GST_PARSE_FLAG_FATAL_ERRORS, &e);
   if (!element || e) {
     if (element) gst_object_unref(element);
-    return Fail("bad pipeline description", TakeMessage(e));
+    return Fail("bad pipeline description", TakeMessage(e), true);
   }
   p_ = std::make_unique<Pipeline>();
   p_->pipeline = element;
-  if (!GST_IS_PIPELINE(element)) return Fail("bad pipeline description", "it is a single element, not a pipeline");
+  if (!GST_IS_PIPELINE(element)) {
+    return Fail("bad pipeline description", "it is a single element, not a pipeline", true);
+  }
   gst_pipeline_use_clock(GST_PIPELINE(element), SystemClock());  // stamps of every capture compare
   p_->bus = gst_element_get_bus(element);
 
@@ -117,7 +122,8 @@ std::string GstCapture::Start(int timeout_ms, int64_t base_time_ns) {
     if (!sink || !GST_IS_APP_SINK(sink)) {
       if (sink) gst_object_unref(sink);
       gst_caps_unref(gray);
-      return Fail("no appsink named '" + name + "'", "the description must end that camera in appsink name=" + name);
+      return Fail("no appsink named '" + name + "'", "the description must end that camera in appsink name=" + name,
+                  true);
     }
     gst_app_sink_set_caps(GST_APP_SINK(sink), gray);
     gst_app_sink_set_max_buffers(GST_APP_SINK(sink), kSinkBuffers);

@@ -64,6 +64,10 @@ class GstCapture {
   // the other with one base time stamp the frames of one moment alike,
   // whether live (a camera stamps its capture time) or played from files.
   std::string Start(int timeout_ms = 5000, int64_t base_time_ns = -1);
+  // Whether the last Start() failed on the description itself (bad syntax,
+  // a missing element or appsink), not on playing it: the user's input is
+  // wrong, rather than the camera not there.
+  bool description_error() const { return description_error_; }
   // Stops and frees the pipeline (Start() builds a new one: a restart).
   void Stop();
   bool running() const;
@@ -77,13 +81,14 @@ class GstCapture {
 
  private:
   struct Pipeline;
-  std::string Fail(const std::string& what, const std::string& message);
+  std::string Fail(const std::string& what, const std::string& message, bool in_description = false);
   std::string BusError();  // the first error on the bus, "" if none
 
   std::string camera_, description_;
   std::vector<std::string> sinks_;
   std::vector<uint64_t> sequence_;
   std::unique_ptr<Pipeline> p_;
+  bool description_error_ = false;
 };
 
 }  // namespace locaid::sensors

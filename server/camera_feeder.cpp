@@ -41,9 +41,8 @@ std::unique_ptr<CameraFeeder> CameraFeeder::Open(const CameraSetup& setup, pipel
                                                  OpenError* error) {
   std::unique_ptr<CameraFeeder> f(new CameraFeeder(setup, sink));
   if (std::string why = f->StartCaptures(); !why.empty()) {
-    error->invalid_argument = why.find(": bad pipeline description") != std::string::npos ||
-                              why.find(": no appsink named") != std::string::npos ||
-                              why.find(": empty pipeline description") != std::string::npos;
+    error->invalid_argument = std::any_of(f->captures_.begin(), f->captures_.end(),
+                                          [](const auto& c) { return c->description_error(); });
     error->message = std::move(why);
     return nullptr;
   }

@@ -59,6 +59,7 @@ TEST(GstCapture, ABadDescriptionIsNamedWithGStreamersMessage) {
   const std::string why = bad.Start();
   EXPECT_EQ(why.rfind("left camera: bad pipeline description: ", 0), 0u) << why;
   EXPECT_FALSE(bad.running());
+  EXPECT_TRUE(bad.description_error());
 
   GstCapture missing("right camera", "nosuchcamerasrc device=/dev/video0");
   const std::string missing_why = missing.Start();
@@ -73,6 +74,7 @@ TEST(GstCapture, AMissingAppsinkIsNamed) {
   GstCapture c("stereo camera", TestPattern(3) + " ! videoconvert ! appsink name=left", {"left", "right"});
   EXPECT_EQ(c.Start(), "stereo camera: no appsink named 'right': the description must end that camera in "
                        "appsink name=right");
+  EXPECT_TRUE(c.description_error());
 }
 
 TEST(GstCapture, ADeviceThatIsNotThereFailsToStartWithItsMessage) {
@@ -81,6 +83,7 @@ TEST(GstCapture, ADeviceThatIsNotThereFailsToStartWithItsMessage) {
   EXPECT_EQ(why.rfind("left camera: cannot start: ", 0), 0u) << why;
   EXPECT_NE(why.find("locaid-no-such-video"), std::string::npos) << "v4l2src names the device: " << why;
   EXPECT_FALSE(c.running());
+  EXPECT_FALSE(c.description_error()) << "the description is fine; the device is not there";
 }
 
 TEST(GstCapture, FramesArriveAtTheirRateStampedWithTheirPts) {
