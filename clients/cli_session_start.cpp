@@ -29,6 +29,7 @@ void FillLiveCameras(const StartOptions& o, v1::LiveSource* live) {
     throw std::invalid_argument("--live needs --camera-info-left FILE and --camera-info-right FILE");
   c->set_left_camera_info(ReadFile(o.camera_info_left));
   c->set_right_camera_info(ReadFile(o.camera_info_right));
+  live->set_no_imu(o.no_imu);
   if (o.gpsd.empty()) return;
   const connection::HostPort gpsd = connection::SplitHostPort(o.gpsd, "--gpsd");
   v1::GpsdSource* g = live->mutable_gps_source()->mutable_gpsd();
@@ -62,6 +63,7 @@ void AddStartOptions(CLI::App& start, StartOptions& so) {
   start.add_option("--camera-info-right", so.camera_info_right, "live: the right camera's ROS camera_info YAML")
       ->check(CLI::ExistingFile);
   start.add_option("--gpsd", so.gpsd, "live: GPS from the gpsd at HOST:PORT, read by the server");
+  start.add_flag("--no-imu", so.no_imu, "live: the car has no IMU; the filter runs on VO + GPS alone")->needs(o_live);
   start.add_option("--frames", so.synth_frames, "synthetic: number of frames");
   start.add_option("--first", so.first_frame, "kitti: first frame");
   start.add_option("--last", so.last_frame, "kitti: last frame (default: to the end)");

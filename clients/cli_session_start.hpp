@@ -26,6 +26,7 @@ struct StartOptions {
   // --live: the server reads its cameras through GStreamer (LiveSource.cameras).
   bool live = false;
   std::string camera_left, camera_right, camera_stereo, camera_info_left, camera_info_right, gpsd;
+  bool no_imu = false;  // LiveSource.no_imu
 };
 
 // Adds every option of `session start` to `start`, filling `so`.

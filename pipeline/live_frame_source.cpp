@@ -311,6 +311,12 @@ SourceItem LiveFrameSource::Next() {
     }
 
     out.index = frames_++;
+    if (setup_.expects_imu && frames_ == kFramesBeforeNoImuNotice && !last_imu_ns_) {
+      std::lock_guard s(stats_mu_);
+      stats_.last_error = std::to_string(kFramesBeforeNoImuNotice) +
+                          " frames and no IMU sample: the filter is IMU-driven and drifts fast without one; a car "
+                          "without IMU starts its session with live.no_imu";
+    }
     out.t_ns = item.t_ns;
     out.oxts_bad_lines = std::exchange(bad_lines_, 0);
     if (out.oxts_bad_lines > 0) out.error = last_error_;

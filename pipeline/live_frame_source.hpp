@@ -46,6 +46,9 @@ struct LiveCameraSetup {
   Eigen::Isometry3d T_cam0_imu = Eigen::Isometry3d::Identity();
   // A fix older than the newest frame by more than this is dropped (counted).
   double max_gps_delay_s = 0.5;
+  // The filter is IMU-driven: 50 frames without an IMU sample are reported
+  // (input_stats().last_error), since the session should have said no_imu.
+  bool expects_imu = true;
 };
 
 // Something that feeds a live source from a thread of its own (the server's
@@ -74,6 +77,7 @@ class LiveFrameSource : public FrameSource {
   // A fix from a receiver the server reads itself (gpsd): never blocks; at
   // most kMaxAsyncFixes wait, the oldest is dropped (counted late) beyond.
   static constexpr size_t kMaxAsyncFixes = 64;
+  static constexpr int64_t kFramesBeforeNoImuNotice = 50;  // LiveCameraSetup::expects_imu
   void PushAsyncFix(LiveItem fix);
   void CloseInput();  // half-close: Next() returns kEnd once drained
   // Takes ownership of a feeder (the gpsd receiver: PushAsyncFix; the

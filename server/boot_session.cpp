@@ -35,6 +35,7 @@ locaid::v1::StartSessionRequest BootCamerasRequest(const BootCameras& boot) {
   c->set_right_camera_info(ReadText(boot.right_camera_info, "right_camera_info"));
   c->set_pair_tolerance_ms(boot.pair_tolerance_ms);
   c->set_stall_timeout_s(boot.stall_timeout_s);
+  live->set_no_imu(boot.no_imu);
   if (!boot.gpsd.empty()) {
     const connection::HostPort gpsd = connection::SplitHostPort(boot.gpsd, "live_cameras.gpsd");
     locaid::v1::GpsdSource* g = live->mutable_gps_source()->mutable_gpsd();

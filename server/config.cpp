@@ -134,6 +134,12 @@ BootCameras ParseBootCameras(const YAML::Node& n, const Real& real) {
       {"scenario", [&](const YAML::Node& v) { b.scenario = v.as<std::string>(); }},
       {"pair_tolerance_ms", [&](const YAML::Node& v) { real(&b.pair_tolerance_ms)(v); }},
       {"stall_timeout_s", [&](const YAML::Node& v) { real(&b.stall_timeout_s)(v); }},
+      {"no_imu",
+       [&](const YAML::Node& v) {
+         const std::string s = v.IsScalar() ? v.Scalar() : "";
+         if (s != "true" && s != "false") throw ConfigError("expected true or false, got '" + s + "'");
+         b.no_imu = s == "true";
+       }},
   };
   for (const auto& kv : n) {
     const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : "?";

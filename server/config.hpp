@@ -28,6 +28,7 @@ struct BootCameras {
   std::string left_camera_info, right_camera_info;  // camera_info YAML files
   std::string gpsd;                                 // HOST:PORT or HOST; empty: no gpsd
   double pair_tolerance_ms = 0, stall_timeout_s = 0;  // 0: the defaults (10 ms, 1 s)
+  bool no_imu = false;                              // LiveSource.no_imu: a car without IMU
   std::string scenario;                             // empty: default_scenario
 };
 

@@ -184,6 +184,7 @@ std::string LiveSourceFromProto(const v1::LiveSource& in, const Eigen::Isometry3
   } else if (std::string e = ParseCamera(in, default_T_cam0_imu, &out->camera); !e.empty()) {
     return e;
   }
+  out->camera.expects_imu = !in.no_imu();
   if (std::string e = ParseLeverArm(in, &out->gps_antenna_body_m); !e.empty()) return e;
   if (std::string e = ParseGpsd(in, &out->gpsd); !e.empty()) return e;
   return ParseSpeedSensor(in, out);

@@ -38,6 +38,9 @@ struct EstimatorSetup {
   Eigen::Matrix3d R_vehicle_body = Eigen::Matrix3d::Identity();
   // LiveSource.speed_sensor (0 = the filter's defaults).
   double speed_sigma_mps = 0, speed_scale_sigma = 0;
+  // The filter's process model: IMU-driven, or odometry (VO + GPS + speed)
+  // for a source without IMU (LiveSource.no_imu, a bag without an IMU topic).
+  bool use_imu = true;
 };
 // Builds a session's estimator (pipeline/run_assembly.hpp); throws
 // std::invalid_argument (unknown VO method). Tests and benchmarks pass their

@@ -117,6 +117,7 @@ Status OpenLiveSource(const v1::LiveSource& l, EstimatorSetup* setup, std::uniqu
   setup->gps_antenna_body_m = live.gps_antenna_body_m;
   setup->speed_sigma_mps = live.speed_sigma_mps;
   setup->speed_scale_sigma = live.speed_scale_sigma;
+  setup->use_imu = !l.no_imu();
   *gpsd = live.gpsd;
   *cameras = live.cameras;
   *out = std::make_unique<pipeline::LiveFrameSource>(live.camera);
@@ -133,6 +134,7 @@ pipeline::RunOptions RunOptionsOf(const EstimatorSetup& setup) {
   pipeline::LocalizerOptions& options = run.localizer;
   options.vo_method = setup.vo_method;
   options.ekf.gps.lever_arm_body_m = setup.gps_antenna_body_m;
+  options.ekf.imu.enabled = setup.use_imu;
   options.ekf.vehicle.constraints = setup.vehicle_constraints;
   options.ekf.vehicle.constraints_need_speed = setup.vehicle_constraints_need_speed;
   options.ekf.vehicle.R_vehicle_body = setup.R_vehicle_body;

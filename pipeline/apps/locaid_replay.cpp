@@ -183,13 +183,18 @@ std::unique_ptr<pipeline::FrameSource> FramesOf(ReplayInput& in, bool need_image
   return std::make_unique<pipeline::PrefetchSource>(std::move(frames), 4);
 }
 
+// The filter is IMU-driven unless --no-imu, or a bag has no IMU topic.
+bool UsesImu(const ReplayArgs& a, const pipeline::BagFrameSource* bag) {
+  return !a.no_imu && !(bag && bag->topics().imu.empty());
+}
+
 pipeline::RunOptions RunOptionsOf(const ReplayArgs& a, const pipeline::BagFrameSource* bag) {
   pipeline::RunOptions run;
   run.scenario = pipeline::LoadScenario(a.scenario);
   if (a.seed >= 0) run.scenario.seed = static_cast<uint64_t>(a.seed);
   pipeline::LocalizerOptions& options = run.localizer;
   options.vo_method = a.vo_method;
-  options.ekf.imu.enabled = !a.no_imu;
+  options.ekf.imu.enabled = UsesImu(a, bag);
   options.ekf.vo.learn_noise = !a.fixed_vo_noise;
   options.ekf.gps.learn_noise = !a.fixed_gps_noise;
   options.ekf.vo.adaptive_rotation_noise = a.vo_rotation_noise == "adaptive";
@@ -268,7 +273,7 @@ void Report(const ReplayArgs& a, const ReplayInput& in, const pipeline::Assemble
   if (!a.out_fixes.empty()) run.WriteFixes(a.out_fixes);
   const auto metrics = run.Metrics();
   if (!a.json) {
-    std::cout << "scenario " << assembled.scenario.name << (a.no_imu ? " (no IMU)" : "") << ", frames/s "
+    std::cout << "scenario " << assembled.scenario.name << (UsesImu(a, in.bag) ? "" : " (no IMU)") << ", frames/s "
               << static_cast<double>(run.poses()) / wall_s << "\n"
               << pipeline::DescribeMetrics(metrics);
     return;
@@ -277,7 +282,7 @@ void Report(const ReplayArgs& a, const ReplayInput& in, const pipeline::Assemble
   if (in.dataset) j["drive"] = a.drive_dir;
   if (in.bag) j["bag"] = bag_json;
   j["scenario"] = assembled.scenario.name;
-  j["use_imu"] = !a.no_imu;
+  j["use_imu"] = UsesImu(a, in.bag);
   j["vo_method"] = a.vo_method;
   j["vo_from_cache"] = !a.vo_cache_path.empty() && !outputs.vo_computed;
   j["warnings"] = assembled.notice.empty() ? nlohmann::json::array() : nlohmann::json::array({assembled.notice});

@@ -38,8 +38,11 @@ int main(int argc, char** argv) {
     if (oxts.empty()) throw std::runtime_error(drive_dir + ": no OXTS records");
     sim::Scenario scenario = pipeline::LoadScenario(scenario_arg);
     if (seed >= 0) scenario.seed = static_cast<uint64_t>(seed);
-    const double duration_s = static_cast<double>(oxts.back().t_ns - oxts.front().t_ns) * 1e-9;
-    scenario = sim::PlaceOutagesForDrive(scenario, duration_s);
+    // Outages placed on the drive (centered) span its frames, as
+    // locaid-replay places them: a recording's OXTS may run on past them.
+    const int64_t span_ns = dataset->size() >= 2 ? dataset->time_ns(dataset->size() - 1) - dataset->time_ns(0)
+                                                 : oxts.back().t_ns - oxts.front().t_ns;
+    scenario = sim::PlaceOutagesForDrive(scenario, static_cast<double>(span_ns) * 1e-9);
     const int64_t t0 = oxts.front().t_ns;
     const int64_t utc0 = start_utc.empty() ? t0 : sensors::ParseIso8601Utc(start_utc);
     sim::GpsReceiverSim gps(scenario);

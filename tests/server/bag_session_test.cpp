@@ -140,6 +140,11 @@ TEST_F(BagSessionTest, CliStartsABagSessionWithATopicsFile) {
   EXPECT_EQ(ended.state(), v1::SESSION_STATE_FINISHED) << ended.error();
   EXPECT_EQ(ended.source(), "bag:" + bag.string());
   EXPECT_EQ(ended.stats().imu_samples(), 0u) << "imu: none in the topics file";
+  // Without an IMU topic the filter is the odometry model, as --no-imu.
+  const CliResult replay = RunShell(ShellQuote(std::string(LOCAID_BIN_DIR) + "/locaid-replay") + " --bag " +
+                                    ShellQuote(bag.string()) + " --bag-topics " + ShellQuote(topics.string()) +
+                                    " --json 2>/dev/null | grep use_imu");
+  EXPECT_EQ(replay.out, "  \"use_imu\": false,\n");
   const std::string text = Slurp(csv);
   EXPECT_EQ(static_cast<size_t>(std::count(text.begin(), text.end(), '\n')), StereoFrames() + 1);  // + header
 

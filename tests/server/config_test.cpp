@@ -1,4 +1,5 @@
 // Server configuration: YAML + validation give precise errors.
+#include "server/boot_session.hpp"
 #include "server/config.hpp"
 #include "server/malloc_arenas.hpp"
 #include "error_of.hpp"
@@ -36,6 +37,23 @@ TEST(ServerConfig, YamlOverridesDefaultsAndValidates) {
   EXPECT_EQ(c.queue_size, 32u);
   EXPECT_DOUBLE_EQ(c.shutdown_grace_s, 0.5);
   EXPECT_NO_THROW(ValidateConfig(&c));
+}
+
+// live_cameras.no_imu: a car without IMU boots into the odometry model
+// (LiveSource.no_imu); anything but true or false is refused by name.
+TEST(ServerConfig, LiveCamerasNoImu) {
+  const ScopedTempDir dir("config");
+  const std::string cameras = "live_cameras:\n  stereo_pipeline: videotestsrc\n  left_camera_info: " +
+                              WriteTemp(dir, "l.yaml", "image_width: 1\n").string() + "\n  right_camera_info: " +
+                              WriteTemp(dir, "r.yaml", "image_width: 1\n").string() + "\n";
+  ServerConfig c;
+  ApplyYamlConfig(WriteTemp(dir, "default.yaml", cameras), &c);
+  ASSERT_TRUE(c.live_cameras);
+  EXPECT_FALSE(BootCamerasRequest(*c.live_cameras).live().no_imu());
+  ApplyYamlConfig(WriteTemp(dir, "no_imu.yaml", cameras + "  no_imu: true\n"), &c);
+  EXPECT_TRUE(BootCamerasRequest(*c.live_cameras).live().no_imu());
+  const std::string e = ErrorOf([&] { ApplyYamlConfig(WriteTemp(dir, "bad.yaml", cameras + "  no_imu: yes\n"), &c); });
+  EXPECT_NE(e.find("live_cameras.no_imu: expected true or false, got 'yes'"), std::string::npos) << e;
 }
 
 TEST(ServerConfig, UnknownKeyNamesFileLineAndKey) {
