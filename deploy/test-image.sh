@@ -73,6 +73,13 @@ mkdir -p "$STATE"
 
 # The few commands whose spelling differs between the two engines.
 image_exists() { if [[ $ENGINE == podman ]]; then podman image exists "$1"; else docker image inspect "$1" >/dev/null 2>&1; fi; }
+# Untagged images the Containerfile labelled: an earlier build's stages, or
+# the image a rebuild took the tag from.
+leftovers() {
+  for label in io.locaid.stage org.opencontainers.image.title=locaid; do
+    "$ENGINE" images -q --no-trunc --filter dangling=true --filter "label=$label"
+  done | sort -u
+}
 # Copies an image's filesystem into a fresh folder; prints the folder.
 image_files() {
   local dir cid
@@ -187,6 +194,8 @@ if ((SKIP_BUILD == 0)); then
     how=(docker build)  # no bind mounts while building: apt downloads afresh
     say "building $TAG (docker build, base $BASE)"
   fi
+  # With the image the tag names now: it is left untagged when this build differs.
+  earlier="$(leftovers) $("$ENGINE" images -q --no-trunc "$TAG" 2>/dev/null || true)"
   t0=$(date +%s)
   "${how[@]}" "${NO_CACHE[@]}" --build-arg BASE_IMAGE="$BASE" --build-arg BUILD_JOBS="$(nproc)" \
     -f "$ROOT/deploy/Containerfile" -t "$TAG" "$ROOT" >"$STATE/build.log" 2>&1 ||
@@ -194,6 +203,16 @@ if ((SKIP_BUILD == 0)); then
   t1=$(date +%s)
   hits=$(grep -E '^ *(Hits|Misses):' "$STATE/build.log" | tr -s ' ' | tr '\n' ' ' || true)
   note "build: ${how[*]:0:3} ${NO_CACHE[*]} took $((t1 - t0)) s on $(nproc) cores (log $STATE/build.log)${ccache_dir:+; ccache $ccache_dir: ${hits:-no compile step ran}}"
+  # Earlier builds leave their stages and the image this tag named untagged
+  # (about 3 GB a build); they go, unless this build took them as its cache
+  # (the log names every step's image), which the next build then reuses.
+  removed=0
+  for id in $earlier; do
+    short=${id#sha256:}
+    grep -q -- "${short:0:11}" "$STATE/build.log" && continue  # this build's cache or result
+    "$ENGINE" rmi "$id" >/dev/null 2>&1 && removed=$((removed + 1))
+  done
+  note "build: removed $removed untagged images of earlier builds (labelled by the Containerfile)"
 fi
 image_exists "$TAG" || fail "image $TAG does not exist"
 
