@@ -34,23 +34,6 @@ inline std::string Play(const std::string& side, int frames, const std::string& 
          (loop ? " loop=true" : "") + " caps=image/png,framerate=" + framerate + " ! pngdec";
 }
 
-// The excerpt's frames 0.. as a camera delivers them, for a comparison from
-// its first frame on: where the recording lacks an image (left 23, right 22)
-// both cameras repeat the last complete pair, as a stalled driver does (a
-// recorded drive skips it). Symbolic links in `dir`.
-inline void LinkGaplessFrames(const fs::path& dir, size_t frames) {
-  for (const std::string side : {"image_00", "image_01"}) fs::create_directories(dir / side / "data");
-  size_t complete = 0;
-  for (size_t k = 0; k < frames; ++k) {
-    char name[32], source[32];
-    std::snprintf(name, sizeof name, "%010zu.png", k);
-    if (fs::exists(kDrive / "image_00/data" / name) && fs::exists(kDrive / "image_01/data" / name)) complete = k;
-    std::snprintf(source, sizeof source, "%010zu.png", complete);
-    for (const std::string side : {"image_00", "image_01"})
-      fs::create_symlink(kDrive / side / "data" / source, dir / side / "data" / name);
-  }
-}
-
 class CameraSession : public ::testing::Test {
  protected:
   void SetUp() override {
