@@ -7,10 +7,7 @@
 #include "camera_test_support.hpp"
 
 #include <algorithm>
-#include <cmath>
-#include <sstream>
 #include <fstream>
-#include <map>
 #include <string>
 #include <vector>
 
