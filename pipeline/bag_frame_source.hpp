@@ -72,6 +72,9 @@ class BagFrameSource : public FrameSource {
   double duration_s() const override { return duration_hint_s_; }
 
   const bag::BagTopics& topics() const { return topics_; }
+  // Whether it has an IMU topic: without one the filter runs its odometry
+  // model (as locaid-replay --no-imu), never the IMU model starved of IMU.
+  bool has_imu() const { return !topics_.imu.empty(); }
   // The GPS antenna in the body frame (from /tf_static; zero when not given).
   const Eigen::Vector3d& gps_lever_arm_body_m() const { return lever_arm_; }
   const BagSourceStats& stats() const { return stats_; }

@@ -127,7 +127,7 @@ Status OpenBagSource(const v1::BagSource& b, EstimatorSetup* setup, std::unique_
   try {
     auto bag = std::make_unique<pipeline::BagFrameSource>(b.path(), options);
     setup->gps_antenna_body_m = bag->gps_lever_arm_body_m();
-    setup->use_imu = !bag->topics().imu.empty();  // no IMU topic: the odometry model
+    setup->use_imu = bag->has_imu();
     *out = std::make_unique<CountedBagSource>(std::move(bag));
   } catch (const std::exception& e) {  // bag::McapError, std::runtime_error: the bag's content
     return {StatusCode::FAILED_PRECONDITION, "cannot open bag: " + ForRequest(e.what())};

@@ -117,7 +117,7 @@ Status OpenLiveSource(const v1::LiveSource& l, EstimatorSetup* setup, std::uniqu
   setup->gps_antenna_body_m = live.gps_antenna_body_m;
   setup->speed_sigma_mps = live.speed_sigma_mps;
   setup->speed_scale_sigma = live.speed_scale_sigma;
-  setup->use_imu = !l.no_imu();
+  setup->use_imu = live.camera.expects_imu;
   *gpsd = live.gpsd;
   *cameras = live.cameras;
   *out = std::make_unique<pipeline::LiveFrameSource>(live.camera);

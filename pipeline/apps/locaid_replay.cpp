@@ -185,7 +185,7 @@ std::unique_ptr<pipeline::FrameSource> FramesOf(ReplayInput& in, bool need_image
 
 // The filter is IMU-driven unless --no-imu, or a bag has no IMU topic.
 bool UsesImu(const ReplayArgs& a, const pipeline::BagFrameSource* bag) {
-  return !a.no_imu && !(bag && bag->topics().imu.empty());
+  return !a.no_imu && (!bag || bag->has_imu());
 }
 
 pipeline::RunOptions RunOptionsOf(const ReplayArgs& a, const pipeline::BagFrameSource* bag) {
