@@ -143,6 +143,10 @@ bool Ekf::LearningVoNoise(int64_t t_ns) const {
 
 // ------------------------------------------------------------------ output
 
+ErrorLayout Ekf::error_layout() const {
+  return {model_->StateSize(), model_->AttitudeIndex(), config_.imu.enabled ? kV : -1};
+}
+
 FusedPose Ekf::Output(int64_t t_ns, bool vo_ok) const {
   FusedPose out;
   out.t_ns = t_ns;

@@ -111,6 +111,13 @@ class Ekf {
   bool SurelyMovingFasterThan(int64_t t_ns, double speed_mps) const;
 
   const EkfConfig& config() const { return config_; }
+  // Smoothing (fusion/epoch_log.hpp, rts_smoother.hpp): the log that records
+  // this filter's epochs (nullptr: none, the default), the epoch that holds
+  // the state now (call after Output; -1 before the filter runs or without a
+  // log), and where the shown states sit in the error state.
+  void set_epoch_log(EpochLog* log) { s_.log = log; }
+  int64_t MarkEpoch() { return s_.log ? s_.log->Mark(s_) : -1; }
+  ErrorLayout error_layout() const;
   bool initialized() const { return s_.initialized; }
   const EnuFrame& enu() const { return enu_; }
   const NominalState& state() const { return s_.x; }

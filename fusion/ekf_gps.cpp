@@ -211,6 +211,7 @@ void Ekf::ResetPositionToGps(const Vec3& y, const Mat3& R, bool horizontal, bool
   model_->ResetPosition(s_, jump, mask, R, gap_s);
   Symmetrize(P);
   ++stats_.gps_resets;
+  if (s_.log) s_.log->Start(s_);  // not a linear-Gaussian step: a smoother's chain breaks here
 }
 
 void Ekf::ApplyGpsUpdate(const Vec3& y, const Mat3& R, const Eigen::MatrixXd& H3, bool horizontal, bool vertical) {

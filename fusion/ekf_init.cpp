@@ -53,6 +53,7 @@ void Ekf::TryInitialize(int64_t t_ns) {
   InitializeState(fit, R_level_start, tilt_var, sigma_eff);
   s_.t_ns = t_ns;
   s_.initialized = true;
+  if (s_.log) s_.log->Start(s_);  // a smoother's chain starts with the filter
   stats_.gps_used += fit.used;
   stats_.gps_rejected += static_cast<int>(fixes.size()) - fit.used;
   last_gps_accepted_ns_ = fixes.back()->t_ns;

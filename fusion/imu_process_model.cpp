@@ -120,8 +120,10 @@ class ImuProcessModel final : public ProcessModel {
     const int steps = std::max(1, static_cast<int>(std::ceil(total / kMaxImuStepS)));
     const double dt = total / steps;
     Eigen::MatrixXd& P = s.P;
+    Mat15 phi = Mat15::Identity();  // the steps composed, for a smoother's log
     for (int i = 0; i < steps; ++i) {
       const Mat15 F = ImuTransitionJacobian(s.x, f, w, dt);
+      if (s.log) phi = F * phi;
       const Mat15 Q = ImuProcessNoise(s.x, dt, accel_noise * gap_scale, gyro_noise * gap_scale,
                                       config_.imu.accel_bias_walk_mps3_sqrt_hz, config_.imu.gyro_bias_walk_radps2_sqrt_hz);
       s.x = fusion::IntegrateImuStep(s.x, f, w, dt, g);
@@ -133,6 +135,11 @@ class ImuProcessModel final : public ProcessModel {
     }
     Symmetrize(P);
     s.t_ns = t_ns;
+    if (s.log) {
+      Eigen::MatrixXd phi_full = Eigen::MatrixXd::Identity(P.rows(), P.cols());
+      phi_full.topLeftCorner<15, 15>() = phi;
+      s.log->Transition(s, phi_full);
+    }
   }
 
   std::optional<VoGate> ApplyVo(FilterState& s, const VoStep& vo) override {
@@ -324,6 +331,7 @@ class ImuProcessModel final : public ProcessModel {
     J.block<3, 3>(kThc, kTh).setIdentity();
     P = J * P * J.transpose();
     Symmetrize(P);
+    if (s.log) s.log->Transition(s, J);
   }
 
   EkfConfig config_;

@@ -45,6 +45,7 @@ class OdometryProcessModel final : public ProcessModel {
     Symmetrize(s.P);
     s.x.v_enu_mps = s.x.R_enu_body * vo.vo_velocity_body_mps;
     s.t_ns = vo.t_ns;
+    if (s.log) s.log->Transition(s, F);
     return std::nullopt;
   }
 

@@ -15,6 +15,7 @@
 #pragma once
 
 #include "fusion/ekf_models.hpp"
+#include "fusion/epoch_log.hpp"
 #include "fusion/types.hpp"
 
 #include <Eigen/Core>
@@ -34,6 +35,9 @@ struct FilterState {
   int64_t t_ns = 0;        // time the state is at
   NominalState x;
   Eigen::MatrixXd P;       // error-state covariance (model's layout)
+  // Records transitions and corrections for a smoother (fusion/epoch_log.hpp);
+  // nullptr: nothing recorded. The models call it where they move x and P.
+  EpochLog* log = nullptr;
 };
 
 // One frame's VO, as the filter hands it to the model once initialised.
@@ -87,7 +91,9 @@ class ProcessModel {
   virtual std::optional<VoGate> ApplyVo(FilterState& s, const VoStep& vo) = 0;
   // x (+) dx in the model's layout; a non-finite dx is ignored.
   void Correct(FilterState& s, const Eigen::VectorXd& dx) {
-    if (dx.allFinite()) BoxPlus(s, dx);
+    if (!dx.allFinite()) return;
+    BoxPlus(s, dx);
+    if (s.log) s.log->Corrected(s, dx);
   }
 
   // ---- GPS

@@ -103,6 +103,9 @@ struct FusedPose {
   Eigen::Matrix<double, 6, 1> vo_noise_scale = Eigen::Matrix<double, 6, 1>::Ones();
   double gps_noise_scale_h = 1, gps_noise_scale_v = 1;
   bool vo_noise_learning = false;
+  // A smoothed estimate (fusion/rts_smoother.hpp): the pose at t_ns given
+  // measurements after it too; false: the filter's (causal) estimate.
+  bool smoothed = false;
 };
 
 }  // namespace locaid::fusion
