@@ -64,6 +64,8 @@ class EpochLog {
   void Finish();
 
   int64_t epochs() const { return next_seq_; }  // made so far (the open one included)
+  // The epoch still taking updates (the newest state), or nullptr.
+  const Epoch* open() const { return has_open_ ? &open_ : nullptr; }
 
  private:
   void Emit();

@@ -4,6 +4,8 @@
 // the filter on average and its NEES stays in bounds.
 #include "fusion/ekf.hpp"
 #include "fusion/epoch_log.hpp"
+#include "fusion/fixed_lag_smoother.hpp"
+#include "fusion/offline_smoother.hpp"
 #include "fusion/process_model.hpp"
 #include "fusion/rts_smoother.hpp"
 #include "sim.hpp"
@@ -250,7 +252,9 @@ TEST(RtsSmoother, AChainBreakSmoothsEachPartOnItsOwn) {
   std::map<int64_t, Eigen::VectorXd> from_part;
   part.SmoothBackward([&](const Epoch& e, const SmoothedError& s) { from_part[e.seq] = s.dx; });
   all.SmoothBackward([&](const Epoch& e, const SmoothedError& s) {
-    if (from_part.count(e.seq)) EXPECT_EQ(from_part[e.seq], s.dx) << "epoch " << e.seq;
+    if (from_part.count(e.seq)) {
+      EXPECT_EQ(from_part[e.seq], s.dx) << "epoch " << e.seq;
+    }
   });
 }
 
@@ -385,6 +389,120 @@ void ExpectSmoothedBetter(bool use_imu) {
 
 TEST(RtsSmootherEkf, NeverWorseThanTheFilterOnAverageWithImu) { ExpectSmoothedBetter(true); }
 TEST(RtsSmootherEkf, NeverWorseThanTheFilterOnAverageWithoutImu) { ExpectSmoothedBetter(false); }
+
+// ---------------------------------------------------------------- fixed lag
+// One simulated drive filtered with a fixed-lag smoother of `lag_s`: the
+// poses it releases (in order), and per release how far the filter was.
+struct LagRun {
+  std::vector<FusedPose> forward, released;
+  std::vector<double> delay_s;  // newest forward time minus the released pose's time
+  std::vector<Vec3> truth;      // per forward pose, in the filter's ENU
+};
+LagRun RunWithLag(const test::SimConfig& c, double lag_s) {
+  const auto ev = test::Simulate(c);
+  Ekf ekf(test::SimEkfConfig(c, true));
+  FixedLagSmoother lag(lag_s, ekf.error_layout());
+  EpochLog log([&](Epoch&& e) { lag.AddEpoch(e); });
+  ekf.set_epoch_log(&log);
+  LagRun run;
+  for (const auto& e : ev) {
+    if (e.kind == test::SimEvent::kImu) {
+      ekf.PropagateImu(e.imu);
+    } else if (e.kind == test::SimEvent::kGps) {
+      ekf.UpdateGps(e.gps);
+    } else if (e.vo.t_ns != 0) {
+      ekf.ProcessVo(e.vo, true);
+      const FusedPose pose = ekf.Output(e.vo.t_ns, true);
+      run.forward.push_back(pose);
+      run.truth.push_back(test::TruthInFilterEnu(ekf, e.truth.x.p_enu_m));
+      for (FusedPose& p : lag.AddPose(pose, ekf.MarkEpoch(), log.open())) {
+        run.delay_s.push_back(static_cast<double>(pose.t_ns - p.t_ns) * 1e-9);
+        run.released.push_back(std::move(p));
+      }
+    }
+  }
+  for (FusedPose& p : lag.Flush(log.open())) run.released.push_back(std::move(p));
+  return run;
+}
+
+std::vector<FusedPose> RunOffline(const test::SimConfig& c) {
+  const auto ev = test::Simulate(c);
+  Ekf ekf(test::SimEkfConfig(c, true));
+  OfflineSmoother smoother;
+  ekf.set_epoch_log(&smoother.log());
+  std::vector<FusedPose> forward;
+  std::vector<int64_t> epochs;
+  for (const auto& e : ev) {
+    if (e.kind == test::SimEvent::kImu) {
+      ekf.PropagateImu(e.imu);
+    } else if (e.kind == test::SimEvent::kGps) {
+      ekf.UpdateGps(e.gps);
+    } else if (e.vo.t_ns != 0) {
+      ekf.ProcessVo(e.vo, true);
+      forward.push_back(ekf.Output(e.vo.t_ns, true));
+      epochs.push_back(ekf.MarkEpoch());
+    }
+  }
+  return smoother.Smooth(forward, epochs, ekf.error_layout());
+}
+
+test::SimConfig LagDrive() {
+  test::SimConfig c;
+  c.duration_s = 60;
+  c.seed = 410;
+  c.outage_start_s = 25;
+  c.outage_duration_s = 15;
+  return c;
+}
+
+TEST(FixedLagSmoother, ALagLongerThanTheDriveGivesTheOfflineSmoothersPoses) {
+  const LagRun lag = RunWithLag(LagDrive(), 1000.0);
+  const std::vector<FusedPose> offline = RunOffline(LagDrive());
+  ASSERT_EQ(lag.released.size(), offline.size());
+  EXPECT_TRUE(lag.delay_s.empty()) << "nothing comes out before the drive ends";
+  for (size_t i = 0; i < offline.size(); ++i) {
+    ASSERT_EQ(lag.released[i].t_ns, offline[i].t_ns) << i;
+    EXPECT_EQ(lag.released[i].T_enu_body.matrix(), offline[i].T_enu_body.matrix()) << "pose " << i;
+    EXPECT_EQ(lag.released[i].covariance, offline[i].covariance) << "pose " << i;
+  }
+}
+
+TEST(FixedLagSmoother, EachPoseComesOutOnceItsLagHasPassedInOrder) {
+  const LagRun run = RunWithLag(LagDrive(), 2.0);
+  ASSERT_EQ(run.released.size(), run.forward.size()) << "every pose comes out, the last ones at Flush";
+  for (size_t i = 0; i < run.released.size(); ++i) {
+    EXPECT_EQ(run.released[i].t_ns, run.forward[i].t_ns) << "in order";
+    EXPECT_TRUE(run.released[i].smoothed);
+  }
+  for (double d : run.delay_s) {
+    EXPECT_GE(d, 2.0 - 1e-9);
+    EXPECT_LT(d, 2.0 + 0.1 + 1e-9) << "out at the first pose past the lag (10 Hz frames)";
+  }
+  // A 2 s lag already beats the filter over the drive.
+  const auto rmse = [&](const std::vector<FusedPose>& poses) {
+    double sum2 = 0;
+    int n = 0;
+    for (size_t i = 0; i < poses.size(); ++i) {
+      if (poses[i].mode == Mode::kLost) continue;
+      sum2 += (poses[i].T_enu_body.translation() - run.truth[i]).head<2>().squaredNorm();
+      ++n;
+    }
+    return std::sqrt(sum2 / std::max(1, n));
+  };
+  std::cout << "RMSE forward " << rmse(run.forward) << " m, 2 s lag " << rmse(run.released) << " m\n";
+  EXPECT_LT(rmse(run.released), rmse(run.forward));
+}
+
+TEST(FixedLagSmoother, RefusesALagThatIsNotPositive) {
+  for (double bad : {0.0, -1.0, std::nan("")}) {
+    try {
+      FixedLagSmoother s(bad, ErrorLayout{6, 3, -1});
+      FAIL() << "accepted " << bad;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("lag must be > 0 s"), std::string::npos) << e.what();
+    }
+  }
+}
 
 }  // namespace
 }  // namespace locaid::fusion
