@@ -106,6 +106,7 @@ FrameResult Localizer::Process(const vo::StereoFrame& frame) {
   r.vo_body.t_ns = t_ns;
   r.vo_update = ekf_.ProcessVo(r.vo_body, vo_ok);
   r.pose = ekf_.Output(t_ns, r.vo.status != vo::Status::kLost);
+  r.epoch = ekf_.MarkEpoch();
   r.gps_feeds = std::exchange(feeds_, {});
   last_frame_ns_ = t_ns;
   r.fusion_ms = std::exchange(fusion_ms_, 0) + MsSince(t0);

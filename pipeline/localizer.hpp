@@ -48,6 +48,9 @@ struct FrameResult {
   std::vector<GpsFeed> gps_feeds;     // every fix fused since the previous pose
   bool in_outage = false;             // GPS out at the frame time (the frame loop sets it)
   double vo_ms = 0, fusion_ms = 0;    // wall time of VO, and of fusion since the previous pose
+  // The filter epoch that holds this pose (fusion/epoch_log.hpp) when the
+  // estimator records epochs for a smoother; -1 otherwise.
+  int64_t epoch = -1;
 };
 
 // What the frame loop drives. Localizer is the one the service and
@@ -80,6 +83,9 @@ class Localizer final : public Estimator {
   FrameResult Process(const vo::StereoFrame& frame) override;
   const fusion::EnuFrame& enu() const override { return ekf_.enu(); }
   const fusion::Ekf& ekf() const { return ekf_; }
+  // Records the filter's epochs into `log` (nullptr: stop); each result then
+  // names its epoch (FrameResult::epoch). `log` must outlive the steps.
+  void set_epoch_log(fusion::EpochLog* log) { ekf_.set_epoch_log(log); }
 
  private:
   vo::RelativeMotion TrackVo(const vo::StereoFrame& frame);

@@ -68,8 +68,15 @@ ReplayMetrics ComputeReplayMetrics(const std::vector<ReplaySample>& s, double si
       if (prev < s.size()) o.distance_m += (s[k].p_enu_gt_m - s[prev].p_enu_gt_m).norm();
       prev = k;
     }
-    for (size_t k = i; k <= j; ++k)
-      if (scored(k)) o.max_error_m = std::max(o.max_error_m, err_h(k));
+    double sum2 = 0;
+    int scored_frames = 0;
+    for (size_t k = i; k <= j; ++k) {
+      if (!scored(k)) continue;
+      o.max_error_m = std::max(o.max_error_m, err_h(k));
+      sum2 += err_h(k) * err_h(k);
+      ++scored_frames;
+    }
+    o.rmse_m = scored_frames > 0 ? std::sqrt(sum2 / scored_frames) : std::nan("");
     o.end_error_m = scored(j) ? err_h(j) : std::nan("");
     o.end_error_pct = o.distance_m > 0 ? 100.0 * o.end_error_m / o.distance_m : std::nan("");
     // What the outage added: the horizontal error vector at its end minus the

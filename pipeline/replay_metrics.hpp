@@ -34,6 +34,7 @@ struct OutageStats {
   // start| (NaN when either frame has no ground truth).
   double start_error_m = std::nan(""), added_error_m = std::nan(""), added_error_pct = std::nan("");
   double max_error_m = 0;    // max horizontal error inside the outage
+  double rmse_m = 0;         // horizontal RMSE over the outage's frames (NaN without ground truth)
   double reconverge_s = -1;  // after the outage until the error <= 2 sigma_h GPS (-1: never)
   double max_jump_m = 0;     // largest frame-to-frame pose correction in the 10 s after it
 };

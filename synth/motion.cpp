@@ -10,6 +10,7 @@ namespace locaid::synth {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
+constexpr double kVibrationSpeed2 = 1.5 * 1.5;  // (m/s)^2: vibrations at half strength at 1.5 m/s (route mode)
 
 // smootherstep and its integral from 0 to u
 double Smooth(double u) { return u * u * u * (u * (6 * u - 15) + 10); }
@@ -108,6 +109,20 @@ Route::Route(const RouteConfig& config) : length_m_(config.length_m) {
   speed_ = std::move(v);
 }
 
+Route::Route(const TrackGeometry& track) : track_(track), length_m_(track.s_end - track.s_begin) {
+  if (!(length_m_ > 0)) throw kitti::Error("synth route: the track is empty");
+}
+
+void Route::TrackAt(double s, Eigen::Vector2d* p, Eigen::Vector2d* d1, Eigen::Vector2d* d2) const {
+  const double x = track_->s_begin + s;
+  double e = 0, n = 0, de = 0, dn = 0, d2e = 0, d2n = 0;
+  track_->east.Eval(x, p ? &e : nullptr, &de, d2 ? &d2e : nullptr);
+  track_->north.Eval(x, p ? &n : nullptr, &dn, d2 ? &d2n : nullptr);
+  if (p) *p = Eigen::Vector2d(e, n);
+  if (d1) *d1 = Eigen::Vector2d(de, dn);
+  if (d2) *d2 = Eigen::Vector2d(d2e, d2n);
+}
+
 const Route::Piece& Route::PieceAt(double s) const {
   auto it = std::upper_bound(pieces_.begin(), pieces_.end(), s,
                              [](double x, const Piece& p) { return x < p.s0; });
@@ -116,6 +131,11 @@ const Route::Piece& Route::PieceAt(double s) const {
 }
 
 double Route::Kappa(double s) const {
+  if (track_) {
+    Eigen::Vector2d d1, d2;
+    TrackAt(s, nullptr, &d1, &d2);
+    return (d1.x() * d2.y() - d1.y() * d2.x()) / std::pow(d1.squaredNorm(), 1.5);
+  }
   const Piece& p = PieceAt(s);
   if (p.kappa == 0) return 0;
   const double x = s - p.s0;
@@ -126,6 +146,11 @@ double Route::Kappa(double s) const {
 }
 
 double Route::Heading(double s) const {
+  if (track_) {
+    Eigen::Vector2d d1;
+    TrackAt(s, nullptr, &d1, nullptr);
+    return std::atan2(d1.y(), d1.x());
+  }
   const Piece& p = PieceAt(s);
   if (p.kappa == 0) return p.heading0;
   const double x = std::min(s - p.s0, p.length());
@@ -137,6 +162,11 @@ double Route::Heading(double s) const {
 }
 
 Eigen::Vector2d Route::Center(double s) const {
+  if (track_) {
+    Eigen::Vector2d p, d1;
+    TrackAt(s, &p, &d1, nullptr);
+    return p + track_->center_shift_m * Eigen::Vector2d(-d1.y(), d1.x()).normalized();
+  }
   static const double gx[4] = {-0.8611363115940526, -0.3399810435848563, 0.3399810435848563, 0.8611363115940526};
   static const double gw[4] = {0.3478548451374538, 0.6521451548625461, 0.6521451548625461, 0.3478548451374538};
   const int last = static_cast<int>(knots_.size()) - 1;
@@ -152,12 +182,18 @@ Eigen::Vector2d Route::Center(double s) const {
 }
 
 double Route::Elevation(double s) const {
+  if (track_) return track_->road_height(track_->s_begin + s);
   double z = 0;
   for (const auto& w : hills_) z += w.amp_m * (std::sin(w.omega * s + w.phase) - std::sin(w.phase));
   return z;
 }
 
 double Route::Grade(double s) const {
+  if (track_) {
+    double g = 0;
+    track_->road_height.Eval(track_->s_begin + s, nullptr, &g, nullptr);
+    return g;
+  }
   double g = 0;
   for (const auto& w : hills_) g += w.amp_m * w.omega * std::cos(w.omega * s + w.phase);
   return g;
@@ -182,11 +218,13 @@ void CatmullRom(const std::vector<double>& y, double step, double s, double* val
 }  // namespace
 
 double Route::Speed(double s) const {
+  if (track_) return 0;
   double v = 0;
   CatmullRom(speed_, speed_step_m_, s, &v, nullptr);
   return v;
 }
 double Route::SpeedSlope(double s) const {
+  if (track_) return 0;
   double d = 0;
   CatmullRom(speed_, speed_step_m_, s, nullptr, &d);
   return d;
@@ -215,6 +253,20 @@ VehicleMotion::VehicleMotion(const Route& route, const MotionConfig& config, uin
     const double k1 = f(s), k2 = f(s + 0.5 * dt_ * k1), k3 = f(s + 0.5 * dt_ * k2), k4 = f(s + dt_ * k3);
     s += dt_ / 6 * (k1 + 2 * k2 + 2 * k3 + k4);
   }
+  InitDynamics(seed);
+}
+
+VehicleMotion::VehicleMotion(const Route& route, const MotionConfig& config, uint64_t seed, double dt_s,
+                             std::vector<double> s, std::vector<double> v, std::vector<double> a)
+    : route_(route), cfg_(config), dt_(dt_s), s_(std::move(s)), v_(std::move(v)), a_(std::move(a)) {
+  if (!route.follows_track()) throw kitti::Error("synth motion: a measured progress needs a Route on a track");
+  if (s_.size() < 2 || v_.size() != s_.size() || a_.size() != s_.size() || !(dt_ > 0))
+    throw kitti::Error("synth motion: the progress needs 2+ samples of s, v and a and dt > 0");
+  duration_s_ = dt_ * static_cast<double>(s_.size() - 1);
+  InitDynamics(seed);
+}
+
+void VehicleMotion::InitDynamics(uint64_t seed) {
   Rng rng(seed, 2);
   auto make = [&](std::vector<Osc>& o, double amp) {
     for (int i = 0; i < 3; ++i)
@@ -279,7 +331,11 @@ double VehicleMotion::LaneOffsetSlope(double s) const {
 
 Eigen::Isometry3d VehicleMotion::T_enu_imu(double t) const {
   const double s = S(t), v = SpeedAt(t), a = AccelAt(t);
-  const double d = LaneOffset(s), dd = LaneOffsetSlope(s);
+  // On a track the vehicle keeps to it (no lane wander), and its body stops
+  // vibrating as it stops (vib: 0 at rest, ~1 above a few m/s; 1 otherwise).
+  const bool track = route_.follows_track();
+  const double d = track ? cfg_.lane_offset_m : LaneOffset(s), dd = track ? 0.0 : LaneOffsetSlope(s);
+  const double vib = track ? v * v / (v * v + kVibrationSpeed2) : 1.0;
   const double kappa = route_.Kappa(s), psi = route_.Heading(s);
   const Eigen::Vector2d c = route_.Center(s);
   auto osc = [t](const std::vector<Osc>& o) {
@@ -288,12 +344,12 @@ Eigen::Isometry3d VehicleMotion::T_enu_imu(double t) const {
     return x;
   };
   const double yaw = psi + std::atan2(dd, 1 - kappa * d);
-  const double pitch = -std::atan(route_.Grade(s)) - cfg_.pitch_per_accel * a + osc(pitch_vib_);
-  const double roll = cfg_.roll_per_lat_accel * v * v * kappa + osc(roll_vib_);
+  const double pitch = -std::atan(route_.Grade(s)) - cfg_.pitch_per_accel * a + vib * osc(pitch_vib_);
+  const double roll = cfg_.roll_per_lat_accel * v * v * kappa + vib * osc(roll_vib_);
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.linear() = AttitudeFromRpy(roll, pitch, yaw);
   T.translation() = Eigen::Vector3d(c.x() - d * std::sin(psi), c.y() + d * std::cos(psi),
-                                    route_.Elevation(s) + cfg_.imu_height_m + osc(heave_));
+                                    route_.Elevation(s) + cfg_.imu_height_m + vib * osc(heave_));
   return T;
 }
 

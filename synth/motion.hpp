@@ -7,14 +7,22 @@
 // "Tube" coordinates (s, d, h) place the world along the route: arc length s
 // along the centerline (m), lateral offset d (m, left positive), height h above
 // the road surface (m).
+//
+// Route mode (synth/route_file.hpp): a Route built from a measured track
+// instead, and a VehicleMotion whose s(t) is the measured progress along it.
+// There s is the arc length along the track (the middle of the right-hand
+// lane, the road's centre line lies center_shift_m to its left) and the
+// vehicle drives the track exactly.
 #pragma once
 
 #include "kitti/types.hpp"
+#include "synth/track.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 namespace locaid::synth {
@@ -33,7 +41,12 @@ struct RouteConfig {
 class Route {
  public:
   explicit Route(const RouteConfig& config);
+  // Route mode: the track's [s_begin, s_end] (Speed/SpeedSlope are 0: the
+  // vehicle's progress is measured, not planned).
+  explicit Route(const TrackGeometry& track);
 
+  bool follows_track() const { return track_.has_value(); }
+  double center_shift_m() const { return track_ ? track_->center_shift_m : 0.0; }
   double length_m() const { return length_m_; }
   double Kappa(double s) const;                 // curvature, 1/m, left positive
   double Heading(double s) const;               // yaw of the centerline tangent (0 = east, CCW)
@@ -52,7 +65,10 @@ class Route {
     double length() const { return 2 * ramp_m + arc_m; }
   };
   const Piece& PieceAt(double s) const;
+  // Track position, tangent and its derivative (per m of s) at route s.
+  void TrackAt(double s, Eigen::Vector2d* p, Eigen::Vector2d* d1, Eigen::Vector2d* d2) const;
 
+  std::optional<TrackGeometry> track_;
   double length_m_ = 0;
   std::vector<Piece> pieces_;
   double knot_step_m_ = 1.0;
@@ -76,6 +92,11 @@ class VehicleMotion {
  public:
   VehicleMotion(const Route& route, const MotionConfig& config, uint64_t seed,
                 double duration_s);
+  // Route mode: s(t), ds/dt and d2s/dt2 at t = k * dt_s (k = 0 .. n-1) on a
+  // Route that follows a track. The vehicle keeps to the track (no lane
+  // wander) and its body vibrations fade out as it comes to a stop.
+  VehicleMotion(const Route& route, const MotionConfig& config, uint64_t seed, double dt_s,
+                std::vector<double> s, std::vector<double> v, std::vector<double> a);
 
   double duration_s() const { return duration_s_; }
   double S(double t) const;        // arc length at time t
@@ -94,6 +115,7 @@ class VehicleMotion {
   struct Osc { double amp, omega, phase; };
   std::vector<Osc> heave_, pitch_vib_, roll_vib_;
   double wander_phase_[2] = {0, 0};
+  void InitDynamics(uint64_t seed);
   double LaneOffset(double s) const;
   double LaneOffsetSlope(double s) const;
 };

@@ -3,6 +3,7 @@
 #include "synth/motion.hpp"
 #include "synth/random.hpp"
 #include "synth/renderer.hpp"
+#include "synth/route_file.hpp"
 #include "synth/texture.hpp"
 #include "synth/world.hpp"
 
@@ -20,6 +21,7 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <memory>
 #include <regex>
 #include <system_error>
 
@@ -28,12 +30,13 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-// "25..30" for error messages (%g: no trailing zeros).
-std::string Range(double lo, double hi) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%g..%g", lo, hi);
+// "25" and "25..30" for error messages (%g: no trailing zeros).
+std::string Num(double x) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", x);
   return buf;
 }
+std::string Range(double lo, double hi) { return Num(lo) + ".." + Num(hi); }
 
 // Calibration values carry 7 significant digits ("%e"), like the real KITTI
 // files: the rig is defined by the rounded numbers (kitti/'s writer then
@@ -181,10 +184,16 @@ int64_t MidnightNs(const std::string& date) {
 }  // namespace
 
 void ValidateSynthConfig(const SynthConfig& cfg) {
+  const bool route = !cfg.route_poses.empty();
   if (!std::isfinite(cfg.length_m)) throw kitti::Error("synth: length_m must be finite");
   if (!(cfg.noise_sigma_dn >= 0 && cfg.noise_sigma_dn <= 50))
     throw kitti::Error("synth: noise_sigma_dn must be in [0, 50] (got " + std::to_string(cfg.noise_sigma_dn) + ")");
-  if (cfg.length_m <= 0 && cfg.frames < 2) throw kitti::Error("synth: frames must be >= 2 (got " + std::to_string(cfg.frames) + ")");
+  if (route && cfg.length_m <= 0 && (cfg.frames < 0 || cfg.frames == 1))
+    throw kitti::Error("synth: frames must be >= 2, or 0 for the whole route (got " + std::to_string(cfg.frames) + ")");
+  if (!route && cfg.length_m <= 0 && cfg.frames < 2) throw kitti::Error("synth: frames must be >= 2 (got " + std::to_string(cfg.frames) + ")");
+  if (route && cfg.route_start_frame < 0)
+    throw kitti::Error("synth: route start frame must be >= 0 (got " + std::to_string(cfg.route_start_frame) + ")");
+  if (!route && !cfg.route_times.empty()) throw kitti::Error("synth: route times given without a route poses file");
   if (cfg.length_m > 100000) throw kitti::Error("synth: length_m must be <= 100000");
   if (cfg.width < 64 || cfg.width > 4096 || cfg.height < 48 || cfg.height > 4096)
     throw kitti::Error("synth: image size " + std::to_string(cfg.width) + "x" + std::to_string(cfg.height) +
@@ -201,13 +210,22 @@ void ValidateSynthConfig(const SynthConfig& cfg) {
                 " m is not 10 <= min <= max <= 10000");
 }
 
-SynthSummary GenerateDrive(const SynthConfig& cfg, const std::filesystem::path& out_dir,
-                           const std::function<void(int, int)>& progress) {
-  ValidateSynthConfig(cfg);
+namespace {
 
-  const SynthCalib calib = MakeSynthCalib(cfg.width, cfg.height);
-  const double dt = 1.0 / cfg.frame_rate_hz;
-  const double lead_s = 1.0;  // the car is already moving 1 s before the first image
+// The route, the vehicle on it and how much of it is rendered.
+struct DrivePlan {
+  std::unique_ptr<Route> route;
+  std::unique_ptr<VehicleMotion> motion;
+  int frames = 0;
+  double world_duration_s = 0;  // how long the oncoming traffic must last
+  int route_first_pose = -1, route_last_pose = -1;
+  bool route_cut = false;
+};
+
+// A generated route (RouteConfig from the seed and the speed and curve
+// ranges) with the vehicle on its speed plan.
+DrivePlan PlanGeneratedDrive(const SynthConfig& cfg, double dt, double lead_s) {
+  DrivePlan plan;
   RouteConfig rc;
   rc.seed = cfg.seed;
   rc.v_min_mps = cfg.speed_min_mps;
@@ -216,14 +234,88 @@ SynthSummary GenerateDrive(const SynthConfig& cfg, const std::filesystem::path& 
   rc.max_radius_m = cfg.curve_radius_max_m;
   const double duration_bound = cfg.length_m > 0 ? cfg.length_m / rc.v_min_mps + 5 : (cfg.frames - 1) * dt + 1;
   rc.length_m = (cfg.length_m > 0 ? cfg.length_m : rc.v_max_mps * duration_bound) + rc.v_max_mps * lead_s + 330;
-  const Route route(rc);
-  const VehicleMotion motion(route, MotionConfig{}, cfg.seed, duration_bound + lead_s + 2);
-  int frames = cfg.frames;
+  plan.route = std::make_unique<Route>(rc);
+  plan.motion = std::make_unique<VehicleMotion>(*plan.route, MotionConfig{}, cfg.seed, duration_bound + lead_s + 2);
+  plan.frames = cfg.frames;
   if (cfg.length_m > 0) {
-    const double t_end = motion.TimeAtS(motion.S(lead_s) + cfg.length_m);
+    const double t_end = plan.motion->TimeAtS(plan.motion->S(lead_s) + cfg.length_m);
     if (t_end < 0) throw kitti::Error("synth: internal: route too short for length_m");
-    frames = static_cast<int>(std::ceil((t_end - lead_s) * cfg.frame_rate_hz)) + 1;
+    plan.frames = static_cast<int>(std::ceil((t_end - lead_s) * cfg.frame_rate_hz)) + 1;
   }
+  plan.world_duration_s = duration_bound + lead_s + 2;
+  return plan;
+}
+
+// Route mode: the track and progress fitted to the poses file; the drive
+// starts at pose route_start_frame (image 0 at its time, the motion's clock
+// lead_s earlier) and ends with the frames, the length or the poses.
+DrivePlan PlanRouteDrive(const SynthConfig& cfg, double dt, double lead_s) {
+  const RoutePoses poses = ReadRoutePoses(cfg.route_poses, cfg.route_times);
+  const int n = static_cast<int>(poses.t_s.size());
+  const int k0 = cfg.route_start_frame;
+  if (k0 > n - 2)
+    throw kitti::Error("synth: route start frame " + std::to_string(k0) + " out of range: " +
+                       cfg.route_poses.string() + " has " + std::to_string(n) + " poses (start frames 0.." +
+                       std::to_string(n - 2) + ")");
+  const RouteFit fit(poses);
+  DrivePlan plan;
+  const double t_start = poses.t_s[static_cast<size_t>(k0)];
+  // The last image, its jitter and its OXTS record's offset stay before the last pose.
+  const double margin_s = cfg.frame_jitter_max_s + cfg.oxts_time_offset_max_s + 0.01;
+  const int frames_max = static_cast<int>(std::floor((fit.t_last() - t_start - margin_s) * cfg.frame_rate_hz)) + 1;
+  if (frames_max < 2)
+    throw kitti::Error("synth: route: from start frame " + std::to_string(k0) + " the poses last " +
+                       Num(fit.t_last() - t_start) + " s, too short for 2 frames at " +
+                       Num(cfg.frame_rate_hz) + " Hz");
+  plan.frames = frames_max;
+  if (cfg.length_m > 0) {
+    const double t_end = fit.TimeAtS(fit.S(t_start) + cfg.length_m, t_start);
+    const int asked = t_end < 0 ? frames_max + 1 : static_cast<int>(std::ceil((t_end - t_start) * cfg.frame_rate_hz)) + 1;
+    plan.frames = std::min(frames_max, asked);
+    plan.route_cut = asked > frames_max;
+  } else if (cfg.frames > 0) {
+    plan.frames = std::min(frames_max, cfg.frames);
+    plan.route_cut = cfg.frames > frames_max;
+  }
+  const double t_base = t_start - lead_s;  // the motion's t = 0
+  const double t_end = t_start + (plan.frames - 1) * dt + 1.0;
+  plan.route_first_pose = k0;
+  plan.route_last_pose = static_cast<int>(
+      std::upper_bound(poses.t_s.begin(), poses.t_s.end(), t_start + (plan.frames - 1) * dt) - poses.t_s.begin() - 1);
+  // The Route covers what the camera sees from the first to the last frame.
+  const WorldConfig wc;
+  TrackGeometry track = fit.track();
+  track.s_begin = std::max(track.s_begin + 2, fit.S(t_base) - wc.view_behind_m - 30);
+  track.s_end = std::min(track.s_end - 2, fit.S(t_end) + wc.view_ahead_m + 60);
+  track.center_shift_m = -MotionConfig{}.lane_offset_m;
+  plan.route = std::make_unique<Route>(track);
+  constexpr double kProgressStepS = 0.01;
+  const int samples = static_cast<int>(std::ceil((t_end - t_base) / kProgressStepS)) + 3;
+  std::vector<double> s(static_cast<size_t>(samples)), v(s.size()), a(s.size());
+  for (size_t k = 0; k < s.size(); ++k) {
+    fit.Progress(t_base + static_cast<double>(k) * kProgressStepS, &s[k], &v[k], &a[k]);
+    s[k] -= track.s_begin;
+  }
+  plan.motion = std::make_unique<VehicleMotion>(*plan.route, MotionConfig{}, cfg.seed, kProgressStepS, std::move(s),
+                                                std::move(v), std::move(a));
+  plan.world_duration_s = plan.motion->duration_s();
+  return plan;
+}
+
+}  // namespace
+
+SynthSummary GenerateDrive(const SynthConfig& cfg, const std::filesystem::path& out_dir,
+                           const std::function<void(int, int)>& progress) {
+  ValidateSynthConfig(cfg);
+
+  const SynthCalib calib = MakeSynthCalib(cfg.width, cfg.height);
+  const double dt = 1.0 / cfg.frame_rate_hz;
+  const double lead_s = 1.0;  // the car is already moving 1 s before the first image
+  const DrivePlan plan =
+      cfg.route_poses.empty() ? PlanGeneratedDrive(cfg, dt, lead_s) : PlanRouteDrive(cfg, dt, lead_s);
+  const Route& route = *plan.route;
+  const VehicleMotion& motion = *plan.motion;
+  const int frames = plan.frames;
 
   // Timestamps (ns since midnight), seconds relative to the first image.
   Rng trng(cfg.seed, 9);
@@ -244,6 +336,9 @@ SynthSummary GenerateDrive(const SynthConfig& cfg, const std::filesystem::path& 
   std::snprintf(drive, sizeof drive, "%s_drive_%04d_sync", cfg.date.c_str(), cfg.drive_number);
   sum.drive_dir = out_dir / drive;
   sum.frames = frames;
+  sum.route_first_pose = plan.route_first_pose;
+  sum.route_last_pose = plan.route_last_pose;
+  sum.route_cut = plan.route_cut;
   sum.camera = calib.stereo;
   sum.T_cam0_imu = calib.T_cam0_imu;
 
@@ -272,7 +367,7 @@ SynthSummary GenerateDrive(const SynthConfig& cfg, const std::filesystem::path& 
   const std::vector<MipTexture> textures = MakeTextures(cfg.seed, [&] {
     if (progress) progress(0, frames);
   });
-  World world(route, textures, cfg.seed, duration_bound + lead_s + 2);
+  World world(route, textures, cfg.seed, plan.world_duration_s);
   if (progress) progress(0, frames);
   sum.static_polygons = world.num_static_polys();
   Intrinsics K{calib.stereo.fx, calib.stereo.fy, calib.stereo.cx, calib.stereo.cy, cfg.width, cfg.height};
@@ -306,7 +401,7 @@ SynthSummary GenerateDrive(const SynthConfig& cfg, const std::filesystem::path& 
     const Eigen::Isometry3d T_world_cam0 = T_enu_world.inverse() * T_enu_cam0;
     gt_kitti.push_back(T_world_cam0);
     gt_tum.push_back({t_img[k], T_world_cam0});
-    const double speed = motion.SpeedAt(tau);
+    const double speed = std::max(0.0, motion.SpeedAt(tau));  // route mode: ~1e-13 below 0 at a stop
     sum.min_speed_mps = std::min(sum.min_speed_mps, speed);
     sum.max_speed_mps = std::max(sum.max_speed_mps, speed);
 

@@ -55,6 +55,15 @@ struct SynthConfig {
   // earlier versions keep their bytes.
   bool anisotropic_filtering = false;
   int png_compression = -1;          // -1: fast (SUB filter, zlib level 1, RLE); 0..9: zlib level, adaptive filters
+  // Route mode (route_poses set): drive a real route, a KITTI odometry
+  // ground-truth poses file (poses/NN.txt), from pose route_start_frame on
+  // and on the clock of route_times (sequences/NN/times.txt; empty: 10 Hz).
+  // Image 0 is at that pose's time; frames / length_m say how much at most is
+  // rendered (frames 0: up to the last pose), the poses' end ends it sooner.
+  // The ground truth is the smooth trajectory fitted to the poses
+  // (synth/route_file.hpp); the speed and curve ranges do not apply.
+  std::filesystem::path route_poses, route_times;
+  int route_start_frame = 0;
 };
 
 struct SynthSummary {
@@ -65,11 +74,18 @@ struct SynthSummary {
   StereoCamera camera;
   Eigen::Isometry3d T_cam0_imu = Eigen::Isometry3d::Identity();  // rectified cam0 <- imu
   size_t static_polygons = 0;
+  // Route mode: the poses the drive spans (first = route_start_frame, last:
+  // the last one at or before the last image) and whether the poses ended
+  // before the frames or length asked for.
+  int route_first_pose = -1, route_last_pose = -1;
+  bool route_cut = false;
 };
 
 // Throws kitti::Error for bad configs ("synth: frames must be >= 2 (got 1)",
-// checked before anything is written) and unwritable folders ("synth:
-// cannot create folder '/x': Permission denied").
+// checked before anything is written), bad route files ("synth: route
+// poses: P:17: 11 numbers, expected 12 ...", read before anything is
+// written; synth/route_file.hpp) and unwritable folders ("synth: cannot
+// create folder '/x': Permission denied").
 // Throws kitti::Error naming the field and its range when `config` cannot be
 // rendered (GenerateDrive checks it first; callers can check before).
 void ValidateSynthConfig(const SynthConfig& config);

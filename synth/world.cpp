@@ -4,6 +4,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <numeric>
+#include <unordered_map>
 
 namespace locaid::synth {
 namespace {
@@ -87,6 +90,43 @@ struct Builder {
   }
 };
 
+// Route mode: the road's centre line every `step` metres, hashed by place.
+class CenterSamples {
+ public:
+  CenterSamples(const Route& route, double step) : step_(step) {
+    const int n = static_cast<int>(route.length_m() / step) + 1;
+    for (int i = 0; i < n; ++i) {
+      const double s = i * step, h = route.Heading(s);
+      p_.push_back(route.Center(s));
+      t_.emplace_back(std::cos(h), std::sin(h));
+      grid_[Key(Cell(p_.back().x()), Cell(p_.back().y()))].push_back(i);
+    }
+  }
+  int size() const { return static_cast<int>(p_.size()); }
+  double s(int i) const { return i * step_; }
+  const Eigen::Vector2d& p(int i) const { return p_[static_cast<size_t>(i)]; }
+  const Eigen::Vector2d& t(int i) const { return t_[static_cast<size_t>(i)]; }
+  // f(j) for every sample j within r of q.
+  template <class F>
+  void Near(const Eigen::Vector2d& q, double r, F f) const {
+    for (int64_t cx = Cell(q.x() - r); cx <= Cell(q.x() + r); ++cx)
+      for (int64_t cy = Cell(q.y() - r); cy <= Cell(q.y() + r); ++cy) {
+        const auto it = grid_.find(Key(cx, cy));
+        if (it == grid_.end()) continue;
+        for (int j : it->second)
+          if ((p_[static_cast<size_t>(j)] - q).squaredNorm() <= r * r) f(j);
+      }
+  }
+
+ private:
+  static constexpr double kCellM = 16;
+  static int64_t Cell(double x) { return static_cast<int64_t>(std::floor(x / kCellM)); }
+  static int64_t Key(int64_t cx, int64_t cy) { return cx * 2000003 + cy; }
+  double step_;
+  std::vector<Eigen::Vector2d> p_, t_;
+  std::unordered_map<int64_t, std::vector<int>> grid_;
+};
+
 void AddCar(Builder& b, const Eigen::Vector3d& o, double heading, double length, float shade, int style) {
   const Eigen::Vector3d f(std::cos(heading), std::sin(heading), 0), l(-std::sin(heading), std::cos(heading), 0);
   const double L2 = length / 2;
@@ -126,12 +166,48 @@ World::World(const Route& route, const std::vector<MipTexture>& textures, uint64
     const double h = route.Heading(s);
     return Eigen::Vector3d(-std::sin(h), std::cos(h), 0);
   };
-  // Max lateral offset on side `side` over [sa, sb] before the tube folds.
-  auto max_offset = [&](double sa, double sb, double side) {
+  // Route mode: how far from the centre line each side may be built before
+  // it meets (half the way to) another part of the route: samples every
+  // metre; a road nearer than 4 m is the same street, driven again (Collect
+  // draws one of the two).
+  const bool track = route.follows_track();
+  std::vector<double> clearance[2];  // [0]: right (side -1), [1]: left
+  if (track) {
+    const CenterSamples cs(route, 1.0);
+    for (auto& c : clearance) c.assign(static_cast<size_t>(cs.size()), 1e9);
+    for (int i = 0; i < cs.size(); ++i) {
+      const Eigen::Vector2d n(-cs.t(i).y(), cs.t(i).x());
+      cs.Near(cs.p(i), 120.0, [&](int j) {
+        if (std::abs(j - i) <= 8) return;
+        const Eigen::Vector2d w = cs.p(j) - cs.p(i);
+        const double lat = w.dot(n);
+        if (std::abs(w.dot(cs.t(i))) > 3 || std::abs(lat) < 4) return;
+        double& c = clearance[lat > 0 ? 1 : 0][static_cast<size_t>(i)];
+        c = std::min(c, 0.5 * std::abs(lat));
+      });
+    }
+  }
+  // Max lateral offset on side `side` over [sa, sb] before the tube folds
+  // (route mode: the road's centre line is center_shift_m left of the track
+  // the curvature is of).
+  auto fold_limit = [&](double sa, double sb, double side) {
     double k = 0;
     for (double s = sa; s <= sb; s += 1.0) k = std::max(k, side * route.Kappa(s));
-    return k > 1e-6 ? 0.85 / k : 1e9;
+    if (!track) return k > 1e-6 ? 0.85 / k : 1e9;
+    return k > 1e-6 ? 0.85 / k - side * route.center_shift_m() : 1e9;
   };
+  // The same, and in route mode no further than the clearance.
+  auto max_offset = [&](double sa, double sb, double side) {
+    double lim = fold_limit(sa, sb, side);
+    if (!track) return lim;
+    const std::vector<double>& c = clearance[side > 0 ? 1 : 0];
+    for (double s = sa; s <= sb; s += 1.0)
+      lim = std::min(lim, c[static_cast<size_t>(std::clamp(std::lround(s), 0L, static_cast<long>(c.size()) - 1))]);
+    return lim;
+  };
+  // Route mode: whether something reaching `d` from the centre line fits on
+  // side `side` over [sa, sb] (always in the generated world).
+  auto fits = [&](double sa, double sb, double side, double d) { return !track || d < max_offset(sa, sb, side); };
 
   // ---- ground strips
   ground_floor_z_ = 1e9;
@@ -146,13 +222,24 @@ World::World(const Route& route, const std::vector<MipTexture>& textures, uint64
     const double vbase = variant * (kRoadBlockLength / 0.02) + (i % seg_per_block) * (cfg_.segment_m / 0.02);
     const double va = vbase, vb = vbase + cfg_.segment_m / 0.02;
     const double hw = kRoadHalfWidth;
-    const Eigen::Vector3d A = route.Point(sa, -hw, 0), B = route.Point(sa, hw, 0), C = route.Point(sb, hw, 0),
-                          D = route.Point(sb, -hw, 0);
-    b.Tri(A, B, C, 0, va, 512, va, 512, vb, kTexRoad, 1.0f, up);
-    b.Tri(A, C, D, 0, va, 512, vb, 0, vb, kTexRoad, 1.0f, up);
+    // Road edges right and left of the centre line: route mode narrows the
+    // inside of a curve tighter than the road is wide (texture u: 0 .. 512
+    // across the full width).
+    double right = hw, left = hw, u_right = 0, u_left = 512;
+    if (track) {
+      right = std::clamp(fold_limit(sa - 1, sb + 1, -1.0), 0.5, hw);
+      left = std::clamp(fold_limit(sa - 1, sb + 1, 1.0), 0.5, hw);
+      u_right = 256 - right / 0.02;
+      u_left = 256 + left / 0.02;
+    }
+    const Eigen::Vector3d A = route.Point(sa, -right, 0), B = route.Point(sa, left, 0), C = route.Point(sb, left, 0),
+                          D = route.Point(sb, -right, 0);
+    b.Tri(A, B, C, u_right, va, u_left, va, u_left, vb, kTexRoad, 1.0f, up);
+    b.Tri(A, C, D, u_right, va, u_left, vb, u_right, vb, kTexRoad, 1.0f, up);
     for (double side : {-1.0, 1.0}) {
       // curb face
-      const Eigen::Vector3d ca = route.Point(sa, side * hw, 0), cb = route.Point(sb, side * hw, 0);
+      const double edge = side > 0 ? left : right;
+      const Eigen::Vector3d ca = route.Point(sa, side * edge, 0), cb = route.Point(sb, side * edge, 0);
       const double mc = textures[kTexCurb].m_per_texel;
       b.Tri(ca, cb, cb + up * kCurbH, sa / mc, 0, sb / mc, 0, sb / mc, kCurbH / mc, kTexCurb, 0.95f, -side * normal(sa));
       b.Tri(ca, cb + up * kCurbH, ca + up * kCurbH, sa / mc, 0, sb / mc, kCurbH / mc, sa / mc, kCurbH / mc, kTexCurb, 0.95f, -side * normal(sa));
@@ -232,7 +319,8 @@ World::World(const Route& route, const std::vector<MipTexture>& textures, uint64
           const Eigen::Vector3d f0 = route.Point(sb, side * (hw + kSidewalkW + 0.2), kCurbH);
           const Eigen::Vector3d f1 = route.Point(sb + gap, side * (hw + kSidewalkW + 0.2), kCurbH);
           const double fh = rng.Uniform(1.0, 1.8);
-          b.Rect(f0 + up * fh, f1 - f0, -up * fh, 0, 0, 1, kTexFence, 1.0f, -side * normal(sb), true);
+          if (fits(sb, sb + gap, side, hw + kSidewalkW + 0.2))
+            b.Rect(f0 + up * fh, f1 - f0, -up * fh, 0, 0, 1, kTexFence, 1.0f, -side * normal(sb), true);
         }
         s = sb + gap;
       } else {
@@ -255,7 +343,8 @@ World::World(const Route& route, const std::vector<MipTexture>& textures, uint64
           const double len = rng.Uniform(5, 20), d = hw + kSidewalkW + rng.Uniform(0.2, 1.5);
           const double h = rng.Uniform(0.8, 1.6), th = rng.Uniform(0.8, 1.4);
           const int pieces = std::max(1, static_cast<int>(std::ceil(len / 4.0)));
-          for (int k = 0; k < pieces; ++k) {
+          const bool hedge_fits = fits(s, s + len, side, d + th);
+          for (int k = 0; hedge_fits && k < pieces; ++k) {
             const double s0 = s + len * k / pieces, s1 = s + len * (k + 1) / pieces;
             const Eigen::Vector3d o = route.Point(s0, side * d, kCurbH);
             const Eigen::Vector3d t = tangent(s0), l = side * normal(s0);
@@ -292,24 +381,28 @@ World::World(const Route& route, const std::vector<MipTexture>& textures, uint64
       const Eigen::Vector3d o = route.Point(sp, side * (hw + 0.5), kCurbH);
       const Eigen::Vector3d t = tangent(sp), l = side * normal(sp);
       const double ph = rng.Uniform(6, 8);
-      b.Box(o, t, l, -0.08, 0.08, -0.08, 0.08, 0, ph, kTexMetal, 1.0f);
-      b.Box(o, t, l, -0.05, 0.05, -1.6, 0.0, ph - 0.12, ph, kTexMetal, 0.9f);     // arm over the road
-      b.Box(o, t, l, -0.18, 0.18, -1.9, -1.3, ph - 0.3, ph - 0.05, kTexMetal, 0.7f);  // lamp head
+      if (fits(sp - 1, sp + 1, side, hw + 0.7)) {
+        b.Box(o, t, l, -0.08, 0.08, -0.08, 0.08, 0, ph, kTexMetal, 1.0f);
+        b.Box(o, t, l, -0.05, 0.05, -1.6, 0.0, ph - 0.12, ph, kTexMetal, 0.9f);     // arm over the road
+        b.Box(o, t, l, -0.18, 0.18, -1.9, -1.3, ph - 0.3, ph - 0.05, kTexMetal, 0.7f);  // lamp head
+      }
       if (rng.Chance(0.35)) {  // traffic sign facing the traffic in our direction
         const double ss = sp + 6;
         const Eigen::Vector3d so = route.Point(ss, side * (hw + 0.6), kCurbH);
         const Eigen::Vector3d st = tangent(ss), sl = side * normal(ss);
-        b.Box(so, st, sl, -0.04, 0.04, -0.04, 0.04, 0, 2.4, kTexMetal, 1.0f);
-        const double sz = rng.Uniform(0.6, 0.9);
-        b.Rect(so + up * (2.4 + sz) - sl * (sz / 2) - st * 0.05, sl * sz, -up * sz, rng.Uniform(0, 1.28), 0, 1,
-               kTexSign, 1.0f, -st);
-        b.Rect(so + up * (2.4 + sz) - sl * (sz / 2) - st * 0.06, sl * sz, -up * sz, 0, 0, 1, kTexMetal, 0.8f, st);
+        const double sz = rng.Uniform(0.6, 0.9), sign_u = rng.Uniform(0, 1.28);
+        if (fits(ss - 1, ss + 1, side, hw + 1.1)) {
+          b.Box(so, st, sl, -0.04, 0.04, -0.04, 0.04, 0, 2.4, kTexMetal, 1.0f);
+          b.Rect(so + up * (2.4 + sz) - sl * (sz / 2) - st * 0.05, sl * sz, -up * sz, sign_u, 0, 1, kTexSign, 1.0f,
+                 -st);
+          b.Rect(so + up * (2.4 + sz) - sl * (sz / 2) - st * 0.06, sl * sz, -up * sz, 0, 0, 1, kTexMetal, 0.8f, st);
+        }
       }
     }
     // Parked cars in the parking strip (urban zones).
     for (double sp = rng.Uniform(3, 15); sp < L - 30;) {
       const double len = rng.Uniform(4.0, 5.2);
-      if (is_urban(sp) && rng.Chance(0.55) && std::abs(route.Kappa(sp)) < 0.012) {
+      if (is_urban(sp) && rng.Chance(0.55) && std::abs(route.Kappa(sp)) < 0.012 && fits(sp, sp + len, side, 5.3)) {
         b.out = chunk_of(sp);
         const double sc = sp + len / 2;
         const int style = rng.Chance(0.15) ? 2 : rng.Int(0, 1);
@@ -326,6 +419,38 @@ World::World(const Route& route, const std::vector<MipTexture>& textures, uint64
     movers_.push_back({s0, rng.Uniform(7, 14), rng.Uniform(4.0, 5.0), rng.Uniform(0.25, 1.35),
                        rng.Chance(0.15) ? 2 : rng.Int(0, 1)});
   }
+  if (track) FindConflicts();
+}
+
+void World::FindConflicts() {
+  const int n = static_cast<int>(chunks_.size());
+  conflicts_.assign(static_cast<size_t>(n), {});
+  chunk_floor_z_.assign(static_cast<size_t>(n), 1e9);
+  drawn_.assign(static_cast<size_t>(n), 0);
+  // What a chunk holds starts in it and reaches up to kReachM further (a building's width).
+  constexpr double kReachM = 25;
+  const CenterSamples cs(route_, 1.0);
+  auto for_chunks_at = [&](double s, auto f) {
+    const int hi = std::clamp(static_cast<int>(s / chunk_m_), 0, n - 1);
+    for (int c = std::max(0, static_cast<int>((s - kReachM) / chunk_m_) - 1); c <= hi; ++c)
+      if (s >= c * chunk_m_ && s <= (c + 1) * chunk_m_ + kReachM) f(c);
+  };
+  for (int i = 0; i < cs.size(); ++i) {
+    double& floor_z = chunk_floor_z_[static_cast<size_t>(std::clamp(static_cast<int>(cs.s(i) / chunk_m_), 0, n - 1))];
+    floor_z = std::min(floor_z, route_.Elevation(cs.s(i)));
+    cs.Near(cs.p(i), kConflictM, [&](int j) {
+      if (std::abs(cs.s(j) - cs.s(i)) <= kLocalM) return;
+      for_chunks_at(cs.s(i), [&](int a) {
+        for_chunks_at(cs.s(j), [&](int b) {
+          if (a != b) conflicts_[static_cast<size_t>(a)].push_back(b);
+        });
+      });
+    });
+  }
+  for (auto& c : conflicts_) {
+    std::sort(c.begin(), c.end());
+    c.erase(std::unique(c.begin(), c.end()), c.end());
+  }
 }
 
 void World::Collect(double s_cam, double t, const Eigen::Vector3d& cam_pos_enu,
@@ -334,17 +459,44 @@ void World::Collect(double s_cam, double t, const Eigen::Vector3d& cam_pos_enu,
   const int c0 = std::max(0, static_cast<int>((s_cam - cfg_.view_behind_m) / chunk_m_));
   const int c1 = std::min(static_cast<int>(chunks_.size()) - 1,
                           static_cast<int>((s_cam + cfg_.view_ahead_m) / chunk_m_));
+  const bool track = route_.follows_track();
+  double floor_z = ground_floor_z_;
+  if (track) {
+    // The chunk under the camera and those ahead, nearest first, then those
+    // behind (out of its view); one that lies on the place of a chunk drawn
+    // already is left out.
+    auto distance = [&](int c) {
+      const double start = c * chunk_m_, end = start + chunk_m_;
+      return end > s_cam ? std::max(0.0, start - s_cam) : cfg_.view_ahead_m + (s_cam - end);
+    };
+    std::vector<int> order(static_cast<size_t>(std::max(0, c1 - c0 + 1)));
+    std::iota(order.begin(), order.end(), c0);
+    std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return distance(a) < distance(b); });
+    std::fill(drawn_.begin(), drawn_.end(), 0);
+    floor_z = 1e9;
+    for (int c : order) {
+      bool free = true;
+      for (int other : conflicts_[static_cast<size_t>(c)]) free = free && !drawn_[static_cast<size_t>(other)];
+      drawn_[static_cast<size_t>(c)] = free;
+      if (free) floor_z = std::min(floor_z, chunk_floor_z_[static_cast<size_t>(c)]);
+    }
+    if (floor_z > 1e8) floor_z = ground_floor_z_;
+  }
   for (int c = c0; c <= c1; ++c)
-    for (const Poly& p : chunks_[c]) out.push_back(&p);
+    if (!track || drawn_[static_cast<size_t>(c)])
+      for (const Poly& p : chunks_[c]) out.push_back(&p);
   dynamic_.clear();
   Builder b{tex_, &dynamic_};
   for (const Mover& m : movers_) {
     const double s = m.s0 - m.speed_mps * t;
     if (s < s_cam - 10 || s > s_cam + cfg_.view_ahead_m || s < 1 || s > route_.length_m() - 1) continue;
+    if (track && !drawn_[static_cast<size_t>(std::clamp(static_cast<int>(s / chunk_m_), 0,
+                                                         static_cast<int>(chunks_.size()) - 1))])
+      continue;
     AddCar(b, route_.Point(s, 1.75, 0), route_.Heading(s) + kPi, m.length_m, static_cast<float>(m.shade), m.style);
   }
   // Fallback ground far below the route: fills holes to the horizon.
-  const double R = 2000, z = ground_floor_z_ - 0.6;
+  const double R = 2000, z = floor_z - 0.6;
   const Eigen::Vector3d o(cam_pos_enu.x() - R, cam_pos_enu.y() - R, z);
   b.Rect(o, Eigen::Vector3d(2 * R, 0, 0), Eigen::Vector3d(0, 2 * R, 0), std::fmod(o.x(), 10.24),
          std::fmod(o.y(), 10.24), 1, kTexGrass, 0.8f, Eigen::Vector3d::UnitZ());

@@ -5,6 +5,8 @@
 //
 // Threads (started and joined here): PrefetchSource reads and rectifies the
 // next frames on one thread; the main thread runs VO and the filter.
+#include "fusion/fixed_lag_smoother.hpp"
+#include "fusion/offline_smoother.hpp"
 #include "kitti/dataset.hpp"
 #include "kitti/parse_number.hpp"
 #include "bag/bag_topics.hpp"
@@ -59,6 +61,8 @@ struct ReplayArgs {
   std::string out_tum, out_csv, out_fixes, out_mcap, out_bag, vo_cache_path;
   std::string vehicle_constraints = "auto", vo_rotation_noise = "adaptive";
   bool json = false, no_imu = false, fixed_vo_noise = false, fixed_gps_noise = false, inspect = false;
+  bool smooth = false;
+  double smooth_memory_mb = 256, lag_s = 0;
   bool scenario_given = false;  // --scenario on the command line (a bag is then scanned whole)
   int max_frames = 0;
   int64_t seed = -1;
@@ -92,6 +96,17 @@ void AddOptions(CLI::App& app, ReplayArgs& a) {
   app.add_option("--out-bag", a.out_bag,
                  "the poses as a ROS 2 bag (MCAP, ros2msg/CDR: odometry, fix, tf; see docs/api.md \"ROS 2 output\")");
   app.add_flag("--json", a.json, "print metrics as JSON on stdout");
+  app.add_flag("--smooth", a.smooth,
+               "also smooth the whole drive (Rauch-Tung-Striebel, docs/api.md \"Smoothing\"): --json gains an "
+               "object \"smoothed\", and every --out-* file holds the smoothed trajectory");
+  app.add_option("--smooth-memory-mb", a.smooth_memory_mb,
+                 "with --smooth: filter epochs kept in memory for the backward pass; the rest wait in an "
+                 "unlinked file in TMPDIR")
+      ->check(CLI::Range(1.0, 1e6));
+  app.add_option("--lag", a.lag_s,
+                 "smooth with a fixed lag of S seconds instead of the whole drive (what a live subscriber with "
+                 "smoothing_lag_s S gets); implies --smooth")
+      ->check(CLI::Range(0.001, 30.0));
   app.add_flag("--no-imu", a.no_imu, "VO + GPS only (no IMU)");
   app.add_flag("--fixed-vo-noise", a.fixed_vo_noise,
                "the fixed VO noise model: neither learnt nor adapted from the innovations (docs/api.md \"Learned noise\")");
@@ -210,17 +225,87 @@ struct ReplayOutputs {
   std::optional<pipeline::ReplayMcap> mcap;
   std::optional<pipeline::ReplayBag> bag;
   std::optional<pipeline::VoResults> vo_computed;  // to write to --vo-cache
+  // --smooth: the recordings wait for the smoothed poses.
+  bool defer = false;
+  std::vector<pipeline::StepResult> deferred;
 
   void Add(const pipeline::StepResult& step) {
     if (vo_computed) vo_computed->emplace(step.frame_index, step.frame.vo);
+    if (defer && (mcap || bag)) {
+      deferred.push_back(step);
+      return;
+    }
     if (mcap) mcap->Add(step);
     if (bag) bag->Add(step);
+  }
+  // The deferred steps with their smoothed poses (one per step, in order).
+  void AddSmoothed(const std::vector<fusion::FusedPose>& smoothed) {
+    for (size_t i = 0; i < deferred.size() && i < smoothed.size(); ++i) {
+      deferred[i].frame.pose = smoothed[i];
+      if (mcap) mcap->Add(deferred[i]);
+      if (bag) bag->Add(deferred[i]);
+    }
+    deferred.clear();
+  }
+};
+
+// --smooth: the whole drive after the forward pass (offline), or --lag S:
+// a fixed lag as the poses come (what a live subscriber gets).
+struct ReplaySmoothing {
+  std::optional<fusion::OfflineSmoother> offline;
+  std::optional<fusion::FixedLagSmoother> lag;
+  std::optional<fusion::EpochLog> lag_log;
+  std::vector<fusion::FusedPose> released;  // --lag: in order, one per pose
+  nlohmann::json info;                      // what --json prints as "smoothing"
+
+  ReplaySmoothing(const ReplayArgs& a, pipeline::Localizer& localizer) {
+    if (a.lag_s > 0) {
+      lag.emplace(a.lag_s, localizer.ekf().error_layout());
+      lag_log.emplace([this](fusion::Epoch&& e) { lag->AddEpoch(e); });
+      localizer.set_epoch_log(&*lag_log);
+    } else {
+      offline.emplace(fusion::EpochStoreOptions{.memory_budget_bytes = static_cast<size_t>(a.smooth_memory_mb * 1e6)});
+      localizer.set_epoch_log(&offline->log());
+    }
+  }
+  void Add(const pipeline::StepResult& step) {
+    if (!lag) return;
+    for (auto& p : lag->AddPose(step.frame.pose, step.frame.epoch, lag_log->open())) released.push_back(std::move(p));
+  }
+  // The backward pass (offline) or the last lag's poses; the run and the
+  // recordings take the smoothed poses.
+  void Finish(const pipeline::Localizer& localizer, pipeline::ReplayRun& run, ReplayOutputs& outputs) {
+    const auto t0 = std::chrono::steady_clock::now();
+    std::vector<fusion::FusedPose> smoothed;
+    if (lag) {
+      for (auto& p : lag->Flush(lag_log->open())) released.push_back(std::move(p));
+      smoothed = std::move(released);
+    } else {
+      std::cerr << "\rsmoothing " << offline->log().epochs() << " filter epochs..." << std::flush;
+      smoothed = offline->Smooth(run.forward_poses(), run.epochs(), localizer.ekf().error_layout());
+      const fusion::EpochStore& store = offline->store();
+      std::cerr << "\rsmoothed " << store.size() << " filter epochs in "
+                << std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() << " s ("
+                << (store.bytes_in_memory() + store.bytes_spilled()) / 1e6 << " MB, "
+                << store.bytes_spilled() / 1e6 << " MB of it spilled to TMPDIR)\n";
+    }
+    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (lag) {
+      info = {{"kind", "fixed_lag"}, {"lag_s", lag->lag_s()}, {"flush_s", seconds}};
+    } else {
+      const fusion::EpochStore& store = offline->store();
+      info = {{"kind", "offline"}, {"epochs", store.size()}, {"backward_pass_s", seconds},
+              {"bytes_per_epoch", fusion::EpochBytes(localizer.ekf().error_layout().size)},
+              {"bytes_spilled", store.bytes_spilled()}};
+    }
+    run.ApplySmoothed(smoothed);
+    outputs.AddSmoothed(smoothed);
   }
 };
 
 // Runs the loop to the source's end (true) or --max-frames (false).
-bool RunToEnd(pipeline::FrameLoop& loop, pipeline::ReplayRun& run, ReplayOutputs& outputs, size_t max_frames,
-              size_t n_frames) {
+bool RunToEnd(pipeline::FrameLoop& loop, pipeline::ReplayRun& run, ReplayOutputs& outputs,
+              ReplaySmoothing* smoothing, size_t max_frames, size_t n_frames) {
   for (;;) {
     if (max_frames > 0 && run.poses() >= max_frames) return false;  // a bag: no frame count
     const pipeline::StepResult step = loop.Step();
@@ -229,6 +314,7 @@ bool RunToEnd(pipeline::FrameLoop& loop, pipeline::ReplayRun& run, ReplayOutputs
     if (step.kind != pipeline::StepResult::Kind::kPose) continue;
     run.Add(step);
     outputs.Add(step);
+    if (smoothing) smoothing->Add(step);
     if (step.frame_index % 50 == 0)
       std::cerr << "\rframe " << step.frame_index << (n_frames > 0 ? "/" + std::to_string(n_frames) : "") << " mode "
                 << fusion::ToString(step.frame.pose.mode) << "      " << std::flush;
@@ -255,7 +341,7 @@ nlohmann::json BagReport(const pipeline::BagFrameSource& bag, const std::string&
 // Closes the recordings, writes the files asked for and prints the metrics.
 void Report(const ReplayArgs& a, const ReplayInput& in, const pipeline::AssembledRun& assembled,
             const pipeline::ReplayRun& run, ReplayOutputs& outputs, const std::string& cache_header, bool ended,
-            double wall_s) {
+            double wall_s, const nlohmann::json& smoothing) {
   std::cerr << "\rframes " << run.poses() << " in " << wall_s << " s\n";
   nlohmann::json bag_json;
   if (in.bag && ended) bag_json = BagReport(*in.bag, a.bag_path);
@@ -276,12 +362,14 @@ void Report(const ReplayArgs& a, const ReplayInput& in, const pipeline::Assemble
     std::cout << "scenario " << assembled.scenario.name << (UsesImu(a, in.bag) ? "" : " (no IMU)") << ", frames/s "
               << static_cast<double>(run.poses()) / wall_s << "\n"
               << pipeline::DescribeMetrics(metrics);
+    if (run.smoothed()) std::cout << "smoothed:\n" << pipeline::DescribeMetrics(run.SmoothedMetrics());
     return;
   }
   nlohmann::json j = run.Summary(metrics, wall_s);
   if (in.dataset) j["drive"] = a.drive_dir;
   if (in.bag) j["bag"] = bag_json;
   j["scenario"] = assembled.scenario.name;
+  if (!smoothing.is_null()) j["smoothing"] = smoothing;
   j["use_imu"] = UsesImu(a, in.bag);
   j["vo_method"] = a.vo_method;
   j["vo_from_cache"] = !a.vo_cache_path.empty() && !outputs.vo_computed;
@@ -331,10 +419,19 @@ int main(int argc, char** argv) {
     if (!args.out_mcap.empty()) outputs.mcap.emplace(args.out_mcap);
     if (!args.out_bag.empty()) outputs.bag.emplace(args.out_bag, T_cam0_imu);
     if (!args.vo_cache_path.empty() && !vo_cache) outputs.vo_computed.emplace();
+    std::optional<ReplaySmoothing> smoothing;
+    if (args.smooth || args.lag_s > 0) {
+      smoothing.emplace(args, *localizer);
+      run.KeepPosesForSmoothing();
+      outputs.defer = true;
+    }
     const auto wall0 = std::chrono::steady_clock::now();
-    const bool ended = RunToEnd(*assembled.loop, run, outputs, static_cast<size_t>(args.max_frames), input.n_frames);
+    const bool ended = RunToEnd(*assembled.loop, run, outputs, smoothing ? &*smoothing : nullptr,
+                                static_cast<size_t>(args.max_frames), input.n_frames);
+    if (smoothing) smoothing->Finish(*localizer, run, outputs);
     const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
-    Report(args, input, assembled, run, outputs, cache_header, ended, wall_s);
+    Report(args, input, assembled, run, outputs, cache_header, ended, wall_s,
+           smoothing ? smoothing->info : nlohmann::json());
     return 0;
   } catch (const std::exception& e) {
     std::cerr << "locaid-replay: " << e.what() << "\n";

@@ -65,10 +65,27 @@ void ReplayRun::Add(const StepResult& step) {
     if (auto g = TruthAt(r.gps_feeds.back().fix.t_ns)) extra.p_enu_gt_at_gps_m = g->translation();
   }
   extras_.push_back(extra);
+  if (keep_poses_) {
+    poses_.push_back(r.pose);
+    epochs_.push_back(r.epoch);
+  }
   frame_index_.push_back(step.frame_index);
   t_ns_.push_back(step.t_ns);
   T_enu_body_.push_back(r.pose.T_enu_body);
   last_ = r;
+}
+
+void ReplayRun::ApplySmoothed(const std::vector<fusion::FusedPose>& smoothed) {
+  if (smoothed.size() != samples_.size())
+    throw std::logic_error("ReplayRun::ApplySmoothed: " + std::to_string(smoothed.size()) + " poses for " +
+                           std::to_string(samples_.size()) + " frames");
+  smoothed_samples_ = samples_;
+  T_enu_body_smoothed_.clear();
+  for (size_t k = 0; k < smoothed.size(); ++k) {
+    smoothed_samples_[k].p_enu_est_m = smoothed[k].T_enu_body.translation();
+    smoothed_samples_[k].P_pos_m2 = smoothed[k].covariance.topLeftCorner<3, 3>();
+    T_enu_body_smoothed_.push_back(smoothed[k].T_enu_body);
+  }
 }
 
 void ReplayRun::WriteCsv(const std::string& path) const {
@@ -90,7 +107,7 @@ void ReplayRun::WriteCsv(const std::string& path) const {
     if (k > 0) T = T * vo_motion_[k];
     extras[k].p_enu_vo_m = T.translation();
   }
-  WritePlotCsv(path, samples_, extras);
+  WritePlotCsv(path, smoothed() ? smoothed_samples_ : samples_, extras);
 }
 
 void ReplayRun::WriteTum(const std::string& path) const {
@@ -99,7 +116,7 @@ void ReplayRun::WriteTum(const std::string& path) const {
   tum << std::fixed << std::setprecision(6);
   for (size_t k = 0; k < samples_.size(); ++k) {
     if (!samples_[k].initialized) continue;  // a pose without ground truth is still written
-    const Eigen::Isometry3d& T = T_enu_body_[k];
+    const Eigen::Isometry3d& T = smoothed() ? T_enu_body_smoothed_[k] : T_enu_body_[k];
     const Eigen::Quaterniond q(T.linear());
     const double t_s = dataset_ ? dataset_->tum_time_s(static_cast<size_t>(frame_index_[k]))
                                 : static_cast<double>(t_ns_[k]) * 1e-9;
@@ -173,15 +190,28 @@ nlohmann::json ReplayRun::Summary(const ReplayMetrics& metrics, double wall_s) c
                                                                                 : "on"}};
   j["modes"] = mode_counts_;
   j["vo_health"] = vo_health_counts_;
-  j["outages"] = nlohmann::json::array();
-  for (const auto& o : metrics.outages) {
-    j["outages"].push_back({{"start_s", o.start_s}, {"duration_s", o.duration_s}, {"distance_m", o.distance_m},
-                            {"end_error_m", o.end_error_m}, {"end_error_pct", o.end_error_pct},
-                            {"max_error_m", o.max_error_m}, {"reconverge_s", o.reconverge_s},
-                            {"max_jump_m", o.max_jump_m}, {"start_error_m", o.start_error_m},
-                            {"added_error_m", o.added_error_m}, {"added_error_pct", o.added_error_pct}});
+  j["outages"] = OutagesJson(metrics.outages);
+  if (smoothed()) {
+    const ReplayMetrics sm = SmoothedMetrics();
+    j["smoothed"] = {{"rmse_gps_m", sm.rmse_gps_m},
+                     {"nees_mean", sm.nees_mean},
+                     {"nees_bound_99", sm.nees_bound_99},
+                     {"max_vertical_error_m", sm.max_vertical_error_m},
+                     {"outages", OutagesJson(sm.outages)}};
   }
   return j;
+}
+
+nlohmann::json OutagesJson(const std::vector<OutageStats>& outages) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const auto& o : outages) {
+    out.push_back({{"start_s", o.start_s}, {"duration_s", o.duration_s}, {"distance_m", o.distance_m},
+                   {"end_error_m", o.end_error_m}, {"end_error_pct", o.end_error_pct},
+                   {"max_error_m", o.max_error_m}, {"rmse_m", o.rmse_m}, {"reconverge_s", o.reconverge_s},
+                   {"max_jump_m", o.max_jump_m}, {"start_error_m", o.start_error_m},
+                   {"added_error_m", o.added_error_m}, {"added_error_pct", o.added_error_pct}});
+  }
+  return out;
 }
 
 }  // namespace locaid::pipeline

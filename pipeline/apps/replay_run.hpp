@@ -22,6 +22,9 @@
 
 namespace locaid::pipeline {
 
+// The outages of a metrics object as locaid-replay --json prints them.
+nlohmann::json OutagesJson(const std::vector<OutageStats>& outages);
+
 class ReplayRun {
  public:
   // `dataset` (nullptr: a source without ground truth, e.g. a ROS 2 bag) and
@@ -34,6 +37,18 @@ class ReplayRun {
 
   size_t poses() const { return samples_.size(); }
   ReplayMetrics Metrics() const { return ComputeReplayMetrics(samples_, scenario_.gps_sigma_h_m); }
+
+  // Smoothing (--smooth): Add keeps every forward pose and its epoch; once
+  // the smoother has run, ApplySmoothed takes its poses (one per Add), and
+  // the files written afterwards (CSV, TUM) hold the smoothed trajectory.
+  void KeepPosesForSmoothing() { keep_poses_ = true; }
+  const std::vector<fusion::FusedPose>& forward_poses() const { return poses_; }
+  const std::vector<int64_t>& epochs() const { return epochs_; }
+  void ApplySmoothed(const std::vector<fusion::FusedPose>& smoothed);
+  bool smoothed() const { return !smoothed_samples_.empty(); }
+  ReplayMetrics SmoothedMetrics() const {
+    return ComputeReplayMetrics(smoothed_samples_, scenario_.gps_sigma_h_m);
+  }
   // The metrics and filter figures locaid-replay --json prints.
   nlohmann::json Summary(const ReplayMetrics& metrics, double wall_s) const;
   void WriteCsv(const std::string& path) const;
@@ -55,6 +70,11 @@ class ReplayRun {
   std::vector<TimedPose> gt_poses_;
 
   std::vector<ReplaySample> samples_;
+  bool keep_poses_ = false;
+  std::vector<fusion::FusedPose> poses_;  // forward, when kept for smoothing
+  std::vector<int64_t> epochs_;
+  std::vector<ReplaySample> smoothed_samples_;
+  std::vector<Eigen::Isometry3d> T_enu_body_smoothed_;
   std::vector<fusion::GpsFix> fixes_;  // every fix fed to the filter
   std::vector<int64_t> frame_index_, t_ns_;
   std::vector<Eigen::Isometry3d> T_enu_body_;
