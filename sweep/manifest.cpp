@@ -33,11 +33,12 @@ class ManifestReader {
 
   Manifest Read(const YAML::Node& root) {
     if (!root.IsMap()) Fail(root, "(top level)", "expected a map with recordings, scenarios, seeds");
-    static const std::set<std::string> kKeys = {"recordings", "scenarios", "seeds", "imu", "replay_args"};
+    static const std::set<std::string> kKeys = {"recordings", "scenarios", "seeds", "imu", "replay_args",
+                                                  "smooth"};
     for (const auto& kv : root) {
       const std::string key = kv.first.as<std::string>();
       if (!kKeys.count(key))
-        Fail(kv.first, key, "unknown key (known: recordings, scenarios, seeds, imu, replay_args)");
+        Fail(kv.first, key, "unknown key (known: recordings, scenarios, seeds, imu, replay_args, smooth)");
     }
     for (const char* required : {"recordings", "scenarios", "seeds"})
       if (!root[required]) Fail(root, required, "missing (required)");
@@ -48,6 +49,7 @@ class ManifestReader {
     ReadSeeds(root["seeds"], m);
     ReadImu(root["imu"], m);
     ReadReplayArgs(root["replay_args"], m);
+    ReadSmooth(root["smooth"], m);
     return m;
   }
 
@@ -195,9 +197,18 @@ class ManifestReader {
       const std::string key = "replay_args[" + std::to_string(i) + "]";
       const std::string a = Scalar(args[i], key);
       if (IsReservedReplayArg(a))
-        Fail(args[i], key, a + " is set by the sweep for each run (or would make runs write one file)");
+        Fail(args[i], key,
+             a + " is set by the sweep for each run " +
+                 (a.rfind("--smooth", 0) == 0 ? "(write smooth: true)" : "(or would make runs write one file)"));
       m.replay_args.push_back(a);
     }
+  }
+
+  void ReadSmooth(const YAML::Node& smooth, Manifest& m) {
+    if (!smooth) return;
+    // yaml-cpp also reads on/off and yes/no as booleans, as for imu.
+    if (!smooth.IsScalar() || !YAML::convert<bool>::decode(smooth, m.smooth))
+      Fail(smooth, "smooth", "expected true or false" + (smooth.IsScalar() ? ", got " + smooth.Scalar() : ""));
   }
 
   fs::path file_, dir_;
@@ -209,7 +220,7 @@ bool IsReservedReplayArg(const std::string& arg) {
   const std::string name = arg.substr(0, arg.find('='));
   static const std::set<std::string> kReserved = {"--drive", "--bag",   "--bag-topics", "--scenario", "--seed",
                                                   "--no-imu", "--json", "--vo-cache",   "--inspect",  "--help",
-                                                  "-h"};
+                                                  "-h",       "--smooth"};
   return kReserved.count(name) > 0 || name.rfind("--out-", 0) == 0;
 }
 

@@ -9,6 +9,7 @@
 //   seeds: {from: 1, to: 20}     # or a list: [1, 2, 3]
 //   imu: [on, off]               # optional, default [on]
 //   replay_args: ["--vehicle-constraints", "auto"]   # optional, passed to every run
+//   smooth: true                 # optional, default false: every run also smooths (locaid-replay --smooth)
 //
 // A relative path is relative to the manifest's folder. Everything is
 // checked here, before any run: an error names the file, the line and the
@@ -50,6 +51,7 @@ struct Manifest {
   std::vector<int64_t> seeds;
   std::vector<bool> imu;  // true: with IMU
   std::vector<std::string> replay_args;
+  bool smooth = false;  // each filter run gets --smooth: its result gains "smoothed"
 };
 
 // Throws ManifestError ("FILE:LINE: KEY: reason"; a file that cannot be read

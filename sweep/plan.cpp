@@ -77,6 +77,7 @@ Plan BuildPlan(const Manifest& manifest, const fs::path& dir, const fs::path& re
   plan.replay_fingerprint = FileFingerprint(replay);
   if (plan.replay_fingerprint.empty()) throw std::runtime_error(replay.string() + ": no such program");
   plan.locaid_version = locaid_version;
+  plan.smooth = manifest.smooth;
   const std::string program = "locaid " + locaid_version + " replay " + plan.replay_fingerprint;
 
   for (size_t ri = 0; ri < manifest.recordings.size(); ++ri) {
@@ -124,6 +125,7 @@ Plan BuildPlan(const Manifest& manifest, const fs::path& dir, const fs::path& re
           if (!imu) t.args.push_back("--no-imu");
           t.args.push_back("--json");
           if (t.vo_task >= 0) t.args.insert(t.args.end(), {"--vo-cache", vo.cache});
+          if (manifest.smooth) t.args.push_back("--smooth");  // in the args, hence in the key
           t.args.insert(t.args.end(), manifest.replay_args.begin(), manifest.replay_args.end());
           t.key = KeyHasher()
                       .Add("recording", pr.key)
@@ -147,6 +149,7 @@ nlohmann::json PlanToJson(const Plan& plan) {
   j["replay"] = plan.replay;
   j["replay_fingerprint"] = plan.replay_fingerprint;
   j["locaid_version"] = plan.locaid_version;
+  j["smooth"] = plan.smooth;
   j["recordings"] = nlohmann::json::array();
   for (const auto& r : plan.recordings)
     j["recordings"].push_back({{"path", r.path}, {"kind", r.kind}, {"bag_topics", r.bag_topics}, {"key", r.key}});
@@ -179,6 +182,7 @@ Plan PlanFromJson(const nlohmann::json& j) {
     p.replay = j.at("replay").get<std::string>();
     p.replay_fingerprint = j.at("replay_fingerprint").get<std::string>();
     p.locaid_version = j.at("locaid_version").get<std::string>();
+    p.smooth = j.value("smooth", false);
     for (const auto& r : j.at("recordings"))
       p.recordings.push_back({r.at("path"), r.at("kind"), r.at("bag_topics"), r.at("key")});
     for (const auto& t : j.at("vo_tasks"))

@@ -58,6 +58,7 @@ struct Plan {
   std::string replay;    // absolute path of locaid-replay
   std::string replay_fingerprint;  // its size and mtime; part of every key
   std::string locaid_version;
+  bool smooth = false;  // the manifest's smooth: every filter run has --smooth (absent in older plans: false)
   std::vector<PlannedRecording> recordings;
   std::vector<VoTask> vo;
   std::vector<FilterTask> filter;

@@ -8,7 +8,9 @@ Reads DIR/results.csv (written by `locaid-sweep report`) and writes
   end_error_by_recording.png  the same per recording (all scenarios), so a bad
                               recording stands out
 and prints the names of the files it wrote, one per line (none when no done
-run has an outage). Needs python3-matplotlib.
+run has an outage). In a smoothed sweep (results.csv has end_error_pct_smoothed)
+each group has two boxes, forward and smoothed, side by side. Needs
+python3-matplotlib.
 """
 import csv
 import os
@@ -23,7 +25,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 def boxes(ax, groups, ylabel):
     labels = list(groups)
     data = [groups[k] for k in labels]
-    ax.boxplot(data, whis=(0, 100), widths=0.5)  # whiskers at min / max: the tail is the point
+    box = ax.boxplot(data, whis=(0, 100), widths=0.5, patch_artist=True)  # whiskers at min / max: the tail is the point
+    for patch, label in zip(box["boxes"], labels):
+        patch.set_facecolor("#c6dbef" if label.endswith("smoothed") else "white")
     for i, values in enumerate(data, start=1):  # every run as a dot over its box
         ax.plot([i + 0.12 * ((j % 5) - 2) / 2 for j in range(len(values))], values, ".", alpha=0.5, color="C1")
     ax.set_xticks(range(1, len(labels) + 1))
@@ -37,15 +41,24 @@ def main():
         sys.exit("usage: locaid-sweep-plot DIR")
     folder = sys.argv[1]
     with open(os.path.join(folder, "results.csv"), newline="") as f:
-        rows = [r for r in csv.DictReader(f) if r["status"] == "done" and r["end_error_pct"] != ""]
+        reader = csv.DictReader(f)
+        smoothed = "end_error_pct_smoothed" in (reader.fieldnames or [])
+        rows = [r for r in reader if r["status"] == "done" and r["end_error_pct"] != ""]
     if not rows:
         return
+    # forward (and smoothed) values per label: in a smoothed sweep, boxes side by side
+    sides = [("end_error_pct", "")]
+    if smoothed:
+        sides = [("end_error_pct", " | forward"), ("end_error_pct_smoothed", " | smoothed")]
     by_scenario, by_recording = {}, {}
     for r in rows:
-        value = float(r["end_error_pct"])
         scenario = r["scenario"] + ("" if r["imu"] == "on" else " (no IMU)")
-        by_scenario.setdefault(scenario, []).append(value)
-        by_recording.setdefault(os.path.basename(r["recording"].rstrip("/")), []).append(value)
+        recording = os.path.basename(r["recording"].rstrip("/"))
+        for column, suffix in sides:
+            if r[column] == "":
+                continue
+            by_scenario.setdefault(scenario + suffix, []).append(float(r[column]))
+            by_recording.setdefault(recording + suffix, []).append(float(r[column]))
     for name, groups, title in (
         ("end_error_by_scenario.png", by_scenario, "per scenario, all recordings"),
         ("end_error_by_recording.png", by_recording, "per recording, all scenarios"),

@@ -37,7 +37,8 @@ void WriteJsonAtomically(const std::filesystem::path& path, const nlohmann::json
 void StoreResult(const std::filesystem::path& dir, const std::string& id, const nlohmann::json& result);
 
 // locaid-replay --json minus what measures the machine, not the run
-// (frames_per_s, vo_ms_mean): equal for the same inputs, bit for bit.
+// (frames_per_s, vo_ms_mean, --smooth's smoothing.backward_pass_s): equal
+// for the same inputs, bit for bit.
 nlohmann::json DeterministicMetrics(nlohmann::json replay_json);
 
 }  // namespace locaid::sweep

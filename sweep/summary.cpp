@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <fstream>
 #include <map>
 #include <sstream>
@@ -15,7 +16,9 @@ namespace {
 
 std::optional<double> Number(const nlohmann::json& j, const char* key) {
   if (!j.contains(key) || !j[key].is_number()) return std::nullopt;
-  return j[key].get<double>();
+  const double v = j[key].get<double>();
+  if (!std::isfinite(v)) return std::nullopt;
+  return v;
 }
 std::optional<int64_t> Integer(const nlohmann::json& j, const char* key) {
   if (!j.contains(key) || !j[key].is_number_integer()) return std::nullopt;
@@ -57,6 +60,54 @@ nlohmann::json ToJson(const Distribution& d) {
   return {{"n", d.n}, {"median", d.median}, {"p90", d.p90}, {"max", d.max}};
 }
 
+// The errors a sweep tabulates for the forward filter and, smoothing, for the
+// smoothed trajectory: one name for the run's value and its distribution.
+struct MetricField {
+  const char* name;
+  std::optional<double> RunMetrics::*value;
+  Distribution MetricDistributions::*distribution;
+};
+constexpr MetricField kEndErrorPct{"end_error_pct", &RunMetrics::end_error_pct, &MetricDistributions::end_error_pct};
+constexpr MetricField kEndErrorM{"end_error_m", &RunMetrics::end_error_m, &MetricDistributions::end_error_m};
+constexpr MetricField kMaxErrorM{"max_error_m", &RunMetrics::max_error_m, &MetricDistributions::max_error_m};
+constexpr MetricField kOutageRmseM{"outage_rmse_m", &RunMetrics::outage_rmse_m, &MetricDistributions::outage_rmse_m};
+constexpr MetricField kRmseGpsM{"rmse_gps_m", &RunMetrics::rmse_gps_m, &MetricDistributions::rmse_gps_m};
+constexpr MetricField kMetricFields[] = {kEndErrorPct, kEndErrorM, kMaxErrorM, kOutageRmseM, kRmseGpsM};
+// The columns results.csv and summary.csv added after their first ones.
+constexpr MetricField kForwardAdded[] = {kMaxErrorM, kOutageRmseM};
+
+// Every RunMetrics value of a group's done runs, per field.
+struct MetricValues {
+  std::vector<double> values[std::size(kMetricFields)];
+  void Add(const RunMetrics& m) {
+    for (size_t f = 0; f < std::size(kMetricFields); ++f)
+      if (const auto& v = m.*kMetricFields[f].value) values[f].push_back(*v);
+  }
+  MetricDistributions Distributions() const {
+    MetricDistributions d;
+    for (size_t f = 0; f < std::size(kMetricFields); ++f) d.*kMetricFields[f].distribution = Distribute(values[f]);
+    return d;
+  }
+};
+
+std::string CsvTriple(const Distribution& d) {
+  if (d.n == 0) return ",,";
+  return Fmt(d.median) + "," + Fmt(d.p90) + "," + Fmt(d.max);
+}
+
+std::string TripleHeader(const std::string& name) { return name + "_median," + name + "_p90," + name + "_max"; }
+
+double Round(double v, int digits) {
+  const double scale = std::pow(10.0, digits);
+  return std::round(v * scale) / scale;
+}
+
+// "median / p90 / max" rounded, "-" without values.
+std::string MdTriple(const Distribution& d, int digits) {
+  if (d.n == 0) return "-";
+  return Fmt(Round(d.median, digits)) + " / " + Fmt(Round(d.p90, digits)) + " / " + Fmt(Round(d.max, digits));
+}
+
 }  // namespace
 
 std::vector<RunState> TaskStates(const Plan& plan, Stage stage) {
@@ -66,6 +117,21 @@ std::vector<RunState> TaskStates(const Plan& plan, Stage stage) {
   else
     for (const auto& t : plan.filter) out.push_back(ReadResult(plan.dir, t.id, t.key).state);
   return out;
+}
+
+RunMetrics ReadRunMetrics(const nlohmann::json& m) {
+  RunMetrics r;
+  r.rmse_gps_m = Number(m, "rmse_gps_m");
+  r.nees_mean = Number(m, "nees_mean");
+  r.nees_bound_99 = Number(m, "nees_bound_99");
+  if (m.contains("outages") && m["outages"].is_array() && !m["outages"].empty()) {
+    const nlohmann::json& first = m["outages"][0];
+    r.end_error_pct = Number(first, "end_error_pct");
+    r.end_error_m = Number(first, "end_error_m");
+    r.max_error_m = Number(first, "max_error_m");
+    r.outage_rmse_m = Number(first, "rmse_m");
+  }
+  return r;
 }
 
 std::vector<ResultRow> CollectRows(const Plan& plan) {
@@ -83,16 +149,11 @@ std::vector<ResultRow> CollectRows(const Plan& plan) {
     if (r.state == RunState::kFailed) r.error = stored.json.value("error", "");
     if (r.state == RunState::kDone && stored.json.contains("metrics")) {
       const nlohmann::json& m = stored.json["metrics"];
-      r.rmse_gps_m = Number(m, "rmse_gps_m");
-      r.nees_mean = Number(m, "nees_mean");
-      r.nees_bound_99 = Number(m, "nees_bound_99");
+      r.forward = ReadRunMetrics(m);
+      if (m.contains("smoothed") && m["smoothed"].is_object()) r.smoothed = ReadRunMetrics(m["smoothed"]);
       r.gps_rejected = Integer(m, "gps_rejected");
       r.gps_resets = Integer(m, "gps_resets");
       r.frames = Integer(m, "frames");
-      if (m.contains("outages") && m["outages"].is_array() && !m["outages"].empty()) {
-        r.end_error_pct = Number(m["outages"][0], "end_error_pct");
-        r.end_error_m = Number(m["outages"][0], "end_error_m");
-      }
     }
     rows.push_back(r);
   }
@@ -119,7 +180,7 @@ std::vector<GroupSummary> Summarize(const std::vector<ResultRow>& rows) {
   // Groups in the order their first run appears (plan order: recording, scenario, imu).
   std::vector<GroupSummary> groups;
   std::map<std::tuple<std::string, std::string, bool>, size_t> index;
-  std::vector<std::vector<double>> pct, m, rmse;
+  std::vector<MetricValues> forward, smoothed;
   std::vector<size_t> nees_over, nees_n;
   for (const auto& r : rows) {
     const auto k = std::make_tuple(r.recording, r.scenario, r.imu);
@@ -131,9 +192,8 @@ std::vector<GroupSummary> Summarize(const std::vector<ResultRow>& rows) {
       fresh.scenario = r.scenario;
       fresh.imu = r.imu;
       groups.push_back(fresh);
-      pct.emplace_back();
-      m.emplace_back();
-      rmse.emplace_back();
+      forward.emplace_back();
+      smoothed.emplace_back();
       nees_over.push_back(0);
       nees_n.push_back(0);
     }
@@ -144,70 +204,88 @@ std::vector<GroupSummary> Summarize(const std::vector<ResultRow>& rows) {
     if (r.state == RunState::kPending) ++s.pending;
     if (r.state != RunState::kDone) continue;
     ++s.done;
-    if (r.end_error_pct) pct[g].push_back(*r.end_error_pct);
-    if (r.end_error_m) m[g].push_back(*r.end_error_m);
-    if (r.rmse_gps_m && std::isfinite(*r.rmse_gps_m)) rmse[g].push_back(*r.rmse_gps_m);
-    if (r.nees_mean && r.nees_bound_99) {
+    forward[g].Add(r.forward);
+    if (r.smoothed) smoothed[g].Add(*r.smoothed);
+    if (r.forward.nees_mean && r.forward.nees_bound_99) {
       ++nees_n[g];
-      if (*r.nees_mean > *r.nees_bound_99) ++nees_over[g];
+      if (*r.forward.nees_mean > *r.forward.nees_bound_99) ++nees_over[g];
     }
     s.gps_resets += r.gps_resets.value_or(0);
     s.gps_rejected += r.gps_rejected.value_or(0);
   }
   for (size_t g = 0; g < groups.size(); ++g) {
-    groups[g].end_error_pct = Distribute(pct[g]);
-    groups[g].end_error_m = Distribute(m[g]);
-    groups[g].rmse_gps_m = Distribute(rmse[g]);
+    groups[g].forward = forward[g].Distributions();
+    groups[g].smoothed = smoothed[g].Distributions();
     groups[g].nees_over_bound_share = nees_n[g] ? static_cast<double>(nees_over[g]) / nees_n[g] : 0;
   }
   return groups;
 }
 
-void WriteResultsCsv(const std::vector<ResultRow>& rows, const fs::path& file) {
+void WriteResultsCsv(const std::vector<ResultRow>& rows, bool smoothed, const fs::path& file) {
   auto out = Open(file);
+  // Columns added later come last, so the first ones keep their positions.
   out << "recording,scenario,seed,imu,status,end_error_pct,rmse_gps_m,nees_mean,nees_bound_99,end_error_m,"
-         "gps_rejected,gps_resets,frames,cpu_s,run_id,error\n";
+         "gps_rejected,gps_resets,frames,cpu_s,run_id,error";
+  for (const auto& f : kForwardAdded) out << ',' << f.name;
+  if (smoothed)
+    for (const auto& f : kMetricFields) out << ',' << f.name << "_smoothed";
+  out << '\n';
   auto I = [](std::optional<int64_t> v) { return v ? std::to_string(*v) : std::string(); };
-  for (const auto& r : rows)
+  for (const auto& r : rows) {
+    const RunMetrics& m = r.forward;
     out << Csv(r.recording) << ',' << Csv(r.scenario) << ',' << r.seed << ',' << (r.imu ? "on" : "off") << ','
-        << ToString(r.state) << ',' << Fmt(r.end_error_pct) << ',' << Fmt(r.rmse_gps_m) << ',' << Fmt(r.nees_mean)
-        << ',' << Fmt(r.nees_bound_99) << ',' << Fmt(r.end_error_m) << ',' << I(r.gps_rejected) << ','
-        << I(r.gps_resets) << ',' << I(r.frames) << ',' << Fmt(r.cpu_s) << ',' << r.id << ',' << Csv(r.error)
-        << '\n';
+        << ToString(r.state) << ',' << Fmt(m.end_error_pct) << ',' << Fmt(m.rmse_gps_m) << ',' << Fmt(m.nees_mean)
+        << ',' << Fmt(m.nees_bound_99) << ',' << Fmt(m.end_error_m) << ',' << I(r.gps_rejected) << ','
+        << I(r.gps_resets) << ',' << I(r.frames) << ',' << Fmt(r.cpu_s) << ',' << r.id << ',' << Csv(r.error);
+    for (const auto& f : kForwardAdded) out << ',' << Fmt(m.*f.value);
+    if (smoothed)
+      for (const auto& f : kMetricFields) out << ',' << (r.smoothed ? Fmt((*r.smoothed).*f.value) : std::string());
+    out << '\n';
+  }
 }
 
-void WriteSummaryCsv(const std::vector<GroupSummary>& groups, const fs::path& file) {
+void WriteSummaryCsv(const std::vector<GroupSummary>& groups, bool smoothed, const fs::path& file) {
   auto out = Open(file);
   out << "recording,scenario,imu,runs,done,failed,pending,end_error_pct_median,end_error_pct_p90,"
          "end_error_pct_max,end_error_m_median,end_error_m_p90,end_error_m_max,rmse_gps_m_median,rmse_gps_m_p90,"
-         "rmse_gps_m_max,nees_over_bound_share,gps_resets,gps_rejected\n";
-  auto D = [](const Distribution& d) {
-    if (d.n == 0) return std::string(",,");
-    return Fmt(d.median) + "," + Fmt(d.p90) + "," + Fmt(d.max);
-  };
-  for (const auto& g : groups)
+         "rmse_gps_m_max,nees_over_bound_share,gps_resets,gps_rejected";
+  for (const auto& f : kForwardAdded) out << ',' << TripleHeader(f.name);
+  if (smoothed)
+    for (const auto& f : kMetricFields) out << ',' << TripleHeader(std::string(f.name) + "_smoothed");
+  out << '\n';
+  for (const auto& g : groups) {
+    const MetricDistributions& d = g.forward;
     out << Csv(g.recording) << ',' << Csv(g.scenario) << ',' << (g.imu ? "on" : "off") << ',' << g.runs << ','
-        << g.done << ',' << g.failed << ',' << g.pending << ',' << D(g.end_error_pct) << ',' << D(g.end_error_m)
-        << ',' << D(g.rmse_gps_m) << ',' << Fmt(g.nees_over_bound_share) << ',' << g.gps_resets << ','
-        << g.gps_rejected << '\n';
+        << g.done << ',' << g.failed << ',' << g.pending << ',' << CsvTriple(d.end_error_pct) << ','
+        << CsvTriple(d.end_error_m) << ',' << CsvTriple(d.rmse_gps_m) << ',' << Fmt(g.nees_over_bound_share) << ','
+        << g.gps_resets << ',' << g.gps_rejected;
+    for (const auto& f : kForwardAdded) out << ',' << CsvTriple(d.*f.distribution);
+    if (smoothed)
+      for (const auto& f : kMetricFields) out << ',' << CsvTriple(g.smoothed.*f.distribution);
+    out << '\n';
+  }
 }
 
-void WriteSummaryJson(const std::vector<GroupSummary>& groups, const fs::path& file) {
+void WriteSummaryJson(const std::vector<GroupSummary>& groups, bool smoothed, const fs::path& file) {
   nlohmann::json j = nlohmann::json::array();
-  for (const auto& g : groups)
-    j.push_back({{"recording", g.recording},
-                 {"scenario", g.scenario},
-                 {"imu", g.imu},
-                 {"runs", g.runs},
-                 {"done", g.done},
-                 {"failed", g.failed},
-                 {"pending", g.pending},
-                 {"end_error_pct", ToJson(g.end_error_pct)},
-                 {"end_error_m", ToJson(g.end_error_m)},
-                 {"rmse_gps_m", ToJson(g.rmse_gps_m)},
-                 {"nees_over_bound_share", g.nees_over_bound_share},
-                 {"gps_resets", g.gps_resets},
-                 {"gps_rejected", g.gps_rejected}});
+  for (const auto& g : groups) {
+    nlohmann::json o = {{"recording", g.recording},
+                        {"scenario", g.scenario},
+                        {"imu", g.imu},
+                        {"runs", g.runs},
+                        {"done", g.done},
+                        {"failed", g.failed},
+                        {"pending", g.pending},
+                        {"nees_over_bound_share", g.nees_over_bound_share},
+                        {"gps_resets", g.gps_resets},
+                        {"gps_rejected", g.gps_rejected}};
+    for (const auto& f : kMetricFields) o[f.name] = ToJson(g.forward.*f.distribution);
+    if (smoothed) {
+      o["smoothed"] = nlohmann::json::object();
+      for (const auto& f : kMetricFields) o["smoothed"][f.name] = ToJson(g.smoothed.*f.distribution);
+    }
+    j.push_back(o);
+  }
   WriteJsonAtomically(file, j);
 }
 
@@ -224,7 +302,8 @@ void WriteReportMd(const Plan& plan, const std::vector<ResultRow>& rows, const s
       << " recordings, " << rows.size() << " filter runs: " << done << " done, " << failed << " failed, "
       << rows.size() - done - failed << " pending.\n\n"
       << "- [results.csv](results.csv): one row per run (end_error_pct: the first outage's, % of the distance "
-         "driven in it; empty without an outage)\n"
+         "driven in it; empty without an outage"
+      << (plan.smooth ? "; *_smoothed: the same of the smoothed trajectory" : "") << ")\n"
       << "- [summary.csv](summary.csv), [summary.json](summary.json): per recording x scenario x IMU\n\n";
   if (!plots.empty()) {
     out << "## End-of-outage error\n\n";
@@ -236,14 +315,34 @@ void WriteReportMd(const Plan& plan, const std::vector<ResultRow>& rows, const s
       << "| recording | scenario | IMU | done / runs | failed | end error % median / p90 / max | RMSE m median | "
          "NEES > 99 % bound |\n|---|---|---|---|---|---|---|---|\n";
   for (const auto& g : groups) {
-    const auto& d = g.end_error_pct;
+    const auto& d = g.forward;
     out << "| " << fs::path(g.recording).filename().string() << " | " << g.scenario << " | "
         << (g.imu ? "on" : "off") << " | " << g.done << " / " << g.runs << " | " << g.failed << " | "
-        << (d.n ? Fmt(std::round(d.median * 100) / 100) + " / " + Fmt(std::round(d.p90 * 100) / 100) + " / " +
-                      Fmt(std::round(d.max * 100) / 100)
-                : std::string("-"))
-        << " | " << (g.rmse_gps_m.n ? Fmt(std::round(g.rmse_gps_m.median * 1000) / 1000) : std::string("-"))
-        << " | " << Fmt(std::round(g.nees_over_bound_share * 1000) / 10) << " % |\n";
+        << MdTriple(d.end_error_pct, 2) << " | "
+        << (d.rmse_gps_m.n ? Fmt(Round(d.rmse_gps_m.median, 3)) : std::string("-")) << " | "
+        << Fmt(Round(g.nees_over_bound_share * 100, 1)) << " % |\n";
+  }
+  if (plan.smooth) {
+    // The same runs' errors, forward filter against the smoothed trajectory.
+    static const std::pair<MetricField, const char*> kCompared[] = {{kEndErrorPct, "end error % (first outage)"},
+                                                                    {kMaxErrorM, "max error in the outage, m"},
+                                                                    {kOutageRmseM, "RMSE in the outage, m"},
+                                                                    {kRmseGpsM, "RMSE while GPS, m"}};
+    out << "\n## Forward | smoothed\n\n"
+        << "Median / p90 / max over the done runs; the ratio is the smoothed median over the forward one.\n\n"
+        << "| recording | scenario | IMU | error | forward | smoothed | smoothed / forward |\n"
+           "|---|---|---|---|---|---|---|\n";
+    for (const auto& g : groups)
+      for (const auto& [f, label] : kCompared) {
+        const Distribution& fw = g.forward.*f.distribution;
+        const Distribution& sm = g.smoothed.*f.distribution;
+        if (fw.n == 0 && sm.n == 0) continue;  // no outage in the scenario, or nothing done yet
+        const int digits = f.value == &RunMetrics::end_error_pct ? 2 : 3;
+        out << "| " << fs::path(g.recording).filename().string() << " | " << g.scenario << " | "
+            << (g.imu ? "on" : "off") << " | " << label << " | " << MdTriple(fw, digits) << " | "
+            << MdTriple(sm, digits) << " | "
+            << (fw.n && sm.n && fw.median > 0 ? Fmt(Round(sm.median / fw.median, 3)) : std::string("-")) << " |\n";
+      }
   }
   if (failed > 0) {
     out << "\n## Failed runs\n\n";

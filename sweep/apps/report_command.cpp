@@ -16,9 +16,9 @@ size_t WriteReport(const Plan& plan, const std::string& self_exe, bool quiet) {
   const fs::path dir = plan.dir;
   const auto rows = CollectRows(plan);
   const auto groups = Summarize(rows);
-  WriteResultsCsv(rows, dir / "results.csv");
-  WriteSummaryCsv(groups, dir / "summary.csv");
-  WriteSummaryJson(groups, dir / "summary.json");
+  WriteResultsCsv(rows, plan.smooth, dir / "results.csv");
+  WriteSummaryCsv(groups, plan.smooth, dir / "summary.csv");
+  WriteSummaryJson(groups, plan.smooth, dir / "summary.json");
 
   // The plots are matplotlib's (Debian's python3-matplotlib); without it the
   // tables are still written and report.md says why there is no picture.

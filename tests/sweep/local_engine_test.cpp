@@ -2,14 +2,17 @@
 // direct locaid-replay of the same run (bit for bit, minus the two timing
 // fields), a second run starts nothing, changed inputs rerun only their runs,
 // Ctrl-C keeps every finished result and a second run does only the rest, a
-// corrupt recording fails only its own runs, with its error. The real KITTI
+// corrupt recording fails only its own runs, with its error; a smoothed
+// sweep tabulates forward and smoothed errors side by side. The real KITTI
 // excerpt and a ROS 2 bag of it the same way when ../shared is there.
 #include "needs_tool.hpp"
 #include "process.hpp"
 #include "sweep_support.hpp"
 #include "temp_dir.hpp"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <map>
 #include <thread>
 
@@ -77,6 +80,8 @@ TEST_F(SweepLocal, ResultsEqualADirectReplayAndASecondRunStartsNothing) {
   EXPECT_EQ(rows[1].rfind(drive_.string() + ",open-sky,1,on,done,,", 0), 0u) << rows[1];
   EXPECT_EQ(rows[5].rfind(drive_.string() + ",outage-mid,1,on,done,", 0), 0u) << rows[5];
   EXPECT_NE(rows[5].find(",outage-mid,1,on,done,,"), 0u) << rows[5];
+  EXPECT_NE(rows[0].find(",max_error_m,outage_rmse_m"), std::string::npos) << rows[0];  // forward: always
+  EXPECT_EQ(rows[0].find("_smoothed"), std::string::npos) << rows[0];  // not a smoothed sweep
   const auto summary = ReadJson(out / "summary.json");
   ASSERT_EQ(summary.size(), 4u);
   EXPECT_EQ(summary[2]["end_error_pct"]["n"], 2);
@@ -100,6 +105,84 @@ TEST_F(SweepLocal, ResultsEqualADirectReplayAndASecondRunStartsNothing) {
   EXPECT_EQ(changed.exit_code, 0) << changed.out;
   EXPECT_NE(changed.out.find("0 VO runs and 4 filter runs to do (5 of 9 already done)"), std::string::npos)
       << changed.out;
+}
+
+// results.csv as column -> value, one map per row.
+std::vector<std::map<std::string, std::string>> CsvRows(const fs::path& file) {
+  auto split = [](const std::string& line) {  // the rows here quote nothing
+    std::vector<std::string> cells;
+    std::istringstream in(line);
+    for (std::string cell; std::getline(in, cell, ',');) cells.push_back(cell);
+    if (!line.empty() && line.back() == ',') cells.emplace_back();
+    return cells;
+  };
+  const auto lines = Lines(ReadText(file));
+  std::vector<std::map<std::string, std::string>> rows;
+  if (lines.empty()) return rows;
+  const auto header = split(lines[0]);
+  for (size_t i = 1; i < lines.size(); ++i) {
+    const auto cells = split(lines[i]);
+    EXPECT_EQ(cells.size(), header.size()) << lines[i];
+    auto& row = rows.emplace_back();
+    for (size_t c = 0; c < header.size() && c < cells.size(); ++c) row[header[c]] = cells[c];
+  }
+  return rows;
+}
+
+double FiniteNumber(const std::map<std::string, std::string>& row, const std::string& column) {
+  const auto it = row.find(column);
+  if (it == row.end()) {
+    ADD_FAILURE() << "no column " << column;
+    return std::nan("");
+  }
+  double v = std::nan("");
+  try {
+    v = std::stod(it->second);
+  } catch (const std::exception&) {
+  }
+  EXPECT_TRUE(std::isfinite(v)) << column << " = '" << it->second << "'";
+  return v;
+}
+
+// smooth: true: each run smooths (its result equals a direct locaid-replay
+// --smooth), results.csv has the smoothed columns next to the forward ones,
+// and the report puts forward and smoothed side by side.
+TEST_F(SweepLocal, ASmoothedSweepTabulatesForwardAndSmoothed) {
+  ASSERT_FALSE(drive_.empty());
+  const fs::path m = Manifest("scenarios: [outage.yaml]\nseeds: [1]\nsmooth: true\n");
+  const fs::path out = tmp_ / "out";
+  const auto run = Sweep("run " + m.string() + " --out " + out.string() + " --jobs 2");
+  ASSERT_EQ(run.exit_code, 0) << run.out;
+  const auto plan = PlanJson(out);
+  EXPECT_EQ(plan["smooth"], true);
+  const auto& args = plan["filter_tasks"][0]["args"];
+  EXPECT_NE(std::find(args.begin(), args.end(), "--smooth"), args.end()) << args;
+  ExpectEqualToDirectReplay(out, 1);
+  EXPECT_TRUE(DoneResults(out).begin()->second["metrics"].contains("smoothed"));
+
+  const auto rows = CsvRows(out / "results.csv");
+  ASSERT_EQ(rows.size(), 1u);
+  const auto& row = rows[0];
+  EXPECT_EQ(row.at("status"), "done");
+  for (const char* column : {"end_error_pct", "end_error_pct_smoothed", "max_error_m", "max_error_m_smoothed",
+                             "outage_rmse_m", "outage_rmse_m_smoothed", "rmse_gps_m_smoothed"})
+    FiniteNumber(row, column);
+  const double rmse = FiniteNumber(row, "rmse_gps_m"), rmse_smoothed = FiniteNumber(row, "rmse_gps_m_smoothed");
+  EXPECT_LE(rmse_smoothed, rmse);
+  EXPECT_GT(rmse_smoothed, 0);
+
+  const auto summary = ReadJson(out / "summary.json");
+  ASSERT_EQ(summary.size(), 1u);
+  EXPECT_EQ(summary[0]["smoothed"]["end_error_pct"]["n"], 1);
+  EXPECT_EQ(summary[0]["smoothed"]["rmse_gps_m"]["median"], rmse_smoothed);
+  EXPECT_EQ(summary[0]["max_error_m"]["n"], 1);
+  EXPECT_NE(Lines(ReadText(out / "summary.csv"))[0].find(",rmse_gps_m_smoothed_median,"), std::string::npos);
+  const std::string report = ReadText(out / "report.md");
+  EXPECT_NE(report.find("## Forward | smoothed"), std::string::npos) << report;
+  for (const char* label : {"| end error % (first outage) |", "| max error in the outage, m |",
+                            "| RMSE in the outage, m |", "| RMSE while GPS, m |"})
+    EXPECT_NE(report.find(label), std::string::npos) << label << "\n" << report;
+  EXPECT_TRUE(fs::exists(out / "end_error_by_scenario.png"));
 }
 
 // A VO run whose cache is gone runs again when a filter run still needs the

@@ -153,6 +153,24 @@ TEST_F(ManifestTest, ReplayArgsTheSweepSetsAreRefused) {
   EXPECT_NE(out.find("replay_args[0]: --out-csv=x.csv"), std::string::npos) << out;
 }
 
+TEST_F(ManifestTest, SmoothIsABoolean) {
+  const std::string base = "recordings: [{path: bags/one.mcap}]\nscenarios: [open-sky]\nseeds: [1]\n";
+  EXPECT_FALSE(LoadManifest(Write(base)).smooth);  // default
+  EXPECT_TRUE(LoadManifest(Write(base + "smooth: true\n")).smooth);
+  EXPECT_FALSE(LoadManifest(Write(base + "smooth: false\n")).smooth);
+  const std::string maybe = Error(base + "smooth: maybe\n");
+  EXPECT_NE(maybe.find(":4: smooth: expected true or false, got maybe"), std::string::npos) << maybe;
+  const std::string list = Error(base + "smooth: [true]\n");
+  EXPECT_NE(list.find(":4: smooth: expected true or false"), std::string::npos) << list;
+  // One way to smooth: the key, not --smooth among replay_args.
+  const std::string arg = Error(base + "replay_args: [--smooth]\n");
+  EXPECT_NE(arg.find(":4: replay_args[0]: --smooth is set by the sweep for each run (write smooth: true)"),
+            std::string::npos)
+      << arg;
+  EXPECT_EQ(LoadManifest(Write(base + "smooth: true\nreplay_args: [--smooth-memory-mb, '64']\n")).replay_args.size(),
+            2u);
+}
+
 TEST_F(ManifestTest, NotYaml) {
   const std::string e = Error("recordings: [{path: bags/one.mcap}\nscenarios: [open-sky]\n");
   EXPECT_NE(e.find("not valid YAML"), std::string::npos) << e;
@@ -186,6 +204,23 @@ TEST_F(ManifestTest, PlanKeysFollowTheInputs) {
   // Another locaid version: new keys.
   EXPECT_NE(locaid::sweep::BuildPlan(LoadManifest(f), dir_ / "out", replay, "0.2.0").filter[1].key,
             changed.filter[1].key);
+  // smooth: true: --smooth in every filter run's arguments (so new keys), not in
+  // the VO run's (the cache is the same); the plan says so and reads back.
+  std::ofstream(f, std::ios::app) << "smooth: true\n";
+  const auto smoothed = locaid::sweep::BuildPlan(LoadManifest(f), dir_ / "out", replay, "0.1.0");
+  EXPECT_TRUE(smoothed.smooth);
+  EXPECT_FALSE(changed.smooth);
+  for (const auto& t : smoothed.filter)
+    EXPECT_NE(std::find(t.args.begin(), t.args.end(), "--smooth"), t.args.end()) << t.id;
+  const auto& vo_args = smoothed.vo[0].args;
+  EXPECT_EQ(std::find(vo_args.begin(), vo_args.end(), "--smooth"), vo_args.end());
+  EXPECT_EQ(smoothed.vo[0].key, changed.vo[0].key);
+  EXPECT_NE(smoothed.filter[1].key, changed.filter[1].key);
+  EXPECT_EQ(smoothed.filter[1].id, changed.filter[1].id);
+  EXPECT_TRUE(locaid::sweep::PlanFromJson(locaid::sweep::PlanToJson(smoothed)).smooth);
+  auto old_plan = locaid::sweep::PlanToJson(changed);
+  old_plan.erase("smooth");  // a plan written before the key: not smoothed
+  EXPECT_FALSE(locaid::sweep::PlanFromJson(old_plan).smooth);
 }
 
 }  // namespace

@@ -1,6 +1,6 @@
 // The tables' arithmetic: percentiles as numpy's default, NEES share,
 // failures counted per group, a run without an outage has an empty
-// end_error_pct.
+// end_error_pct, a smoothed sweep's columns next to the forward ones.
 #include "sweep/summary.hpp"
 #include "temp_dir.hpp"
 
@@ -12,6 +12,10 @@
 using namespace locaid::sweep;
 
 namespace {
+
+bool EndsWith(const std::string& s, const std::string& tail) {
+  return s.size() >= tail.size() && s.compare(s.size() - tail.size(), tail.size(), tail) == 0;
+}
 
 TEST(SweepSummary, PercentilesInterpolateBetweenOrderStatistics) {
   const Distribution d = Distribute({4, 1, 3, 2, 5, 6, 7, 8, 9, 10});
@@ -30,10 +34,10 @@ TEST(SweepSummary, GroupsCountFailuresAndNeesOverItsBound) {
     r.scenario = "tunnel";
     r.imu = imu;
     r.state = s;
-    r.end_error_pct = pct;
-    r.rmse_gps_m = 1;
-    r.nees_mean = nees;
-    r.nees_bound_99 = 4;
+    r.forward.end_error_pct = pct;
+    r.forward.rmse_gps_m = 1;
+    r.forward.nees_mean = nees;
+    r.forward.nees_bound_99 = 4;
     r.gps_resets = 1;
     r.gps_rejected = 2;
     return r;
@@ -47,15 +51,15 @@ TEST(SweepSummary, GroupsCountFailuresAndNeesOverItsBound) {
   EXPECT_EQ(groups[0].runs, 3u);
   EXPECT_EQ(groups[0].done, 2u);
   EXPECT_EQ(groups[0].failed, 1u);
-  EXPECT_DOUBLE_EQ(groups[0].end_error_pct.median, 2.0);
+  EXPECT_DOUBLE_EQ(groups[0].forward.end_error_pct.median, 2.0);
   EXPECT_DOUBLE_EQ(groups[0].nees_over_bound_share, 0.5);
   EXPECT_EQ(groups[0].gps_resets, 2);
   EXPECT_EQ(groups[0].gps_rejected, 4);
-  EXPECT_EQ(groups[1].end_error_pct.n, 0u);  // no outage in that scenario
+  EXPECT_EQ(groups[1].forward.end_error_pct.n, 0u);  // no outage in that scenario
   EXPECT_EQ(groups[2].pending, 1u);
 
   locaid::test_support::ScopedTempDir dir("sweep_summary");
-  WriteResultsCsv(rows, dir / "results.csv");
+  WriteResultsCsv(rows, false, dir / "results.csv");
   std::ifstream in(dir / "results.csv");
   std::string header, first, second, third, fourth;
   std::getline(in, header);
@@ -67,6 +71,65 @@ TEST(SweepSummary, GroupsCountFailuresAndNeesOverItsBound) {
   EXPECT_EQ(first.rfind("a,tunnel,0,on,done,1,1,3,", 0), 0u) << first;
   EXPECT_EQ(third.rfind("a,tunnel,0,on,failed,,", 0), 0u) << third;
   EXPECT_EQ(fourth.rfind("a,tunnel,0,off,done,,1,1,", 0), 0u) << fourth;  // no outage: empty
+  EXPECT_EQ(header.find("_smoothed"), std::string::npos) << header;  // not a smoothed sweep
+}
+
+// A smoothed sweep: the smoothed errors go to their own columns and
+// distributions, next to the forward ones; a run without them (failed,
+// pending) leaves them empty. NaN (null in the JSON) is no value.
+TEST(SweepSummary, SmoothedColumnsAndDistributionsNextToTheForwardOnes) {
+  const nlohmann::json metrics = nlohmann::json::parse(R"({
+    "rmse_gps_m": 1.5, "nees_mean": 2, "nees_bound_99": 4,
+    "outages": [{"end_error_pct": 10, "end_error_m": 2, "max_error_m": 3, "rmse_m": 1.25}, {"end_error_pct": 99}],
+    "smoothed": {"rmse_gps_m": 0.5, "nees_mean": 1, "nees_bound_99": 4,
+                 "outages": [{"end_error_pct": 4, "end_error_m": 0.8, "max_error_m": 1, "rmse_m": null}]}})");
+  ResultRow done;
+  done.recording = "a";
+  done.scenario = "tunnel";
+  done.state = RunState::kDone;
+  done.forward = ReadRunMetrics(metrics);
+  done.smoothed = ReadRunMetrics(metrics["smoothed"]);
+  EXPECT_EQ(done.forward.outage_rmse_m, 1.25);  // the first outage's
+  EXPECT_EQ(done.forward.max_error_m, 3);
+  EXPECT_EQ(done.smoothed->end_error_pct, 4);
+  EXPECT_FALSE(done.smoothed->outage_rmse_m);
+  ResultRow second = done;
+  second.forward.end_error_pct = 20;
+  second.smoothed->end_error_pct = 6;
+  ResultRow failed = done;
+  failed.state = RunState::kFailed;
+  failed.forward = {};
+  failed.smoothed.reset();
+  const auto groups = Summarize({done, second, failed});
+  ASSERT_EQ(groups.size(), 1u);
+  EXPECT_DOUBLE_EQ(groups[0].forward.end_error_pct.median, 15);
+  EXPECT_DOUBLE_EQ(groups[0].smoothed.end_error_pct.median, 5);
+  EXPECT_DOUBLE_EQ(groups[0].smoothed.rmse_gps_m.max, 0.5);
+  EXPECT_EQ(groups[0].smoothed.outage_rmse_m.n, 0u);
+
+  locaid::test_support::ScopedTempDir dir("sweep_summary");
+  WriteResultsCsv({done, failed}, true, dir / "results.csv");
+  std::ifstream in(dir / "results.csv");
+  std::string header, first, last;
+  std::getline(in, header);
+  std::getline(in, first);
+  std::getline(in, last);
+  EXPECT_EQ(header.rfind("recording,scenario,seed,imu,status,end_error_pct,rmse_gps_m,nees_mean,", 0), 0u) << header;
+  const std::string added = ",run_id,error,max_error_m,outage_rmse_m,end_error_pct_smoothed,end_error_m_smoothed,"
+                            "max_error_m_smoothed,outage_rmse_m_smoothed,rmse_gps_m_smoothed";
+  EXPECT_TRUE(EndsWith(header, added)) << header;
+  EXPECT_TRUE(EndsWith(first, ",3,1.25,4,0.8,1,,0.5")) << first;
+  EXPECT_TRUE(EndsWith(last, ",failed" + std::string(18, ','))) << last;  // 11 columns to error, 7 added: empty
+
+  WriteSummaryCsv(groups, true, dir / "summary.csv");
+  std::ifstream summary(dir / "summary.csv");
+  std::getline(summary, header);
+  EXPECT_NE(header.find(",max_error_m_median,max_error_m_p90,max_error_m_max,"), std::string::npos) << header;
+  EXPECT_NE(header.find(",end_error_pct_smoothed_median,end_error_pct_smoothed_p90,"), std::string::npos) << header;
+  WriteSummaryCsv(groups, false, dir / "summary.csv");
+  std::ifstream plain(dir / "summary.csv");
+  std::getline(plain, header);
+  EXPECT_EQ(header.find("_smoothed"), std::string::npos) << header;
 }
 
 }  // namespace
