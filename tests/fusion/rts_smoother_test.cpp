@@ -13,6 +13,7 @@
 #include <Eigen/Dense>
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <map>
 #include <random>
 
@@ -389,6 +390,53 @@ void ExpectSmoothedBetter(bool use_imu) {
 
 TEST(RtsSmootherEkf, NeverWorseThanTheFilterOnAverageWithImu) { ExpectSmoothedBetter(true); }
 TEST(RtsSmootherEkf, NeverWorseThanTheFilterOnAverageWithoutImu) { ExpectSmoothedBetter(false); }
+
+TEST(RtsSmootherEkf, APositionResetMidDriveBreaksTheChainAndLosesNothing) {
+  // From 50 s on every fix is 40 m east of the truth: the gate refuses
+  // them, then the filter resets its position to GPS. The smoother must
+  // treat the reset as a break: the drive before it smoothed on its own.
+  test::SimConfig c;
+  c.duration_s = 80;
+  c.seed = 321;
+  auto ev = test::Simulate(c);
+  for (auto& e : ev)
+    if (e.kind == test::SimEvent::kGps && e.gps.t_ns > static_cast<int64_t>(50e9))
+      e.gps.lon_deg += 40.0 / (111320.0 * std::cos(test::kLat0 * M_PI / 180));
+  Ekf ekf(test::SimEkfConfig(c, true));
+  OfflineSmoother smoother;
+  ekf.set_epoch_log(&smoother.log());
+  std::vector<FusedPose> forward;
+  std::vector<int64_t> epochs;
+  std::vector<Vec3> truth;
+  for (const auto& e : ev) {
+    if (e.kind == test::SimEvent::kImu) {
+      ekf.PropagateImu(e.imu);
+    } else if (e.kind == test::SimEvent::kGps) {
+      ekf.UpdateGps(e.gps);
+    } else if (e.vo.t_ns != 0) {
+      ekf.ProcessVo(e.vo, true);
+      forward.push_back(ekf.Output(e.vo.t_ns, true));
+      epochs.push_back(ekf.MarkEpoch());
+      truth.push_back(test::TruthInFilterEnu(ekf, e.truth.x.p_enu_m));
+    }
+  }
+  ASSERT_GT(ekf.stats().gps_resets, 0) << "the jump must make the filter reset";
+  const std::vector<FusedPose> smoothed = smoother.Smooth(forward, epochs, ekf.error_layout());
+  ASSERT_EQ(smoothed.size(), forward.size());
+  double f2 = 0, s2 = 0;
+  int n = 0;
+  for (size_t i = 0; i < smoothed.size(); ++i) {
+    ASSERT_TRUE(smoothed[i].T_enu_body.matrix().allFinite()) << i;
+    ASSERT_TRUE(smoothed[i].covariance.allFinite()) << i;
+    if (epochs[i] < 0 || forward[i].t_ns > static_cast<int64_t>(45e9)) continue;
+    f2 += (forward[i].T_enu_body.translation() - truth[i]).head<2>().squaredNorm();
+    s2 += (smoothed[i].T_enu_body.translation() - truth[i]).head<2>().squaredNorm();
+    ++n;
+  }
+  ASSERT_GT(n, 200);
+  std::cout << "before the jump: RMSE forward " << std::sqrt(f2 / n) << " m, smoothed " << std::sqrt(s2 / n) << " m\n";
+  EXPECT_LT(s2, f2) << "the drive before the reset is smoothed, not pulled 40 m by the fixes after it";
+}
 
 // ---------------------------------------------------------------- fixed lag
 // One simulated drive filtered with a fixed-lag smoother of `lag_s`: the
