@@ -97,7 +97,7 @@ void AddOptions(CLI::App& app, ReplayArgs& a) {
                  "the poses as a ROS 2 bag (MCAP, ros2msg/CDR: odometry, fix, tf; see docs/api.md \"ROS 2 output\")");
   app.add_flag("--json", a.json, "print metrics as JSON on stdout");
   app.add_flag("--smooth", a.smooth,
-               "also smooth the whole drive (Rauch-Tung-Striebel, docs/api.md \"Smoothing\"): --json gains an "
+               "also smooth the whole drive (Rauch-Tung-Striebel, docs/smoothing.md): --json gains an "
                "object \"smoothed\", and every --out-* file holds the smoothed trajectory");
   app.add_option("--smooth-memory-mb", a.smooth_memory_mb,
                  "with --smooth: filter epochs kept in memory for the backward pass; the rest wait in an "
