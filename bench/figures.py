@@ -437,6 +437,43 @@ def mcap(ctx):
     return out
 
 
+def smoother_values(ctx, run_name, drive, scenario, seeds):
+    """Medians over seeds of bench/fusion/smoother_seeds.py: per outage k (o1, o2, ...) the forward / smoothed
+    end error, smoothed largest error inside, forward / smoothed RMSE inside, the end-pinned floor; the RMSE
+    while GPS is used."""
+    out_json = os.path.join(ctx.work, f"{run_name}.json")
+    ctx.run(["/usr/bin/python3", os.path.join(HERE, "fusion", "smoother_seeds.py"), "--drive", drive,
+             "--scenario", scenario, "--seeds", str(seeds), "--cache-dir", ctx.work, "--json", out_json], run_name)
+    with open(out_json) as f:
+        runs = json.load(f)
+    med = statistics.median
+    out = {"gps_f": med(r["forward"]["rmse_gps_m"] for r in runs),
+           "gps_s": med(r["smoothed"]["rmse_gps_m"] for r in runs)}
+    for k in range(len(runs[0]["forward"]["outages"])):
+        fo = [r["forward"]["outages"][k] for r in runs]
+        so = [r["smoothed"]["outages"][k] for r in runs]
+        o = f"o{k + 1}"
+        out[f"{o}.end_f"] = med(x["end_error_m"] for x in fo)
+        out[f"{o}.end_s"] = med(x["end_error_m"] for x in so)
+        out[f"{o}.max_s"] = med(x["max_error_m"] for x in so)
+        out[f"{o}.rmse_f"] = med(x["rmse_m"] for x in fo)
+        out[f"{o}.rmse_s"] = med(x["rmse_m"] for x in so)
+        out[f"{o}.floor_rmse"] = med(r["floor"][k][0] for r in runs)
+        out[f"{o}.floor_max"] = med(r["floor"][k][1] for r in runs)
+    return out
+
+
+def smoother_real(ctx):
+    return smoother_values(ctx, "smoother_real", ctx.real(), "scenarios/outage-10s-middle.yaml", 50)
+
+
+def smoother_route(ctx):
+    poses = os.path.join(ctx.data, "odometry", "poses", "00.txt")
+    times = os.path.join(ctx.data, "odometry", "sequences", "00", "times.txt")
+    drive = ctx.render("route00-1200m", ["--route", poses, "--times", times, "--length-m", "1200"], "smoother_route")
+    return smoother_values(ctx, "smoother_route", drive, "scenarios/route-outage-30s-60s.yaml", 20)
+
+
 # name -> (fast?, function). Order: cheap first.
 RUNS = {
     "devkit": (True, devkit),
@@ -458,6 +495,8 @@ RUNS = {
     "tunnel_gps": (False, tunnel_gps),
     "vo_synth": (False, vo_synth),
     "vo_motorway": (False, vo_motorway),
+    "smoother_real": (False, smoother_real),
+    "smoother_route": (False, smoother_route),
 }
 
 
