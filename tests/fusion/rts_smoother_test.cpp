@@ -14,6 +14,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 #include <map>
 #include <random>
 
@@ -294,6 +295,22 @@ TEST(EpochStore, AnUnwritableSpillFolderIsAClearError) {
 }
 
 // ---------------------------------------------------------------- the EKF
+// Feeds a simulated drive to the filter; `frame(e, pose)` after each frame's
+// pose (the caller marks the epoch).
+void FeedDrive(Ekf& ekf, const std::vector<test::SimEvent>& ev,
+               const std::function<void(const test::SimEvent&, const FusedPose&)>& frame) {
+  for (const auto& e : ev) {
+    if (e.kind == test::SimEvent::kImu) {
+      ekf.PropagateImu(e.imu);
+    } else if (e.kind == test::SimEvent::kGps) {
+      ekf.UpdateGps(e.gps);
+    } else if (e.vo.t_ns != 0) {
+      ekf.ProcessVo(e.vo, true);
+      frame(e, ekf.Output(e.vo.t_ns, true));
+    }
+  }
+}
+
 struct SmoothedDrive {
   double rmse_forward = 0, rmse_smoothed = 0;        // horizontal, over initialised frames
   double outage_rmse_forward = 0, outage_rmse_smoothed = 0;
@@ -310,18 +327,10 @@ SmoothedDrive RunSmoothed(const test::SimConfig& c, bool use_imu) {
   ekf.set_epoch_log(&log);
   struct Frame { int64_t epoch; FusedPose pose; Vec3 truth; bool outage; };
   std::vector<Frame> frames;
-  for (const auto& e : ev) {
-    if (e.kind == test::SimEvent::kImu) {
-      ekf.PropagateImu(e.imu);
-    } else if (e.kind == test::SimEvent::kGps) {
-      ekf.UpdateGps(e.gps);
-    } else if (e.vo.t_ns != 0) {
-      ekf.ProcessVo(e.vo, true);
-      const FusedPose pose = ekf.Output(e.vo.t_ns, true);
+  FeedDrive(ekf, ev, [&](const test::SimEvent& e, const FusedPose& pose) {
       const int64_t epoch = ekf.MarkEpoch();
       if (ekf.initialized()) frames.push_back({epoch, pose, test::TruthInFilterEnu(ekf, e.truth.x.p_enu_m), e.in_outage});
-    }
-  }
+  });
   log.Finish();
   std::map<int64_t, FusedPose> smoothed;
   std::map<int64_t, const FusedPose*> forward_of;
@@ -408,18 +417,11 @@ TEST(RtsSmootherEkf, APositionResetMidDriveBreaksTheChainAndLosesNothing) {
   std::vector<FusedPose> forward;
   std::vector<int64_t> epochs;
   std::vector<Vec3> truth;
-  for (const auto& e : ev) {
-    if (e.kind == test::SimEvent::kImu) {
-      ekf.PropagateImu(e.imu);
-    } else if (e.kind == test::SimEvent::kGps) {
-      ekf.UpdateGps(e.gps);
-    } else if (e.vo.t_ns != 0) {
-      ekf.ProcessVo(e.vo, true);
-      forward.push_back(ekf.Output(e.vo.t_ns, true));
+  FeedDrive(ekf, ev, [&](const test::SimEvent& e, const FusedPose& pose) {
+      forward.push_back(pose);
       epochs.push_back(ekf.MarkEpoch());
       truth.push_back(test::TruthInFilterEnu(ekf, e.truth.x.p_enu_m));
-    }
-  }
+  });
   ASSERT_GT(ekf.stats().gps_resets, 0) << "the jump must make the filter reset";
   const std::vector<FusedPose> smoothed = smoother.Smooth(forward, epochs, ekf.error_layout());
   ASSERT_EQ(smoothed.size(), forward.size());
@@ -453,22 +455,14 @@ LagRun RunWithLag(const test::SimConfig& c, double lag_s) {
   EpochLog log([&](Epoch&& e) { lag.AddEpoch(e); });
   ekf.set_epoch_log(&log);
   LagRun run;
-  for (const auto& e : ev) {
-    if (e.kind == test::SimEvent::kImu) {
-      ekf.PropagateImu(e.imu);
-    } else if (e.kind == test::SimEvent::kGps) {
-      ekf.UpdateGps(e.gps);
-    } else if (e.vo.t_ns != 0) {
-      ekf.ProcessVo(e.vo, true);
-      const FusedPose pose = ekf.Output(e.vo.t_ns, true);
+  FeedDrive(ekf, ev, [&](const test::SimEvent& e, const FusedPose& pose) {
       run.forward.push_back(pose);
       run.truth.push_back(test::TruthInFilterEnu(ekf, e.truth.x.p_enu_m));
       for (FusedPose& p : lag.AddPose(pose, ekf.MarkEpoch(), log.open())) {
         run.delay_s.push_back(static_cast<double>(pose.t_ns - p.t_ns) * 1e-9);
         run.released.push_back(std::move(p));
       }
-    }
-  }
+  });
   for (FusedPose& p : lag.Flush(log.open())) run.released.push_back(std::move(p));
   return run;
 }
@@ -480,17 +474,10 @@ std::vector<FusedPose> RunOffline(const test::SimConfig& c) {
   ekf.set_epoch_log(&smoother.log());
   std::vector<FusedPose> forward;
   std::vector<int64_t> epochs;
-  for (const auto& e : ev) {
-    if (e.kind == test::SimEvent::kImu) {
-      ekf.PropagateImu(e.imu);
-    } else if (e.kind == test::SimEvent::kGps) {
-      ekf.UpdateGps(e.gps);
-    } else if (e.vo.t_ns != 0) {
-      ekf.ProcessVo(e.vo, true);
-      forward.push_back(ekf.Output(e.vo.t_ns, true));
+  FeedDrive(ekf, ev, [&](const test::SimEvent& e, const FusedPose& pose) {
+      forward.push_back(pose);
       epochs.push_back(ekf.MarkEpoch());
-    }
-  }
+  });
   return smoother.Smooth(forward, epochs, ekf.error_layout());
 }
 
