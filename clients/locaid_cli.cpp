@@ -5,7 +5,7 @@
 //   locaid session start --live --camera-left P --camera-right P | --camera-stereo P
 //                        --camera-info-left F --camera-info-right F [--gpsd HOST:PORT]
 //   locaid session list | get ID | stop ID [--remove]
-//   locaid subscribe ID [--from-start] [--format print|tum|kitti|csv|geojson|mcap|ros2-mcap] [--out FILE] [--max N]
+//   locaid subscribe ID [--from-start] [--lag S] [--format print|tum|kitti|csv|geojson|mcap|ros2-mcap] [--out FILE] [--max N]
 //   locaid outage start ID [--duration S] | stop ID | window ID --start S --duration S
 //   locaid camera-fault start ID --kind K [--duration S] [--gain G] [--noise-dn N] [--blur-px S]
 //                     | stop ID | window ID --kind K --start S --duration S [...]
@@ -127,6 +127,7 @@ struct SubscribeOptions {
   bool from_start = false, progress = false;
   uint64_t max_poses = 0;
   uint32_t queue = 0;
+  double lag_s = 0;  // StreamPosesRequest.smoothing_lag_s
   double stream_timeout_s = 24 * 3600;
 };
 
@@ -209,6 +210,7 @@ int Subscribe(const Common& c, v1::Localization::Stub& stub, const SubscribeOpti
   req.set_session_id(o.session_id);
   req.set_from_start(o.from_start);
   req.set_queue_size(o.queue);
+  req.set_smoothing_lag_s(o.lag_s);
   g_stream_ctx = std::make_unique<grpc::ClientContext>();
   Prepare(c, g_stream_ctx.get(), o.stream_timeout_s);
   std::signal(SIGINT, OnSignal);
@@ -315,6 +317,10 @@ int main(int argc, char** argv) {
   subscribe->add_option("--out", sub.out_path, "record file (formats other than print)");
   subscribe->add_option("--max", sub.max_poses, "stop after N poses (0 = until the stream ends)");
   subscribe->add_option("--queue", sub.queue, "server-side queue length for this subscriber");
+  subscribe->add_option("--lag", sub.lag_s,
+                        "smoothed poses: each frame's pose given everything up to S seconds (sensor time) later, "
+                        "sent once the session is S s past it (0 = the causal stream; docs/api.md \"Lagged stream\")")
+      ->check(CLI::Range(0.0, 30.0));
   subscribe->add_flag("--progress", sub.progress, "print progress to stderr");
   subscribe->add_option("--stream-timeout-s", sub.stream_timeout_s, "deadline of the stream")->capture_default_str();
 

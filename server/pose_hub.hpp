@@ -42,6 +42,7 @@ struct SubscriberInfo {
   uint64_t delivered = 0;  // items popped by the consumer
   uint64_t dropped = 0;    // items dropped because the queue was full
   size_t queued = 0;
+  size_t capacity = 0;     // queue length beyond which the oldest item is dropped
 };
 
 struct HubStats {
@@ -74,7 +75,7 @@ class PoseHub {
     uint64_t id() const { return id_; }
     SubscriberInfo info() const {
       std::lock_guard lock(mu_);
-      return {id_, peer_, delivered_, dropped_, queue_.size()};
+      return {id_, peer_, delivered_, dropped_, queue_.size(), capacity_};
     }
 
    private:

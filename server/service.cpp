@@ -162,6 +162,7 @@ grpc::ServerWriteReactor<grpc::ByteBuffer>* LocalizationService::StreamPoses(grp
       return fail(Invalid("StreamPosesRequest: cannot parse the request message"));
     }
   }
+  if (const std::string bad = CheckSmoothingLag(req.smoothing_lag_s()); !bad.empty()) return fail(Invalid(bad));
   std::shared_ptr<Session> session;
   std::shared_ptr<PoseEncodings> encodings;
   if (Status s = sessions_.Find(req.session_id(), &session, &encodings); !s.ok()) return fail(s);
@@ -169,13 +170,14 @@ grpc::ServerWriteReactor<grpc::ByteBuffer>* LocalizationService::StreamPoses(grp
     return fail(Invalid("queue_size: " + std::to_string(req.queue_size()) + " exceeds the server's max_queue_size " +
                         std::to_string(config_.max_queue_size)));
   }
-  if (session->hub().subscriber_count() >= config_.max_subscribers_per_session) {
+  if (session->subscriber_count() >= config_.max_subscribers_per_session) {
     return fail(Status(StatusCode::RESOURCE_EXHAUSTED, "session " + Quoted(req.session_id()) + " has " +
                                                            std::to_string(config_.max_subscribers_per_session) +
                                                            " subscribers (max_subscribers_per_session)"));
   }
   const size_t queue = req.queue_size() == 0 ? config_.queue_size : req.queue_size();
-  return NewPoseWriter(this, std::move(session), std::move(encodings), req.from_start(), ctx->peer(), queue);
+  return NewPoseWriter(this, std::move(session), std::move(encodings), req.from_start(), ctx->peer(), queue,
+                       req.smoothing_lag_s());
 }
 
 grpc::ServerUnaryReactor* LocalizationService::PostControl(

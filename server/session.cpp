@@ -32,6 +32,7 @@ Session::Session(SessionOptions options, std::unique_ptr<pipeline::Pipeline> pip
     : options_(std::move(options)),
       pipeline_(std::move(pipeline)),
       hub_(options_.history_size),
+      lagged_(options_.id, options_.history_size),
       created_unix_ns_(UnixNowNs()),
       total_frames_(pipeline_->total_frames()),
       pacer_(options_.playback_rate),
@@ -71,6 +72,7 @@ void Session::Join() {
   if (thread_.joinable()) thread_.join();
   hub_.Close();
   hub_.StopFanoutThread();  // after a last wake round (streams see kEnd)
+  lagged_.Close();          // after the smoothing thread's flush
   joined_ = true;
 }
 
@@ -127,11 +129,14 @@ void Session::Publish(const pipeline::StepResult& r, double latency_ms, std::opt
   counters_.Record(r, latency_ms);
   NoteOrigin();
   msg->set_published_unix_ns(UnixNowNs());
-  hub_.Publish(std::move(msg));
+  const Hub::Item item = std::move(msg);
+  hub_.Publish(item);
+  lagged_.OnPose(r, latency_ms, item, options_.estimator.get());  // nothing without a lagged subscriber
 }
 
 bool Session::StepOnce() {
   RunCommands();
+  lagged_.BeforeStep(options_.estimator.get());
   const auto t0 = Clock::now();
   pipeline::StepResult r = pipeline_->Step();
   const auto t1 = Clock::now();
@@ -197,6 +202,9 @@ void Session::Run() {
       break;
     }
   }
+  // The lagged streams' last lag seconds, smoothed, before their end (and
+  // before the estimator the log is attached to goes).
+  lagged_.Finish();
   try {
     pipeline_->SetPairRunner(nullptr);
     pipeline_->Release();
@@ -248,10 +256,12 @@ locaid::v1::SessionStats Session::Stats() const {
     g->set_fix_latency_median_ms(in.fix_latency_median_ms);
     g->set_fix_latency_max_ms(in.fix_latency_max_ms);
   }
-  const HubStats h = hub_.stats();
-  s.set_poses_published(h.published);
+  HubStats h = hub_.stats();
+  s.set_poses_published(h.published);  // the causal poses
+  HubStats lagged = lagged_.stats();   // subscribers of lagged streams count too
+  h.subscribers.insert(h.subscribers.end(), lagged.subscribers.begin(), lagged.subscribers.end());
   s.set_subscribers(static_cast<uint32_t>(h.subscribers.size()));
-  s.set_dropped_total(h.dropped_total);
+  s.set_dropped_total(h.dropped_total + lagged.dropped_total);
   for (const SubscriberInfo& i : h.subscribers) {
     auto* out = s.add_subscriber();
     out->set_id(i.id);

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "locaid/v1/localization.pb.h"
+#include "server/lagged_streams.hpp"
 #include "server/pose_hub.hpp"
 #include "server/realtime_monitor.hpp"
 #include "server/session_stats.hpp"
@@ -24,9 +25,6 @@ namespace locaid::server {
 
 class PairHelper;  // server/pair_helper.hpp
 
-using PoseMessage = locaid::v1::PoseUpdate;
-using Hub = PoseHub<PoseMessage>;
-
 struct SessionOptions {
   std::string id;
   std::string source;        // "kitti:/path", "synthetic:seed=1", "live"
@@ -36,6 +34,9 @@ struct SessionOptions {
   size_t history_size = 1000;
   bool live = false;                // pushed / gpsd input: real time by nature
   double behind_threshold_s = 0.1;  // lateness above which a paced session is falling behind
+  // The estimator its frame loop was built with (lagged streams smooth its
+  // filter); null: lagged streams pass the causal poses on after the lag.
+  std::shared_ptr<EstimatorHandle> estimator;
 };
 
 // What overload does to a session (docs/api.md "Keeping real time"):
@@ -80,6 +81,10 @@ class Session {
   double cpu_cores() const { return monitor_.CpuCores(RealTimeMonitor::Clock::now()); }
   double age_s() const;
   Hub& hub() { return hub_; }
+  // The lagged (smoothed) streams: StreamPosesRequest.smoothing_lag_s > 0.
+  LaggedStreams& lagged() { return lagged_; }
+  // Causal and lagged subscribers (what max_subscribers_per_session counts).
+  size_t subscriber_count() const { return hub_.subscriber_count() + lagged_.subscriber_count(); }
   locaid::v1::Session ToProto() const;
   locaid::v1::SessionStats Stats() const;
 
@@ -110,6 +115,7 @@ class Session {
   SessionOptions options_;
   std::unique_ptr<pipeline::Pipeline> pipeline_;
   Hub hub_;
+  LaggedStreams lagged_;
   std::thread thread_;
   std::mutex join_mu_;  // one Join() at a time; joined_ after the first
   bool joined_ = false;

@@ -227,8 +227,9 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
     return Invalid(e.what());
   }
   std::unique_ptr<pipeline::FrameLoop> loop;
+  options.estimator = std::make_shared<EstimatorHandle>();
   try {
-    loop = MakeFrameLoop(estimator_factory_, setup, std::move(source));
+    loop = MakeFrameLoop(RecordEstimator(estimator_factory_, options.estimator), setup, std::move(source));
   } catch (const std::exception& e) {
     return Invalid(std::string("vo_method/scenario: ") + e.what());
   }
@@ -270,9 +271,10 @@ Status LocalizationService::StartSynthetic(const v1::SyntheticSource& s, Session
   // Each session renders its own folder and deletes it when its
   // pipeline ends, so rendered drives never outlive their sessions.
   const std::filesystem::path drive_dir = SyntheticRoot(config_.work_dir) / RandomSessionId();
+  options.estimator = std::make_shared<EstimatorHandle>();  // set on the session thread, after the render
   auto factory = [drive_dir, seed = s.seed(), frames, yaml = s.options_yaml(), setup,
-                  make = estimator_factory_](const std::atomic<bool>& cancel) mutable
-      -> std::unique_ptr<pipeline::Pipeline> {
+                  make = RecordEstimator(estimator_factory_, options.estimator)](
+                     const std::atomic<bool>& cancel) mutable -> std::unique_ptr<pipeline::Pipeline> {
     auto src = std::make_unique<pipeline::DatasetFrameSource>(
         MakeSyntheticDrive(drive_dir, seed, frames, yaml, &cancel), 0, -1);
     return MakeFrameLoop(make, setup, std::move(src));

@@ -91,7 +91,7 @@ class HubStream : public Reactor, public StreamTarget {
       std::lock_guard lock(waker_->mu);
       waker_->target = nullptr;
     }
-    if (session_) session_->hub().Unsubscribe(sub_);
+    if (hub_) hub_->Unsubscribe(sub_);
     OnStreamEnded();
     service_->Unregister(waker_);
     delete this;
@@ -108,17 +108,33 @@ class HubStream : public Reactor, public StreamTarget {
   // Called once from OnDone() after the hub subscription is dropped.
   virtual void OnStreamEnded() {}
 
-  // Subscribes this stream to `session`'s hub (the wake goes through the
-  // Waker so it never reaches a deleted reactor).
+  // Subscribes this stream to `session`'s hub.
   void Subscribe(std::shared_ptr<Session> session, size_t queue_size, bool from_start, std::string peer) {
     session_ = std::move(session);
+    hub_ = std::shared_ptr<Hub>(session_, &session_->hub());  // kept alive by the session
+    sub_ = hub_->Subscribe(queue_size, from_start, WakeCallback(), std::move(peer));
+  }
+  // Subscribes this stream to lag `lag_s` of `session` (its lagged streams);
+  // the channel, or null with *refused saying why not.
+  std::shared_ptr<LaggedStreams::Channel> SubscribeLagged(std::shared_ptr<Session> session, double lag_s,
+                                                          size_t queue_size, bool from_start, std::string peer,
+                                                          std::string* refused) {
+    session_ = std::move(session);
+    LaggedStreams::Subscription s =
+        session_->lagged().Subscribe(lag_s, queue_size, from_start, WakeCallback(), std::move(peer));
+    *refused = std::move(s.refused);
+    if (!s.channel) return nullptr;
+    hub_ = s.channel->hub;
+    sub_ = std::move(s.subscriber);
+    return s.channel;
+  }
+  // The hub's wake of this stream: through the Waker, so it never reaches a
+  // deleted reactor.
+  std::function<void()> WakeCallback() const {
     std::weak_ptr<Waker> weak = waker_;
-    sub_ = session_->hub().Subscribe(
-        queue_size, from_start,
-        [weak] {
-          if (auto w = weak.lock()) w->Wake();
-        },
-        std::move(peer));
+    return [weak] {
+      if (auto w = weak.lock()) w->Wake();
+    };
   }
 
   // The next hub item of this stream: kWrite with *item and the subscriber's
@@ -169,7 +185,8 @@ class HubStream : public Reactor, public StreamTarget {
 
   ReactorHost* const service_;
   const std::shared_ptr<Waker> waker_;
-  std::shared_ptr<Session> session_;  // set by Subscribe()
+  std::shared_ptr<Session> session_;  // set by Subscribe() / SubscribeLagged()
+  std::shared_ptr<Hub> hub_;          // the hub sub_ is of
   Hub::SubscriberPtr sub_;
   std::mutex mu_;
 
@@ -184,17 +201,34 @@ class HubStream : public Reactor, public StreamTarget {
 // Raw (ByteBuffer) writer: every pose is serialized once per session
 // (PoseEncodings) and each subscriber's message is that shared slice plus,
 // when it has lost items, a few bytes for dropped_for_subscriber. The bytes
-// on the wire are an ordinary PoseUpdate.
+// on the wire are an ordinary PoseUpdate. With a smoothing lag it writes the
+// lag's poses (LaggedStreams), serialized once per lag.
 class PoseWriter final : public HubStream<grpc::ServerWriteReactor<grpc::ByteBuffer>, grpc::ByteBuffer> {
  public:
   PoseWriter(ReactorHost* service, std::shared_ptr<Session> session,
-             std::shared_ptr<PoseEncodings> encodings, bool from_start, std::string peer, size_t queue_size)
+             std::shared_ptr<PoseEncodings> encodings, bool from_start, std::string peer, size_t queue_size,
+             double smoothing_lag_s)
       : HubStream(service), encodings_(std::move(encodings)) {
-    Subscribe(std::move(session), queue_size, from_start, std::move(peer));
+    if (smoothing_lag_s <= 0) {
+      Subscribe(std::move(session), queue_size, from_start, std::move(peer));
+      return;
+    }
+    std::string refused;
+    const auto channel =
+        SubscribeLagged(std::move(session), smoothing_lag_s, queue_size, from_start, std::move(peer), &refused);
+    if (channel) {
+      encodings_ = channel->encodings;
+    } else {
+      refused_ = Status(StatusCode::RESOURCE_EXHAUSTED, refused);
+    }
   }
 
  private:
   Next NextLocked(grpc::ByteBuffer* out, Status* end) override {
+    if (!sub_) {  // a lag the session could not take
+      *end = refused_;
+      return Next::kEnd;
+    }
     Hub::Item item;
     uint64_t dropped = 0;
     const Next next = PopLocked(&item, &dropped, end);
@@ -202,7 +236,8 @@ class PoseWriter final : public HubStream<grpc::ServerWriteReactor<grpc::ByteBuf
     return next;
   }
 
-  const std::shared_ptr<PoseEncodings> encodings_;
+  std::shared_ptr<PoseEncodings> encodings_;
+  Status refused_;
 };
 
 // --------------------------------------------------------- PushSensorData --
@@ -374,9 +409,10 @@ class PushReactor final : public HubStream<grpc::ServerBidiReactor<v1::PushReque
 grpc::ServerWriteReactor<grpc::ByteBuffer>* NewPoseWriter(ReactorHost* service,
                                                           std::shared_ptr<Session> session,
                                                           std::shared_ptr<PoseEncodings> encodings, bool from_start,
-                                                          std::string peer, size_t queue_size) {
+                                                          std::string peer, size_t queue_size,
+                                                          double smoothing_lag_s) {
   return PoseWriter::New<PoseWriter>(service, std::move(session), std::move(encodings), from_start, std::move(peer),
-                                     queue_size);
+                                     queue_size, smoothing_lag_s);
 }
 
 grpc::ServerBidiReactor<v1::PushRequest, v1::PushResponse>* NewPushReactor(ReactorHost* service,

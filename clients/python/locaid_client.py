@@ -27,7 +27,7 @@ CSV_COLUMNS = [
     "t_s", "frame_index", "sequence", "e_m", "n_m", "u_m", "lat_deg", "lon_deg", "alt_m",
     "qw", "qx", "qy", "qz", "ve_mps", "vn_mps", "vu_mps", "sigma_e_m", "sigma_n_m", "sigma_u_m",
     "mode", "seconds_since_gps", "vo_inliers", "gps_used", "gps_rejected", "gps_outage",
-    "processing_latency_ms", "delay_ms", "dropped", "gps_resets",
+    "processing_latency_ms", "delay_ms", "dropped", "gps_resets", "smoothed",
 ]
 
 
@@ -77,7 +77,7 @@ def pose_row(pb2, p, delay_ms):
         sigma[0], sigma[1], sigma[2],
         mode_name(pb2, p.mode), p.seconds_since_gps, p.vo_inliers, p.gps_used, p.gps_rejected,
         1 if p.gps_outage_active else 0, p.processing_latency_ms, delay_ms, p.dropped_for_subscriber,
-        p.gps_resets,
+        p.gps_resets, 1 if p.smoothed else 0,
     ]
 
 
@@ -125,7 +125,8 @@ class CsvRecorder:
 def subscribe(args, pb2, pb2_grpc):
     import grpc
     stub = pb2_grpc.LocalizationStub(make_channel(args))
-    req = pb2.StreamPosesRequest(session_id=args.session, from_start=args.from_start, queue_size=args.queue)
+    req = pb2.StreamPosesRequest(session_id=args.session, from_start=args.from_start, queue_size=args.queue,
+                                 smoothing_lag_s=args.lag)
     recorder = None
     n = 0
     try:
@@ -186,6 +187,8 @@ def main(argv=None):
     s.add_argument("--csv", default="", help="record to this CSV file")
     s.add_argument("--max", type=int, default=0)
     s.add_argument("--queue", type=int, default=0)
+    s.add_argument("--lag", type=float, default=0.0,
+                   help="smoothed poses S seconds (sensor time) behind the session (0 = causal; docs/api.md)")
     s.add_argument("--stream-timeout-s", type=float, default=24 * 3600.0)
     st = sub.add_parser("stats", help="session statistics")
     st.add_argument("session")

@@ -3,7 +3,7 @@
 // as foxglove.websocket.v1 on --listen (loopback by default).
 //
 //   locaid-foxglove --server 127.0.0.1:50051 [--token-file F] [--tls-ca F]
-//                   [--listen 127.0.0.1:8765] [--session ID]
+//                   [--listen 127.0.0.1:8765] [--session ID] [--lag S]
 //
 // Threads (all started and joined here): the WebSocket server's network
 // thread, the session follower (gRPC) on its own thread, and main, which
@@ -72,6 +72,7 @@ int main(int argc, char** argv) {
   std::string server, token_file, tls_ca, listen = "127.0.0.1:8765", session;
   size_t queue = 2000;
   int send_buffer = 0;
+  double lag_s = 0;
   CLI::App app{"locaid-foxglove: serves a locaid session live to Foxglove / Lichtblick (foxglove.websocket.v1)"};
   app.add_option("--server", server, "locaid-server address: host:port or unix:PATH")->required();
   app.add_option("--token-file", token_file, "file holding the server's bearer token")->check(CLI::ExistingFile);
@@ -80,6 +81,10 @@ int main(int argc, char** argv) {
   app.add_option("--listen", listen, "WebSocket address HOST:PORT (no authentication: keep it on loopback)")
       ->capture_default_str();
   app.add_option("--session", session, "session id to serve (default: follow the newest STARTING/RUNNING session)");
+  app.add_option("--lag", lag_s,
+                 "show the smoothed track: each pose given everything up to S seconds (sensor time) later, "
+                 "S seconds behind the session (0 = the causal poses; docs/api.md \"Lagged stream\")")
+      ->check(CLI::Range(0.0, 30.0));
   app.add_option("--queue", queue, "messages queued per WebSocket client before the oldest are dropped")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
@@ -113,6 +118,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   follow.session = session;
+  follow.smoothing_lag_s = lag_s;
   follow.log = Log;
 
   // Signals are taken by sigwait on main; every thread started below
@@ -136,8 +142,10 @@ int main(int argc, char** argv) {
     Log(e.what());
     return 1;
   }
+  std::ostringstream lagged;
+  if (lag_s > 0) lagged << ", smoothed poses " << lag_s << " s behind";
   Log("listening on ws://" + address.host + ":" + std::to_string(ws->port()) + " (foxglove.websocket.v1), server " +
-      server + (session.empty() ? ", following the newest session" : ", session " + session));
+      server + (session.empty() ? ", following the newest session" : ", session " + session) + lagged.str());
 
   locaid::output::PoseConverter converter;  // follower thread only
   fx::SessionFollower follower(

@@ -154,6 +154,7 @@ grpc::Status SessionFollower::Stream(const std::string& id) {
   v1::StreamPosesRequest request;
   request.set_session_id(id);
   request.set_from_start(true);
+  request.set_smoothing_lag_s(options_.smoothing_lag_s);
   auto reader = stub_->StreamPoses(&ctx, request);
   v1::PoseUpdate pose;
   while (reader->Read(&pose)) {

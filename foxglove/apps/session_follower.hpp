@@ -31,6 +31,7 @@ struct FollowerOptions {
   std::shared_ptr<grpc::Channel> channel;
   std::string token;    // bearer token; empty: none
   std::string session;  // fixed session id; empty: follow the newest live one
+  double smoothing_lag_s = 0;  // > 0: the session's lagged (smoothed) stream (StreamPosesRequest)
   double poll_s = 1.0;
   double backoff_min_s = 0.5, backoff_max_s = 5.0;
   double call_timeout_s = 5.0;       // deadline of ListSessions

@@ -28,6 +28,7 @@
 #include <fcntl.h>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -406,15 +407,19 @@ class PoseCollector {
  public:
   PoseCollector(std::shared_ptr<grpc::Channel> channel, const std::string& session_id, bool from_start,
                 double deadline_s = 120, uint32_t queue_size = 0)
-      : stub_(v1::Localization::NewStub(std::move(channel))) {
+      : PoseCollector(std::move(channel), Request(session_id, from_start, queue_size), deadline_s) {}
+  // Any request (a smoothing lag, say); `on_pose` runs on the reading thread
+  // after each pose is read, before it is kept (what it writes is safe to
+  // read once the pose is in poses()).
+  PoseCollector(std::shared_ptr<grpc::Channel> channel, v1::StreamPosesRequest request, double deadline_s,
+                std::function<void(const v1::PoseUpdate&)> on_pose = {})
+      : stub_(v1::Localization::NewStub(std::move(channel))), req_(std::move(request)) {
     SetDeadline(&ctx_, deadline_s);
-    req_.set_session_id(session_id);
-    req_.set_from_start(from_start);
-    req_.set_queue_size(queue_size);
-    thread_ = std::thread([this] {
+    thread_ = std::thread([this, on_pose = std::move(on_pose)] {
       auto reader = stub_->StreamPoses(&ctx_, req_);
       v1::PoseUpdate p;
       while (reader->Read(&p)) {
+        if (on_pose) on_pose(p);
         std::lock_guard lock(mu_);
         poses_.push_back(p);
         cv_.notify_all();
@@ -461,6 +466,14 @@ class PoseCollector {
   size_t count() {
     std::lock_guard lock(mu_);
     return poses_.size();
+  }
+
+  static v1::StreamPosesRequest Request(const std::string& session_id, bool from_start, uint32_t queue_size = 0) {
+    v1::StreamPosesRequest r;
+    r.set_session_id(session_id);
+    r.set_from_start(from_start);
+    r.set_queue_size(queue_size);
+    return r;
   }
 
  private:
