@@ -20,12 +20,11 @@
 namespace locaid::server {
 namespace {
 
-// The smoothing thread runs only on a core nothing else wants (Linux
-// SCHED_IDLE, per thread; no privilege needed to take it); where that is
-// refused, at the nice of the thread that starts it plus kBatchNice.
+// The smoothing thread runs at the nice of the thread that starts it plus
+// kBatchNice: the causal stream's threads win the CPU, yet the smoothing
+// still gets its share on a busy machine (SCHED_IDLE would starve it there
+// until its backlog bound drops poses).
 void LowerThisThreadsPriority() {
-  sched_param idle{};
-  if (pthread_setschedparam(pthread_self(), SCHED_IDLE, &idle) == 0) return;
   errno = 0;
   const int base = getpriority(PRIO_PROCESS, static_cast<id_t>(gettid()));
   if (errno == 0 && base < 19)

@@ -12,8 +12,8 @@
 //    epoch) to the smoothing thread: a copy and a queue push, nothing more,
 //    so the causal stream does not wait for the backward passes;
 //  - the smoothing thread (one per session, started with its first lagged
-//    subscriber, at idle priority: Linux SCHED_IDLE, else a batch session's
-//    nice) runs the smoothers and publishes the released poses to the lags'
+//    subscriber, at a batch session's nice, kBatchNice above
+//    its starter's) runs the smoothers and publishes the released poses to the lags'
 //    hubs, whose wakes run on one fan-out thread per lag.
 // A lag whose last subscriber has left is dropped at the next pose; with no
 // lag left the log is detached. At the session's end every smoother is
