@@ -1,7 +1,7 @@
 #include "bag/bag_topics.hpp"
 
-#include "bag/cdr.hpp"
 #include "bag/ros_bag.hpp"
+#include "ros/cdr.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -111,7 +111,7 @@ BagInventory ScanBag(RosBag& bag, uint64_t max_log_span_ns, const std::function<
       if (m.type == ros::kTfMessage && EndsWith(m.topic, "tf_static")) {
         for (auto& t : ros::DecodeTfMessage(m.data)) inv.static_transforms.push_back(std::move(t));
       }
-    } catch (const CdrError&) {
+    } catch (const ros::CdrError&) {
       ++s.undecodable;
     }
     if (progress && ++n % 2000 == 0 && bag.total_bytes() > 0)

@@ -15,7 +15,7 @@
 // camera's P[3] (= -fx * baseline).
 #pragma once
 
-#include "bag/ros_messages.hpp"
+#include "ros/messages.hpp"
 
 #include <cstdint>
 #include <filesystem>

@@ -1,12 +1,12 @@
-// libFuzzer target: ROS 2 bag files (bag/mcap_reader.hpp, bag/cdr.hpp).
+// libFuzzer target: ROS 2 bag files (bag/mcap_reader.hpp, ros/cdr.hpp).
 // Contract: McapReader reads messages or throws McapError; what it returns is
 // consistent with its report (indexes count up, every message is on a
 // declared channel, a stop is the Data End, the footer or a reported cut).
 // Each message's data goes through CdrReader, which reads or throws CdrError.
-#include "bag/cdr.hpp"
 #include "bag/mcap_reader.hpp"
-#include "bag/ros_messages.hpp"
 #include "fuzz/fuzz_support.hpp"
+#include "ros/cdr.hpp"
+#include "ros/messages.hpp"
 
 #include <memory>
 #include <sstream>
@@ -14,11 +14,11 @@
 
 namespace {
 
-using locaid::bag::CdrError;
-using locaid::bag::CdrReader;
 using locaid::bag::McapChannel;
 using locaid::bag::McapMessage;
 using locaid::bag::McapReader;
+using locaid::ros::CdrError;
+using locaid::ros::CdrReader;
 
 // A message shaped like most ROS 2 sensor messages: a std_msgs/Header
 // (stamp sec, nanosec, frame_id), then float64 sequences and fields until the
@@ -49,15 +49,14 @@ void FuzzMessage(const McapReader& reader, const McapChannel& channel, const Mca
   if (channel.message_encoding != "cdr") return;
   ReadAsCdr(message.data);
   const auto schema = reader.schemas().find(channel.schema_id);
-  std::vector<std::string_view> types = {locaid::bag::ros::kImage,     locaid::bag::ros::kCompressedImage,
-                                         locaid::bag::ros::kCameraInfo, locaid::bag::ros::kImu,
-                                         locaid::bag::ros::kNavSatFix,  locaid::bag::ros::kTfMessage,
-                                         locaid::bag::ros::kTwistStamped};
+  std::vector<std::string_view> types = {
+      locaid::ros::kImage,     locaid::ros::kCompressedImage, locaid::ros::kCameraInfo,  locaid::ros::kImu,
+      locaid::ros::kNavSatFix, locaid::ros::kTfMessage,       locaid::ros::kTwistStamped};
   if (schema != reader.schemas().end()) types.insert(types.begin(), schema->second.name);
   for (const auto type : types) {
     try {
-      locaid::bag::ros::DecodeAny(type, message.data);
-    } catch (const locaid::bag::CdrError&) {
+      locaid::ros::DecodeAny(type, message.data);
+    } catch (const CdrError&) {
       // a precise error is the expected outcome for bytes that are not this type
     }
   }

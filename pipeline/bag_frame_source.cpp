@@ -1,7 +1,8 @@
 #include "pipeline/bag_frame_source.hpp"
 
-#include "bag/cdr.hpp"
-#include "bag/tf_tree.hpp"
+#include "ros/cdr.hpp"
+#include "ros/images.hpp"
+#include "ros/tf_tree.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -49,7 +50,7 @@ BagFrameSource::BagFrameSource(const std::filesystem::path& path, BagSourceOptio
     const bag::BagInventory inv =
         bag::ScanBag(preview, static_cast<uint64_t>(options_.preview_s * 1e9));
     topics_ = bag::ChooseTopics(inv, options_.topics);
-    const auto info = [&](const std::string& topic) -> const bag::ros::CameraInfo& {
+    const auto info = [&](const std::string& topic) -> const ros::CameraInfo& {
       const auto it = inv.topics.find(topic);
       if (it == inv.topics.end() || !it->second.camera_info) {
         throw std::runtime_error(path.string() + ": no camera_info message on " + topic + " in the first " +
@@ -57,10 +58,10 @@ BagFrameSource::BagFrameSource(const std::filesystem::path& path, BagSourceOptio
       }
       return *it->second.camera_info;
     };
-    const bag::ros::CameraInfo& left = info(topics_.left_info);
-    const bag::ros::CameraInfo& right = info(topics_.right_info);
+    const ros::CameraInfo& left = info(topics_.left_info);
+    const ros::CameraInfo& right = info(topics_.right_info);
     try {
-      rectified_.emplace(bag::MakeRectifiedStereo(left, right));
+      rectified_.emplace(ros::MakeRectifiedStereo(left, right));
       camera_ = rectified_->camera;
       setup_notes_.push_back(rectified_->note);
     } catch (const std::runtime_error& e) {
@@ -70,7 +71,7 @@ BagFrameSource::BagFrameSource(const std::filesystem::path& path, BagSourceOptio
 
     // T_rect_cam: the left camera's optical frame into its rectified frame.
     Eigen::Isometry3d T_rect_cam = Eigen::Isometry3d::Identity();
-    T_rect_cam.linear() = bag::RectificationRotation(left);
+    T_rect_cam.linear() = ros::RectificationRotation(left);
     const std::string& cam_frame = left.header.frame_id;
     if (!topics_.imu.empty()) {
       const std::string imu_frame = inv.topics.count(topics_.imu) ? inv.topics.at(topics_.imu).frame_id : "";
@@ -78,7 +79,7 @@ BagFrameSource::BagFrameSource(const std::filesystem::path& path, BagSourceOptio
         throw std::runtime_error(path.string() + ": no message on " + topics_.imu + " in the first " +
                                  std::to_string(options_.preview_s) + " s: cannot tell the IMU's frame");
       }
-      const auto T_imu_cam = bag::FindTransform(inv.static_transforms, imu_frame, cam_frame);
+      const auto T_imu_cam = ros::FindTransform(inv.static_transforms, imu_frame, cam_frame);
       if (!T_imu_cam) {
         throw std::runtime_error(path.string() + ": /tf_static does not connect the IMU frame '" + imu_frame +
                                  "' and the left camera frame '" + cam_frame +
@@ -93,7 +94,7 @@ BagFrameSource::BagFrameSource(const std::filesystem::path& path, BagSourceOptio
     }
     if (!topics_.gps.empty() && inv.topics.count(topics_.gps)) {
       const std::string gps_frame = inv.topics.at(topics_.gps).frame_id;
-      const auto T_cam_gps = bag::FindTransform(inv.static_transforms, cam_frame, gps_frame);
+      const auto T_cam_gps = ros::FindTransform(inv.static_transforms, cam_frame, gps_frame);
       if (T_cam_gps) {
         lever_arm_ = (T_cam0_imu_.inverse() * T_rect_cam * *T_cam_gps).translation();
       } else {
@@ -141,8 +142,8 @@ bool BagFrameSource::Fill() {
     }
     Pending p;
     try {
-      p.stamp_ns = bag::ros::DecodeHeader(m.data).stamp_ns;
-    } catch (const bag::CdrError& e) {
+      p.stamp_ns = ros::DecodeHeader(m.data).stamp_ns;
+    } catch (const ros::CdrError& e) {
       ++stats_.undecodable;
       pending_error_ = m.Where() + ": " + e.what();
       continue;
@@ -247,9 +248,9 @@ void BagFrameSource::TryPair() {
   ready_.push_back(std::move(s));
 }
 
-cv::Mat BagFrameSource::Decode(const Pending& image, const bag::Rectifier& rectifier) const {
-  const cv::Mat raw = image.type == bag::ros::kImage ? bag::ToGray(bag::ros::DecodeImage(image.data))
-                                                     : bag::ToGray(bag::ros::DecodeCompressedImage(image.data));
+cv::Mat BagFrameSource::Decode(const Pending& image, const ros::Rectifier& rectifier) const {
+  const cv::Mat raw = image.type == ros::kImage ? ros::ToGray(ros::DecodeImage(image.data))
+                                                : ros::ToGray(ros::DecodeCompressedImage(image.data));
   return rectifier.Rectify(raw);
 }
 
@@ -300,7 +301,7 @@ void BagFrameSource::AddSensor(const Pending& p) {
   };
   try {
     if (p.role == Role::kImu) {
-      const auto imu = bag::ros::DecodeImu(p.data);
+      const auto imu = ros::DecodeImu(p.data);
       if (!in_order(imu.header.stamp_ns, last_imu_ns_,
                     Finite(imu.linear_acceleration) && Finite(imu.angular_velocity), "IMU sample"))
         return;
@@ -311,12 +312,12 @@ void BagFrameSource::AddSensor(const Pending& p) {
       sensors_.imu.push_back(s);
       ++stats_.imu;
     } else if (p.role == Role::kGps) {
-      const auto nav = bag::ros::DecodeNavSatFix(p.data);
+      const auto nav = ros::DecodeNavSatFix(p.data);
       if (!in_order(nav.header.stamp_ns, last_gps_ns_, true, "fix")) return;
       const bool position = std::isfinite(nav.latitude) && std::isfinite(nav.longitude) &&
                             std::isfinite(nav.altitude) && std::abs(nav.latitude) <= 90 &&
                             std::abs(nav.longitude) <= 180;
-      if (nav.status <= bag::ros::NavSatFix::kNoFix || !position) {
+      if (nav.status <= ros::NavSatFix::kNoFix || !position) {
         sensors_.receiver_has_fix = false;
         ++stats_.no_fix;
         return;
@@ -329,14 +330,14 @@ void BagFrameSource::AddSensor(const Pending& p) {
       a.fix.sigma_h_m = options_.gps_sigma_h_m;
       a.fix.sigma_v_m = options_.gps_sigma_v_m;
       const auto& c = nav.position_covariance;
-      const bool known = nav.position_covariance_type != bag::ros::NavSatFix::kCovUnknown &&
+      const bool known = nav.position_covariance_type != ros::NavSatFix::kCovUnknown &&
                          std::all_of(c.begin(), c.end(), [](double v) { return std::isfinite(v); }) && c[0] > 0 &&
                          c[4] > 0 && c[8] > 0;
       if (known) {
         Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
         for (int i = 0; i < 3; ++i)
           for (int j = 0; j < 3; ++j)
-            if (i == j || nav.position_covariance_type != bag::ros::NavSatFix::kCovDiagonalKnown)
+            if (i == j || nav.position_covariance_type != ros::NavSatFix::kCovDiagonalKnown)
               cov(i, j) = c[static_cast<size_t>(3 * i + j)];
         a.fix.cov_enu_m2 = 0.5 * (cov + cov.transpose());
       }
@@ -344,7 +345,7 @@ void BagFrameSource::AddSensor(const Pending& p) {
       sensors_.receiver_has_fix = true;
       ++stats_.fixes;
     } else {
-      const auto twist = bag::ros::DecodeTwistStamped(p.data);
+      const auto twist = ros::DecodeTwistStamped(p.data);
       if (!in_order(twist.header.stamp_ns, last_speed_ns_, std::isfinite(twist.linear.x()), "speed reading")) return;
       fusion::SpeedSample s;
       s.t_ns = twist.header.stamp_ns;
@@ -352,7 +353,7 @@ void BagFrameSource::AddSensor(const Pending& p) {
       sensors_.speed.push_back(s);
       ++stats_.speed;
     }
-  } catch (const bag::CdrError& e) {
+  } catch (const ros::CdrError& e) {
     ++stats_.undecodable;
     pending_error_ = p.where + ": " + e.what();
   }

@@ -7,7 +7,7 @@
 // within `reorder_window_s` (a message later than that is counted and
 // dropped). Left and right images pair when their stamps are within
 // `stereo_tolerance_s`; an image without a partner is a skipped frame.
-// Raw images are rectified from their CameraInfo (bag/ros_images.hpp) and
+// Raw images are rectified from their CameraInfo (ros/camera_model.hpp) and
 // cropped to the region without border both cameras share; the
 // camera-IMU extrinsic and the GPS antenna lever arm come from /tf_static.
 //
@@ -22,8 +22,8 @@
 
 #include "bag/bag_topics.hpp"
 #include "bag/ros_bag.hpp"
-#include "bag/ros_images.hpp"
 #include "pipeline/frame_source.hpp"
+#include "ros/camera_model.hpp"
 
 #include <Eigen/Geometry>
 
@@ -102,13 +102,13 @@ class BagFrameSource : public FrameSource {
   void AddSensor(const Pending& p);
   void TryPair();
   SourceItem MakeFrame(Pending left, Pending right);
-  cv::Mat Decode(const Pending& image, const bag::Rectifier& rectifier) const;
+  cv::Mat Decode(const Pending& image, const ros::Rectifier& rectifier) const;
 
   BagSourceOptions options_;
   std::unique_ptr<bag::RosBag> bag_;
   bag::BagTopics topics_;
   StereoCamera camera_;
-  std::optional<bag::RectifiedStereo> rectified_;  // both rectifiers, cropped to what both cameras see
+  std::optional<ros::RectifiedStereo> rectified_;  // both rectifiers, cropped to what both cameras see
   Eigen::Isometry3d T_cam0_imu_ = Eigen::Isometry3d::Identity();
   Eigen::Vector3d lever_arm_ = Eigen::Vector3d::Zero();
   std::vector<std::string> setup_notes_;

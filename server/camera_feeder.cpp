@@ -23,7 +23,7 @@ std::string SizeText(int w, int h) { return std::to_string(w) + "x" + std::to_st
 }  // namespace
 
 CameraFeeder::CameraFeeder(const CameraSetup& setup, pipeline::LiveFrameSource* sink)
-    : setup_(setup), sink_(sink), rectified_(bag::MakeRectifiedStereo(setup.left_info, setup.right_info)) {
+    : setup_(setup), sink_(sink), rectified_(ros::MakeRectifiedStereo(setup.left_info, setup.right_info)) {
   if (!setup_.stereo_pipeline.empty()) {
     captures_.push_back(
         std::make_unique<sensors::GstCapture>("stereo camera", setup_.stereo_pipeline, std::vector<std::string>{"left", "right"}));
@@ -47,7 +47,7 @@ std::unique_ptr<CameraFeeder> CameraFeeder::Open(const CameraSetup& setup, pipel
     return nullptr;
   }
   // Each camera's first frame: it must come, and fit its camera_info.
-  const std::pair<Side*, const bag::ros::CameraInfo*> sides[] = {{&f->left_, &setup.left_info},
+  const std::pair<Side*, const ros::CameraInfo*> sides[] = {{&f->left_, &setup.left_info},
                                                                    {&f->right_, &setup.right_info}};
   for (const auto& [side, info] : sides) {
     const std::string name = side == &f->left_ ? "left camera" : "right camera";

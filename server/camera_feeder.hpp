@@ -1,7 +1,7 @@
 // A live session's stereo cameras read by the server itself through
 // GStreamer (LiveSource.cameras), on one thread of its own owned by the live
 // source it feeds: frames are paired by stamp, rectified from the cameras'
-// camera_info as a bag's images are (bag::MakeRectifiedStereo), stamped on
+// camera_info as a bag's images are (ros::MakeRectifiedStereo), stamped on
 // the session clock and handed on without blocking. A camera that ends,
 // fails or stalls makes the session's poses say so (vo_health NO_IMAGES
 // ticks, so the filter goes on with IMU, GPS and speed) and is restarted
@@ -13,8 +13,8 @@
 // spacing their PTS give them.
 #pragma once
 
-#include "bag/ros_images.hpp"
 #include "pipeline/live_frame_source.hpp"
+#include "ros/camera_model.hpp"
 #include "sensors/gst_camera.hpp"
 #include "server/live_source_request.hpp"
 
@@ -70,7 +70,7 @@ class CameraFeeder final : public pipeline::InputFeeder {
 
   CameraSetup setup_;
   pipeline::LiveFrameSource* const sink_;
-  bag::RectifiedStereo rectified_;
+  ros::RectifiedStereo rectified_;
   std::vector<std::unique_ptr<sensors::GstCapture>> captures_;
   Side left_, right_;
   int64_t clock_to_session_ns_ = 0;  // session time = GStreamer clock + this

@@ -1,7 +1,7 @@
 #include "server/live_source_request.hpp"
 
-#include "bag/camera_info_yaml.hpp"
-#include "bag/ros_images.hpp"
+#include "ros/camera_info_yaml.hpp"
+#include "ros/camera_model.hpp"
 #include "server/quoted.hpp"
 
 #include <cmath>
@@ -118,13 +118,13 @@ std::string ParseCameras(const v1::LiveSource& l, LiveSourceSetup* out) {
   s.right_pipeline = c.right_pipeline();
   s.stereo_pipeline = c.stereo_pipeline();
   try {
-    s.left_info = bag::ParseCameraInfoYaml(c.left_camera_info(), "live.cameras.left_camera_info");
-    s.right_info = bag::ParseCameraInfoYaml(c.right_camera_info(), "live.cameras.right_camera_info");
+    s.left_info = ros::ParseCameraInfoYaml(c.left_camera_info(), "live.cameras.left_camera_info");
+    s.right_info = ros::ParseCameraInfoYaml(c.right_camera_info(), "live.cameras.right_camera_info");
   } catch (const std::exception& e) {
     return std::string(e.what());  // names the field
   }
   try {
-    out->camera.camera = bag::MakeRectifiedStereo(s.left_info, s.right_info).camera;
+    out->camera.camera = ros::MakeRectifiedStereo(s.left_info, s.right_info).camera;
   } catch (const std::exception& e) {
     return std::string("live.cameras: ") + e.what();
   }
@@ -178,7 +178,7 @@ std::string LiveSourceFromProto(const v1::LiveSource& in, const Eigen::Isometry3
     // already.
     if (in.t_cam0_imu_size() > 0) {
       Eigen::Isometry3d T_rect_cam = Eigen::Isometry3d::Identity();
-      T_rect_cam.linear() = bag::RectificationRotation(out->cameras->left_info);
+      T_rect_cam.linear() = ros::RectificationRotation(out->cameras->left_info);
       out->camera.T_cam0_imu = T_rect_cam * out->camera.T_cam0_imu;
     }
   } else if (std::string e = ParseCamera(in, default_T_cam0_imu, &out->camera); !e.empty()) {

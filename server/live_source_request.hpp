@@ -5,9 +5,9 @@
 // starts its streams from fuzzed sources.
 #pragma once
 
-#include "bag/ros_messages.hpp"
 #include "locaid/v1/localization.pb.h"
 #include "pipeline/live_frame_source.hpp"
+#include "ros/messages.hpp"
 #include "server/gps_receiver.hpp"
 
 #include <Eigen/Core>
@@ -24,7 +24,7 @@ inline constexpr double kDefaultGpsDelayS = 0.5, kMaxGpsDelayS = 10.0;
 // LiveSource.cameras, checked: what CameraFeeder opens.
 struct CameraSetup {
   std::string left_pipeline, right_pipeline, stereo_pipeline;  // two cameras, or one stereo pipeline
-  bag::ros::CameraInfo left_info, right_info;
+  ros::CameraInfo left_info, right_info;
   double pair_tolerance_s = 0.010;
   double stall_timeout_s = 1.0;
 };

@@ -19,8 +19,9 @@ import tempfile
 # Layer of each library module (lower number = lower layer).
 LAYERS = {
     "core": 0, "fusion": 0, "record": 0, "locaid": 0,  # "locaid/v1/...": the generated API (proto/)
-    "kitti": 1, "bag": 1, "sim": 1, "sensors": 2,
-    "vo": 1, "synth": 3, "eval": 3,
+    "kitti": 1, "ros": 1, "sim": 1, "vo": 1,  # ros/: ROS 2 messages and the camera model, no bags
+    "bag": 2, "sensors": 2,
+    "synth": 3, "eval": 3,
     "pipeline": 4,
     "output": 5, "connection": 5, "sweep": 5,
     "server": 6, "foxglove": 6,
@@ -28,8 +29,8 @@ LAYERS = {
 PROGRAMS = 5.5   # apps/ folders and clients/: above output/ and connection/, below server/ and foxglove/
 ANYTHING = 100   # tests/, bench/, fuzz/
 LAYERS["clients"] = PROGRAMS
-SCANNED = ["core", "fusion", "record", "kitti", "bag", "sim", "sensors", "synth", "eval", "vo", "pipeline", "output",
-           "connection", "sweep", "server", "foxglove", "clients", "tests", "bench", "fuzz"]
+SCANNED = ["core", "fusion", "record", "kitti", "ros", "bag", "sim", "sensors", "synth", "eval", "vo", "pipeline",
+           "output", "connection", "sweep", "server", "foxglove", "clients", "tests", "bench", "fuzz"]
 INCLUDE = re.compile(r'^\s*#\s*include\s+"(([a-z_0-9]+)/[^"]*)"')
 
 
@@ -44,6 +45,7 @@ def layer_of(rel: pathlib.PurePosixPath) -> float:
 def self_test() -> int:
     planted = {
         "kitti/reader.cpp": '#include "server/session.hpp"\n',        # library into a higher library
+        "ros/camera.cpp": '#include "bag/ros_bag.hpp"\n',              # ROS messages into bag files
         "pipeline/apps/tool.cpp": '#include "foxglove/ws_server.hpp"\n',  # program into the bridge
         "server/x.cpp": '#include "clients/recorder.hpp"\n',         # into a folder of programs
     }

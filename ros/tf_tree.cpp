@@ -1,12 +1,12 @@
-#include "bag/tf_tree.hpp"
+#include "ros/tf_tree.hpp"
 
 #include <map>
 #include <queue>
 #include <utility>
 
-namespace locaid::bag {
+namespace locaid::ros {
 
-std::optional<Eigen::Isometry3d> FindTransform(const std::vector<ros::TransformStamped>& transforms,
+std::optional<Eigen::Isometry3d> FindTransform(const std::vector<TransformStamped>& transforms,
                                                const std::string& a, const std::string& b) {
   // Undirected edges: from each frame, the neighbour and T_frame_neighbour.
   std::multimap<std::string, std::pair<std::string, Eigen::Isometry3d>> edges;
@@ -33,4 +33,4 @@ std::optional<Eigen::Isometry3d> FindTransform(const std::vector<ros::TransformS
   return std::nullopt;
 }
 
-}  // namespace locaid::bag
+}  // namespace locaid::ros

@@ -1,7 +1,7 @@
 // A camera's calibration from a ROS camera_info YAML file: the format
 // camera_calibration_parsers reads and writes (and ROS's camera_calibration
 // tool saves), so a live camera is rectified exactly like a bag's images
-// (Rectifier, StereoFromCameraInfo in bag/ros_images.hpp):
+// (Rectifier, StereoFromCameraInfo in ros/camera_model.hpp):
 //
 //   image_width: 1392
 //   image_height: 512
@@ -20,21 +20,21 @@
 // binning and ROI stay at their defaults (none, full image).
 #pragma once
 
-#include "bag/ros_messages.hpp"
+#include "ros/messages.hpp"
 
 #include <string>
 
-namespace locaid::bag {
+namespace locaid::ros {
 
 // Parses the text of a camera_info YAML file; `where` names it in errors (a
 // path or "left camera_info"). Throws std::invalid_argument as
 // "<where>: <key>: <reason>", e.g. "left.yaml: camera_matrix: expected 9
 // numbers (rows 3 x cols 3), got 8"; YAML syntax errors give the line and
 // column.
-ros::CameraInfo ParseCameraInfoYaml(const std::string& text, const std::string& where);
+CameraInfo ParseCameraInfoYaml(const std::string& text, const std::string& where);
 
 // Reads the file at `path` and parses it; errors name the path (a file that
 // cannot be read: with the system's reason).
-ros::CameraInfo ReadCameraInfoYaml(const std::string& path);
+CameraInfo ReadCameraInfoYaml(const std::string& path);
 
-}  // namespace locaid::bag
+}  // namespace locaid::ros

@@ -1,8 +1,9 @@
-// The ROS 2 messages a bag source reads, decoded from CDR (cdr.hpp) into
-// plain structs. Layouts are the ROS 2 (Humble and later) definitions of
-// sensor_msgs, geometry_msgs, tf2_msgs and std_msgs; each decoder reads the
-// fields in declaration order and throws CdrError on a truncated or lying
-// message. Image payloads stay views into the message bytes.
+// The ROS 2 messages locaid reads (a bag's; a live camera's CameraInfo),
+// decoded from CDR (cdr.hpp) into plain structs. Layouts are the ROS 2
+// (Humble and later) definitions of sensor_msgs, geometry_msgs, tf2_msgs and
+// std_msgs; each decoder reads the fields in declaration order and throws
+// CdrError on a truncated or lying message. Image payloads stay views into
+// the message bytes.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -13,7 +14,7 @@
 #include <string_view>
 #include <vector>
 
-namespace locaid::bag::ros {
+namespace locaid::ros {
 
 // The ROS 2 type names (as a bag's schema names them) this file decodes.
 inline constexpr std::string_view kImage = "sensor_msgs/msg/Image";
@@ -104,4 +105,4 @@ TwistStamped DecodeTwistStamped(std::string_view cdr);
 // true when the type is one of them (what the fuzz target exercises).
 bool DecodeAny(std::string_view type, std::string_view cdr);
 
-}  // namespace locaid::bag::ros
+}  // namespace locaid::ros

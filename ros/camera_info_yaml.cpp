@@ -1,4 +1,4 @@
-#include "bag/camera_info_yaml.hpp"
+#include "ros/camera_info_yaml.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-namespace locaid::bag {
+namespace locaid::ros {
 namespace {
 
 constexpr long long kMaxImageSide = 20000;
@@ -109,7 +109,7 @@ size_t CoefficientsOf(const std::string& model) {
 }
 
 // distortion_model against distortion_coefficients (already in info.d).
-void ReadDistortionModel(const Ctx& c, const YAML::Node& root, ros::CameraInfo& info) {
+void ReadDistortionModel(const Ctx& c, const YAML::Node& root, CameraInfo& info) {
   const YAML::Node n = root["distortion_model"];
   if (!n.IsDefined() || n.IsNull()) {
     // camera_calibration_parsers would assume plumb_bob; refusing makes a
@@ -146,10 +146,10 @@ YAML::Node Load(const std::string& text, const std::string& where) {
 
 }  // namespace
 
-ros::CameraInfo ParseCameraInfoYaml(const std::string& text, const std::string& where) {
+CameraInfo ParseCameraInfoYaml(const std::string& text, const std::string& where) {
   const Ctx c{where};
   const YAML::Node root = Load(text, where);
-  ros::CameraInfo info;
+  CameraInfo info;
   info.width = ImageSide(c, root, "image_width");
   info.height = ImageSide(c, root, "image_height");
   if (root["camera_name"]) Text(c, root["camera_name"], "camera_name");  // checked only: CameraInfo has no name
@@ -164,7 +164,7 @@ ros::CameraInfo ParseCameraInfoYaml(const std::string& text, const std::string& 
   return info;
 }
 
-ros::CameraInfo ReadCameraInfoYaml(const std::string& path) {
+CameraInfo ReadCameraInfoYaml(const std::string& path) {
   // stdio rather than ifstream: fopen and fread set errno, so the message can
   // say why (no such file, permission denied, is a directory).
   std::FILE* f = std::fopen(path.c_str(), "rb");
@@ -179,4 +179,4 @@ ros::CameraInfo ReadCameraInfoYaml(const std::string& path) {
   return ParseCameraInfoYaml(text, path);
 }
 
-}  // namespace locaid::bag
+}  // namespace locaid::ros

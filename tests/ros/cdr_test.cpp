@@ -1,7 +1,7 @@
 // CdrReader: both byte orders, alignment counted from the end of the
 // encapsulation header, strings, sequences, and errors on every cut.
-#include "bag/cdr.hpp"
 #include "error_of.hpp"
+#include "ros/cdr.hpp"
 
 #include <gtest/gtest.h>
 
@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-namespace locaid::bag {
+namespace locaid::ros {
 namespace {
 
 using test_support::ErrorOf;
@@ -198,4 +198,4 @@ TEST(CdrReader, RefusesEncapsulationsOtherThanPlainCdr) {
 }
 
 }  // namespace
-}  // namespace locaid::bag
+}  // namespace locaid::ros

@@ -1,10 +1,10 @@
-#include "bag/ros_messages.hpp"
+#include "ros/messages.hpp"
 
-#include "bag/cdr.hpp"
+#include "ros/cdr.hpp"
 
 #include <cmath>
 
-namespace locaid::bag::ros {
+namespace locaid::ros {
 namespace {
 
 Header ReadHeader(CdrReader& r) {
@@ -167,4 +167,4 @@ bool DecodeAny(std::string_view type, std::string_view cdr) {
   return true;
 }
 
-}  // namespace locaid::bag::ros
+}  // namespace locaid::ros

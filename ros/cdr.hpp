@@ -17,7 +17,7 @@
 #include <string>
 #include <string_view>
 
-namespace locaid::bag {
+namespace locaid::ros {
 
 class CdrError : public std::runtime_error {
  public:
@@ -64,4 +64,4 @@ class CdrReader {
   bool swap_ = false;  // the message's byte order is not the host's
 };
 
-}  // namespace locaid::bag
+}  // namespace locaid::ros

@@ -2,9 +2,9 @@
 // 2011_09_26 calibration written as ROS's camera_calibration tool writes it
 // parses to exactly its numbers and rectifies; every malformed file names the
 // file, the key and the reason.
-#include "bag/camera_info_yaml.hpp"
-#include "bag/ros_images.hpp"
 #include "error_of.hpp"
+#include "ros/camera_info_yaml.hpp"
+#include "ros/camera_model.hpp"
 #include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-namespace locaid::bag {
+namespace locaid::ros {
 namespace {
 
 using test_support::ScopedTempDir;
@@ -96,7 +96,7 @@ TEST(CameraInfoYaml, KittiCam0FileParsesToItsCalibrationAndRectifies) {
   const std::string path = (dir / "left.yaml").string();
   std::ofstream(path) << kCam0;
 
-  const ros::CameraInfo info = ReadCameraInfoYaml(path);
+  const CameraInfo info = ReadCameraInfoYaml(path);
   EXPECT_EQ(info.width, 1392u);
   EXPECT_EQ(info.height, 512u);
   EXPECT_EQ(info.distortion_model, "plumb_bob");
@@ -117,8 +117,8 @@ TEST(CameraInfoYaml, KittiCam0FileParsesToItsCalibrationAndRectifies) {
 }
 
 TEST(CameraInfoYaml, KittiStereoPairInFlowStyleGivesItsBaseline) {
-  const ros::CameraInfo left = ParseCameraInfoYaml(kCam0, "left camera_info");
-  const ros::CameraInfo right = ParseCameraInfoYaml(kCam1, "right camera_info");
+  const CameraInfo left = ParseCameraInfoYaml(kCam0, "left camera_info");
+  const CameraInfo right = ParseCameraInfoYaml(kCam1, "right camera_info");
   EXPECT_EQ(right.k[0], 9.895267e+02);
   EXPECT_EQ(right.p[3], -3.875744e+02);
   EXPECT_TRUE(right.header.frame_id.empty());  // extra keys are ignored, not read
@@ -135,7 +135,7 @@ TEST(CameraInfoYaml, NoDistortionNeedsNoModel) {
   text = Replace(text, "9.999239e-01, 9.837760e-03, -7.445048e-03, -9.869795e-03, 9.999421e-01, -4.278459e-03, "
                        "7.402527e-03, 4.351614e-03, 9.999631e-01",
                  "1, 0, 0, 0, 1, 0, 0, 0, 1");
-  const ros::CameraInfo info = ParseCameraInfoYaml(text, "left.yaml");
+  const CameraInfo info = ParseCameraInfoYaml(text, "left.yaml");
   EXPECT_TRUE(info.d.empty());
   EXPECT_TRUE(info.distortion_model.empty());
   EXPECT_TRUE(Rectifier(info).passthrough());
@@ -145,11 +145,11 @@ TEST(CameraInfoYaml, NoDistortionNeedsNoModel) {
 }
 
 TEST(CameraInfoYaml, RationalPolynomialAndEquidistantTakeTheirCounts) {
-  const ros::CameraInfo rational =
+  const CameraInfo rational =
       ParseCameraInfoYaml(WithDistortion("rational_polynomial", "-0.37, 0.2, 0.002, 0.001, -0.07, 0, 0, 0", 8), "x");
   EXPECT_EQ(rational.d.size(), 8u);
   EXPECT_NO_THROW(Rectifier{rational});
-  const ros::CameraInfo fisheye = ParseCameraInfoYaml(WithDistortion("equidistant", "0.01, 0, 0, 0", 4), "x");
+  const CameraInfo fisheye = ParseCameraInfoYaml(WithDistortion("equidistant", "0.01, 0, 0, 0", 4), "x");
   EXPECT_EQ(fisheye.distortion_model, "equidistant");
   EXPECT_NO_THROW(Rectifier{fisheye});
 }
@@ -271,4 +271,4 @@ TEST(CameraInfoYaml, UnreadableFileGivesTheSystemReason) {
 }
 
 }  // namespace
-}  // namespace locaid::bag
+}  // namespace locaid::ros

@@ -1,11 +1,12 @@
-// From ROS 2 image messages to the rectified 8-bit gray images VO reads:
-// decoding (raw encodings and png/jpeg) and rectification from CameraInfo as
-// image_proc does it (the rectified camera is P's left 3x3, the output has
-// CameraInfo's size; Rectifier::valid_region() is the part without border).
+// The camera model of a sensor_msgs/CameraInfo: rectification as image_proc
+// does it (the rectified camera is P's left 3x3, the output has CameraInfo's
+// size; Rectifier::valid_region() is the part without border) and the
+// rectified stereo pair of two cameras. Decoding the images themselves:
+// ros/images.hpp.
 #pragma once
 
-#include "bag/ros_messages.hpp"
 #include "core/stereo_camera.hpp"
+#include "ros/messages.hpp"
 
 #include <opencv2/core.hpp>
 
@@ -13,15 +14,7 @@
 
 #include <string>
 
-namespace locaid::bag {
-
-// 8-bit gray of an Image: mono8 as is, mono16 (either byte order) scaled by
-// 1/256, rgb8 / bgr8 / rgba8 / bgra8 to gray, bayer_{rggb,bggr,gbrg,grbg}8
-// demosaiced to gray. Throws std::runtime_error naming the encoding, or the
-// size that disagrees with step * height.
-cv::Mat ToGray(const ros::Image& image);
-// png or jpeg (by the format string, else by the data's signature).
-cv::Mat ToGray(const ros::CompressedImage& image);
+namespace locaid::ros {
 
 // Rectifies the raw images of one camera. When D is all zero and R the
 // identity the images are taken as already rectified (no remap). Throws
@@ -30,7 +23,7 @@ cv::Mat ToGray(const ros::CompressedImage& image);
 // ROI (not supported).
 class Rectifier {
  public:
-  explicit Rectifier(const ros::CameraInfo& info);
+  explicit Rectifier(const CameraInfo& info);
   // `raw` must have CameraInfo's width x height (throws otherwise).
   cv::Mat Rectify(const cv::Mat& raw) const;
   bool passthrough() const { return map1_.empty(); }
@@ -55,7 +48,7 @@ class Rectifier {
 // from the left P, the baseline from the right P's Tx = -fx * baseline.
 // Throws when the two sizes or intrinsics disagree or the baseline is not
 // positive.
-StereoCamera StereoFromCameraInfo(const ros::CameraInfo& left, const ros::CameraInfo& right);
+StereoCamera StereoFromCameraInfo(const CameraInfo& left, const CameraInfo& right);
 
 // Both cameras' rectifiers and the stereo model VO sees: the rectified
 // images keep only the part every pixel of which has a source in both raw
@@ -68,10 +61,10 @@ struct RectifiedStereo {
   cv::Rect crop;
   std::string note;  // "rectified images cropped to WxH at (x, y) of WxH (no border)"
 };
-RectifiedStereo MakeRectifiedStereo(const ros::CameraInfo& left, const ros::CameraInfo& right);
+RectifiedStereo MakeRectifiedStereo(const CameraInfo& left, const CameraInfo& right);
 
 // The rotation from the left camera's optical frame into its rectified frame
 // (CameraInfo's R).
-Eigen::Matrix3d RectificationRotation(const ros::CameraInfo& info);
+Eigen::Matrix3d RectificationRotation(const CameraInfo& info);
 
-}  // namespace locaid::bag
+}  // namespace locaid::ros

@@ -1,11 +1,11 @@
-#include "bag/cdr.hpp"
+#include "ros/cdr.hpp"
 
 #include <bit>
 #include <cstdio>
 #include <cstring>
 #include <utility>
 
-namespace locaid::bag {
+namespace locaid::ros {
 namespace {
 
 constexpr size_t kHeaderBytes = 4;  // encapsulation kind (2 bytes) + options (2 bytes)
@@ -138,4 +138,4 @@ const char* CdrReader::Take(size_t n, const char* what) {
   return p;
 }
 
-}  // namespace locaid::bag
+}  // namespace locaid::ros
