@@ -35,6 +35,7 @@ std::vector<EkfSetting> NumericEkfSettings(EkfConfig& c) {
       {"vo.noise_window_frames", "vo_noise_window_frames", &c.vo.noise_window_frames},
       {"vo.noise_scale_min", "vo_noise_scale_min", &c.vo.noise_scale_min},
       {"vo.noise_scale_max", "vo_noise_scale_max", &c.vo.noise_scale_max},
+      {"vo.noise_rotation_scale_max", "vo_noise_rotation_scale_max", &c.vo.noise_rotation_scale_max},
       {"vo.adaptive_rotation_noise_max_scale", "adaptive_vo_rotation_noise_max_scale",
        &c.vo.adaptive_rotation_noise_max_scale},
       {"vehicle.nhc_sigma_lateral_mps", "nhc_sigma_lateral_mps", &c.vehicle.nhc_sigma_lateral_mps},

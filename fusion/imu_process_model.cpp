@@ -297,6 +297,11 @@ class ImuProcessModel final : public ProcessModel {
     if (!config_.vo.learn_noise) return;
     for (int i = 0; i < 6; ++i) vo_noise_.Add(i, r[i], S(i, i) - Rvo(i, i), Rvo(i, i) / applied[i]);
     vo_noise_scale_ = vo_noise_.scale();
+    // While the adaptation takes the rotation axes, the learner's scale there
+    // is held at most at vo.noise_rotation_scale_max (1: the model).
+    if (adapt_rotation_)
+      vo_noise_scale_.tail<3>() = vo_noise_scale_.tail<3>().cwiseMin(
+          std::max(config_.vo.noise_scale_min, config_.vo.noise_rotation_scale_max));
   }
 
   void AdaptVoRotationNoise(const Vec3& r_rot, const Mat3& S_rot) {

@@ -112,9 +112,10 @@ void AddOptions(CLI::App& app, ReplayArgs& a) {
                "the fixed VO noise model: neither learnt nor adapted from the innovations (docs/api.md \"Learned noise\")");
   app.add_flag("--fixed-gps-noise", a.fixed_gps_noise, "the fixes' stated sigmas as they are, not a learnt multiple");
   app.add_option("--vo-rotation-noise", a.vo_rotation_noise,
-                 "the VO rotation axes' noise: adaptive (default: each axis takes the larger of the learnt "
-                 "scale and one adapted from the rotation innovations at every update, outages included) or "
-                 "learned (the learnt scale only); --fixed-vo-noise: the fixed model, neither")
+                 "the VO rotation axes' noise: adaptive (default: adapted from the rotation innovations at "
+                 "every update, outages included; the learnt scale only up to --ekf "
+                 "vo.noise_rotation_scale_max, default 1) or learned (the learnt scale only); "
+                 "--fixed-vo-noise: the fixed model, neither")
       ->check(CLI::IsMember({"adaptive", "learned"}));
   app.add_option("--vehicle-constraints", a.vehicle_constraints,
                  "car motion constraints (non-holonomic, zero-velocity updates): auto (once a speed sensor "
