@@ -8,8 +8,9 @@ The published values are in bench/figures.tsv, one figure a line:
   run      the measurement that produces it (the RUNS table below: a command)
   keys     comma-separated names of the run's values, one per number in `published`
   published  the text as docs/benchmarks.md prints it, e.g. "2.11 / 4.68 / 8.04"
-  anchor   a text that is on exactly one line of docs/benchmarks.md; `published`
-           must be on that same line (so the document and the file cannot drift)
+  anchor   a text that is on exactly one line of the documents (DOCS: docs/benchmarks.md
+           and the detail tables moved out of it); `published` must be on that same
+           line (so the documents and the file cannot drift)
 
 Every number in `published` is compared with its key's value rounded to the
 same number of decimals (thousands commas and a leading + are kept). A line
@@ -44,6 +45,8 @@ import time
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 REAL = "raw/2011_09_26/2011_09_26_drive_unknown_extract"
+# The documents the published figures are on: benchmarks.md and the detail tables moved out of it.
+DOCS = ["docs/benchmarks.md", "docs/experiments/vo-synthetic-drives.md"]
 # A number as printed: 1,009 / 0.957 / +0.15; a '-' right after a digit is a range ("0.267-0.419"), not a sign.
 NUMBER = re.compile(r"(?:(?<![\w.])[+-])?(?:\d{1,3}(?:,\d{3})+|\d+)(?:\.\d+)?")
 
@@ -552,9 +555,9 @@ def doc_check(fig, doc_lines):
     """'' if `published` is on the one line holding `anchor`, else what is wrong."""
     lines = [l for l in doc_lines if fig["anchor"] in l]
     if len(lines) != 1:
-        return f"anchor '{fig['anchor']}' is on {len(lines)} lines of docs/benchmarks.md (want 1)"
+        return f"anchor '{fig['anchor']}' is on {len(lines)} lines of the documents (want 1)"
     if fig["published"] not in lines[0]:
-        return f"'{fig['published']}' is not on the line of '{fig['anchor']}' in docs/benchmarks.md"
+        return f"'{fig['published']}' is not on the line of '{fig['anchor']}'"
     return ""
 
 
@@ -567,7 +570,8 @@ def main():
     ap.add_argument("--data", default=os.path.join(ROOT, "..", "shared", "data", "kitti"),
                     help="shared KITTI excerpts (../shared/data/kitti)")
     ap.add_argument("--figures", default=os.path.join(HERE, "figures.tsv"), help="published values")
-    ap.add_argument("--doc", default=os.path.join(ROOT, "docs", "benchmarks.md"), help="the document")
+    ap.add_argument("--doc", action="append", metavar="FILE",
+                    help="a document the figures are on (repeatable; default: " + ", ".join(DOCS) + ")")
     ap.add_argument("--work", help="scratch folder for drives, VO caches and MCAP files (default: a new "
                                    "temporary folder, removed at the end)")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel replays in sweeps")
@@ -579,8 +583,10 @@ def main():
             ap.error(f"--only {r}: unknown run (known: {', '.join(RUNS)})")
 
     figures = read_figures(args.figures)
-    with open(args.doc) as f:
-        doc_lines = f.read().splitlines()
+    doc_lines = []
+    for doc in args.doc or [os.path.join(ROOT, d) for d in DOCS]:
+        with open(doc) as f:
+            doc_lines += f.read().splitlines()
     selected = [r for r in RUNS if (not args.only or r in args.only) and (not args.fast or RUNS[r][0])]
     # Every line of figures.tsv against the document, whatever runs: cheap, and
     # a published value changed in one place only shows up in --fast too.
