@@ -93,6 +93,11 @@ need=()
 if [[ $ENGINE == podman ]]; then
   command -v podman >/dev/null || need+=(podman)
   command -v runc >/dev/null || need+=(runc)
+  # deploy/compose.yaml (step 8): podman-compose, and on podman's CNI network
+  # backend (Debian 12's) the dnsname plugin, without which the services of
+  # a compose project cannot resolve each other's names.
+  command -v podman-compose >/dev/null || need+=(podman-compose)
+  [[ -x /usr/lib/cni/dnsname ]] || need+=(golang-github-containernetworking-plugin-dnsname)
 else
   command -v docker >/dev/null || fail "--engine docker: no docker command"
   docker info >/dev/null 2>&1 || fail "--engine docker: the Docker engine does not answer (docker info); start dockerd"
@@ -108,6 +113,7 @@ if [[ $ENGINE == podman ]]; then
   note "podman $(podman --version | awk '{print $3}'), storage $(podman info --format '{{.Store.GraphDriverName}}')"
 else
   note "docker engine $(docker version --format '{{.Server.Version}}'), storage $(docker info --format '{{.Driver}}')"
+  docker compose version >/dev/null 2>&1 || fail "--engine docker: no 'docker compose' (the Compose plugin) for deploy/compose.yaml"
 fi
 
 # ------------------------------------------------------------- base ----
@@ -268,6 +274,7 @@ cleanup() {
     [[ -n ${cmnt:-} ]] && { umount "$cmnt/proc" "$cmnt/dev" 2>/dev/null; }
   fi
   if ((KEEP == 0)); then "$ENGINE" rm -f "$NAME" >/dev/null 2>&1; fi
+  [[ -n ${proj:-} ]] && ((KEEP == 0)) && compose_down >/dev/null 2>&1
 }
 trap cleanup EXIT
 
@@ -443,6 +450,156 @@ ms=$((($(date +%s%N) - t0) / 1000000))
 ((rc == 0)) || { echo "$log" | tail -n 20 >&2; fail "server exit code $rc after SIGTERM"; }
 grep -q 'locaid-server: stopped' <<<"$log" || fail "no 'locaid-server: stopped' in the log"
 note "SIGTERM: exit code 0 after $ms ms; log ends: $(tail -n1 <<<"$log")"
+
+# 8. deploy/compose.yaml as a user brings it up (podman-compose; docker
+#    compose with --engine docker) against this image, under a project name
+#    of its own and on free loopback ports: the server plays its demo session,
+#    the recorder finds it by the service name `server` and writes its poses
+#    into the `records` volume, the Foxglove bridge follows it. Then down -v,
+#    and the project's containers, network and volumes must be gone.
+proj=""
+compose_down() {  # brings the project down and removes what it made
+  local net=${proj}_default br=""
+  [[ $ENGINE == podman ]] && br=$(podman network inspect --format '{{.NetworkInterface}}' "$net" 2>/dev/null || true)
+  compose down -v -t 20 || return 1
+  # podman-compose 1.0.3 leaves the project's network (docker compose removes it)
+  if [[ $ENGINE == podman ]] && podman network exists "$net"; then podman network rm "$net" >/dev/null || return 1; fi
+  # the dnsname plugin leaves its INPUT rule for the bridge's DNS port behind
+  if [[ -n $br ]] && ! ip link show "$br" >/dev/null 2>&1 &&
+    iptables -C INPUT -i "$br" -p udp -m udp --dport 53 -j ACCEPT 2>/dev/null; then
+    iptables -D INPUT -i "$br" -p udp -m udp --dport 53 -j ACCEPT
+  fi
+}
+if [[ $mode == chroot ]]; then
+  [[ -n ${CI:-} && ${CI} != 0 && ${CI} != false ]] && fail "compose: podman cannot run containers here, and CI is set"
+  note "compose: SKIPPED, podman cannot run containers here (chroot path)"
+else
+  proj=locaid-test-$$
+  cport=$((PORT + 1)) fport=$((PORT + 2))
+  if [[ $ENGINE == podman ]]; then
+    ccmd=(podman-compose)
+    [[ $mode == podman-runc ]] && ccmd+=(--podman-args "--runtime runc")
+    ccmd+=(-p "$proj" -f "$ROOT/deploy/compose.yaml")
+    cversion="podman-compose $(podman-compose version 2>/dev/null | awk '/podman-compose/ {print $NF; exit}')"
+  else
+    ccmd=(docker compose -p "$proj" -f "$ROOT/deploy/compose.yaml")
+    cversion="docker compose $(docker compose version --short)"
+  fi
+  # The compose file's own defaults, but for the image and the host ports.
+  compose() {
+    env -u KITTI_DIR -u LOCAID_DEMO_DRIVE -u LOCAID_DEMO_FRAMES -u LOCAID_DEMO_SCENARIO \
+      LOCAID_IMAGE="$TAG" LOCAID_PORT="$cport" LOCAID_FOXGLOVE_PORT="$fport" "${ccmd[@]}" "$@"
+  }
+  cid_of() {  # the project's container of a service (both tools set these labels)
+    "$ENGINE" ps -a -q --filter "label=com.docker.compose.project=$proj" \
+      --filter "label=com.docker.compose.service=$1" | head -n1
+  }
+  cstate() { "$ENGINE" inspect --format '{{.State.Status}} exit={{.State.ExitCode}}' "$1" 2>&1; }
+  clog() { "$ENGINE" logs "$1" 2>&1 | tail -n 30; }
+  for p in "$cport" "$fport"; do
+    if (exec 3<>"/dev/tcp/127.0.0.1/$p") 2>/dev/null; then fail "compose: port $p is in use (--port N moves it)"; fi
+  done
+  tc0=$(date +%s)
+  # podman-compose exits 0 even when a container does not start: the
+  # containers' states below are the check.
+  compose up -d --no-build >"$STATE/compose-up.log" 2>&1 ||
+    { tail -n 30 "$STATE/compose-up.log" >&2; fail "compose up -d (log $STATE/compose-up.log)"; }
+  csrv=$(cid_of server) crec=$(cid_of recorder) cfox=$(cid_of foxglove)
+  for c in "server:$csrv" "recorder:$crec" "foxglove:$cfox"; do
+    [[ -n ${c#*:} ]] || { tail -n 30 "$STATE/compose-up.log" >&2; fail "compose: no container for service ${c%%:*}"; }
+  done
+  if [[ $ENGINE == podman ]]; then
+    dns=$(podman network inspect --format '{{.DNSEnabled}}' "${proj}_default")
+    [[ $dns == true ]] || fail "compose: network ${proj}_default resolves no names (dns_enabled=$dns; dnsname plugin missing?)"
+  fi
+  tc1=$(date +%s)
+  until h=$("$ENGINE" exec "$csrv" locaid --server 127.0.0.1:50051 health 2>&1) && [[ $h == SERVING ]]; do
+    (($(date +%s) - tc1 < 60)) || {
+      grep -iE 'error' "$STATE/compose-up.log" | tail -n 10 >&2
+      echo "server: $(cstate "$csrv")" >&2; clog "$csrv" >&2; fail "compose: server not SERVING after 60 s: $h"
+    }
+    sleep 1
+  done
+  h=$(outside locaid --server "127.0.0.1:$cport" health) || fail "compose: published port 127.0.0.1:$cport: $h"
+  note "compose: $cversion up -d: 3 containers in $((tc1 - tc0)) s, network ${proj}_default${dns:+ (dns_enabled=$dns)}; server SERVING after $(($(date +%s) - tc1)) s, $h through 127.0.0.1:$cport"
+  tc1=$(date +%s)
+  until cdemo=$("$ENGINE" exec "$csrv" cat /var/lib/locaid/demo-session-id 2>/dev/null) && [[ -n $cdemo ]]; do
+    (($(date +%s) - tc1 < 300)) || { clog "$csrv" >&2; fail "compose: no demo session after 300 s"; }
+    sleep 2
+  done
+  cdemo_s=$(($(date +%s) - tc1))
+  # The recorder exits when the demo session's input ends (20 s at real time).
+  until [[ $(cstate "$crec") == exited* ]]; do
+    (($(date +%s) - tc1 < 300)) || { clog "$crec" >&2; fail "compose: recorder still $(cstate "$crec") after 300 s"; }
+    sleep 2
+  done
+  rstate=$(cstate "$crec")
+  [[ $rstate == "exited exit=0" ]] || { clog "$crec" >&2; fail "compose: recorder $rstate"; }
+  rlog=$("$ENGINE" logs "$crec" 2>&1)
+  grep -q "recording session $cdemo " <<<"$rlog" || { echo "$rlog" | tail -n 20 >&2; fail "compose: the recorder did not record the demo session $cdemo"; }
+  crec_s=$(($(date +%s) - tc1))
+  sget=$("$ENGINE" exec "$csrv" locaid --server 127.0.0.1:50051 session get "$cdemo")
+  frames=$(grep -oE 'frames=[0-9]+/[0-9]+' <<<"$sget" | head -n1)
+  frames=${frames##*/}
+  [[ -n $frames ]] || fail "compose: session get $cdemo: $sget"
+  # The recording, read from the volume on the host.
+  vdir=$("$ENGINE" volume inspect --format '{{.Mountpoint}}' "${proj}_records") || fail "compose: no volume ${proj}_records"
+  tum=$(ls "$vdir/$cdemo"-*.tum 2>/dev/null | head -n1)
+  [[ -n $tum ]] || { ls -l "$vdir" >&2; fail "compose: no $cdemo-*.tum in the records volume"; }
+  owner=$(stat -c %u:%g "$tum")
+  # The server's own record of the session, to compare line by line.
+  out=$("$ENGINE" exec "$csrv" locaid --server 127.0.0.1:50051 subscribe "$cdemo" --from-start --format tum \
+    --out /tmp/compose-check.tum --stream-timeout-s 60 2>&1) || fail "compose: subscribe $cdemo in the server: $out"
+  "$ENGINE" exec "$csrv" cat /tmp/compose-check.tum >"$STATE/compose-server.tum"
+  cp "$tum" "$STATE/compose-recorder.tum"
+  day=$(grep -oE '/[0-9]{4}_[0-9]{2}_[0-9]{2}/' <<<"$sget" | head -n1 | tr -d /)
+  check=$(python3 - "$STATE/compose-recorder.tum" "$STATE/compose-server.tum" "$frames" "$day" <<'PY'
+import datetime, math, statistics, sys
+rec, srv, frames, day = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
+def rows(path):
+    return [l.split() for l in open(path) if l.strip() and not l.startswith("#")]
+r, s = rows(rec), rows(srv)
+def bad(msg): print(msg); sys.exit(1)
+if len(r) != frames: bad(f"{len(r)} poses in the recording, the session has {frames} frames")
+if r != s: bad(f"the recording ({len(r)} poses) differs from the server's stream of the session ({len(s)})")
+if any(len(x) != 8 for x in r): bad("a line without 8 fields")
+v = [[float(f) for f in x] for x in r]
+t = [x[0] for x in v]
+steps = [b - a for a, b in zip(t, t[1:])]
+if min(steps) <= 0: bad("timestamps not strictly increasing")
+med = statistics.median(steps)
+if not 0.09 <= med <= 0.11: bad(f"median step {med:.4f} s, not the drive's 10 Hz")
+if max(steps) > 0.5: bad(f"a gap of {max(steps):.3f} s")
+if day:
+    d0 = datetime.datetime.strptime(day, "%Y_%m_%d").replace(tzinfo=datetime.timezone.utc).timestamp()
+    if not (d0 <= t[0] and t[-1] < d0 + 86400): bad(f"stamps {t[0]}..{t[-1]} not on the drive's day {day} (UTC)")
+if any(abs(math.hypot(*x[4:8]) - 1) > 1e-3 for x in v): bad("a quaternion that is not unit")
+dist = math.dist(v[0][1:4], v[-1][1:4])
+if dist < 10: bad(f"the vehicle moved {dist:.1f} m in the recording")
+print(f"{len(r)} poses, stamps {t[0]:.1f} .. {t[-1]:.1f} ({datetime.datetime.fromtimestamp(t[0], datetime.timezone.utc):%Y-%m-%dT%H:%M:%SZ}, {t[-1]-t[0]:.1f} s, median step {med:.3f} s), {dist:.0f} m from first to last pose, identical to the server's stream")
+PY
+  ) || fail "compose: recording $tum: $check"
+  note "compose: demo session $cdemo ready $cdemo_s s after SERVING; recorder exited 0 after $crec_s s and wrote $(basename "$tum") (owner $owner) into volume ${proj}_records: $check"
+  flog=$("$ENGINE" logs "$cfox" 2>&1)
+  grep -q "following session $cdemo" <<<"$flog" || { echo "$flog" | tail -n 20 >&2; fail "compose: the Foxglove bridge did not follow $cdemo"; }
+  [[ $(cstate "$cfox") == running* ]] || fail "compose: foxglove $(cstate "$cfox")"
+  note "compose: the foxglove container follows $cdemo (resolved server:50051)"
+  if ((KEEP == 1)); then
+    note "compose: --keep, project $proj left up (LOCAID_IMAGE=$TAG ${ccmd[*]} down -v)"
+    proj=""
+  else
+    tc1=$(date +%s)
+    compose_down >"$STATE/compose-down.log" 2>&1 || { tail -n 20 "$STATE/compose-down.log" >&2; fail "compose down -v"; }
+    left=$("$ENGINE" ps -a -q --filter "label=com.docker.compose.project=$proj")
+    [[ -z $left ]] || fail "compose: containers left after down: $left"
+    left=$("$ENGINE" volume ls -q | grep -E "^${proj}_" || true)
+    [[ -z $left ]] || fail "compose: volumes left after down: $left"
+    left=$("$ENGINE" network ls --format '{{.Name}}' | grep -E "^${proj}_" || true)
+    [[ -z $left ]] || fail "compose: networks left after down: $left"
+    note "compose: down -v in $(($(date +%s) - tc1)) s; no container, volume or network of $proj left; whole compose step $(($(date +%s) - tc0)) s"
+    proj=""
+  fi
+fi
 
 echo
 echo "test-image: PASS ($mode)"
