@@ -3,7 +3,10 @@
 # start the server from the image, check health, start a session, stream
 # poses with the CLI, start a session from a ROS 2 bag mounted into the
 # container, run a small sweep with the image's locaid-sweep, stop with
-# SIGTERM and check the clean exit.
+# SIGTERM and check the clean exit; then bring deploy/compose.yaml up with
+# podman-compose (docker compose with --engine docker) against the image on
+# ports --port+1 and +2, check that the recorder wrote the demo session's poses
+# into its volume, and bring it down leaving nothing of the project.
 #
 #   deploy/test-image.sh [--tag IMAGE] [--base IMAGE] [--no-cache] [--skip-build]
 #                        [--run auto|podman|chroot] [--port N] [--keep]
@@ -56,7 +59,7 @@ while (($#)); do
     --keep) KEEP=1; shift ;;
     --engine) ENGINE=$2; shift 2 ;;
     --bag-drive) BAG_DRIVE=$2; shift 2 ;;
-    -h | --help) sed -n '2,32p' "$0"; exit 0 ;;
+    -h | --help) sed -n '2,36p' "$0"; exit 0 ;;
     *) echo "test-image: unknown argument '$1'" >&2; exit 2 ;;
   esac
 done
