@@ -10,7 +10,7 @@
 // waits for SIGTERM/SIGINT and then stops both. Exit status: 0 after a
 // signal, 1 when the WebSocket port cannot be opened, 2 for bad flags.
 #include "connection/connection.hpp"
-#include "foxglove/apps/session_follower.hpp"
+#include "connection/session_follower.hpp"
 #include "output/channels.hpp"
 #include "foxglove/ws_server.hpp"
 
@@ -104,7 +104,7 @@ int main(int argc, char** argv) {
     std::cerr << "--listen '" << listen << "': " << why << "\nRun with --help for more information.\n";
     return 2;
   }
-  fx::FollowerOptions follow;
+  locaid::connection::FollowerOptions follow;
   try {
     locaid::connection::Connection connection;
     connection.server = server;
@@ -148,7 +148,7 @@ int main(int argc, char** argv) {
       server + (session.empty() ? ", following the newest session" : ", session " + session) + lagged.str());
 
   locaid::output::PoseConverter converter;  // follower thread only
-  fx::SessionFollower follower(
+  locaid::connection::SessionFollower follower(
       follow,
       [&](const std::string& id) {
         converter.Reset();

@@ -1,6 +1,8 @@
-// SessionFollower: the gRPC side of locaid-foxglove. Streams the poses of one
-// session (--session) or of the newest live session, and keeps doing so
-// across server restarts and new sessions.
+// SessionFollower: the gRPC side of the bridges (locaid-foxglove,
+// locaid-ros2). Streams the poses of one session (--session) or of the newest
+// live session, and keeps doing so across server restarts and new sessions.
+// Run() blocks on the caller's thread; while it streams the newest session a
+// short-lived watcher thread polls ListSessions.
 //
 //  - Without a fixed session it follows the newest session (by creation time)
 //    that is STARTING or RUNNING: a STARTING one is rendering its drive and
@@ -23,7 +25,7 @@
 #include <mutex>
 #include <string>
 
-namespace locaid::foxglove {
+namespace locaid::connection {
 
 namespace v1 = locaid::v1;
 
@@ -78,4 +80,4 @@ class SessionFollower {
   bool switching_ = false;           // the watcher cancelled the stream for a newer session
 };
 
-}  // namespace locaid::foxglove
+}  // namespace locaid::connection

@@ -1,4 +1,4 @@
-#include "foxglove/apps/session_follower.hpp"
+#include "connection/session_follower.hpp"
 
 #include "connection/connection.hpp"
 
@@ -7,7 +7,7 @@
 #include <sstream>
 #include <thread>
 
-namespace locaid::foxglove {
+namespace locaid::connection {
 namespace {
 
 bool Live(v1::SessionState s) { return s == v1::SESSION_STATE_STARTING || s == v1::SESSION_STATE_RUNNING; }
@@ -198,4 +198,4 @@ bool SessionFollower::stopping() {
   return stopping_;
 }
 
-}  // namespace locaid::foxglove
+}  // namespace locaid::connection
