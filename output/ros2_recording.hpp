@@ -16,12 +16,13 @@
 // up), `camera_left` the left rectified camera (optical: x right, y down,
 // z forward), `gps` the GPS antenna. Messages are stamped and logged at the
 // sensor time of what they describe (PoseUpdate.t_ns, GpsFixSeen.t_ns;
-// negative times become 0). Errors are McapWriter's (std::system_error
-// naming the file).
+// negative times become 0); the messages are output/ros2_messages.hpp's.
+// Errors are McapWriter's (std::system_error naming the file).
 #pragma once
 
 #include "locaid/v1/localization.pb.h"
 #include "output/cdr_writer.hpp"
+#include "output/ros2_messages.hpp"
 #include "record/mcap_writer.hpp"
 
 #include <Eigen/Geometry>
@@ -32,12 +33,6 @@
 #include <optional>
 
 namespace locaid::output {
-
-// Variance written where locaid has no estimate (the twist: the API carries
-// no velocity covariance and no angular velocity), and for a pose without
-// a 36-value covariance: "unknown", as the filter itself reports before it
-// is initialised (1e6 on the diagonal).
-inline constexpr double kRos2UnknownVariance = 1e6;
 
 struct Ros2RecordingOptions {
   // Chunking and compression; the profile is always "ros2".
@@ -73,23 +68,5 @@ class Ros2Recording {
   CdrWriter cdr_;  // reused for every message
   uint64_t poses_ = 0;
 };
-
-// The conversions, free functions for the tests.
-using Matrix6d = Eigen::Matrix<double, 6, 6>;
-
-// The symmetric positive semi-definite matrix nearest to `m` (Frobenius
-// norm): symmetrised, negative eigenvalues raised to 0.
-Matrix6d NearestSymmetricPsd(const Matrix6d& m);
-
-// The filter's covariance of [position E, N, U; attitude error about E, N,
-// U] (a left perturbation R = Exp(dtheta) R_hat in ENU axes) as ROS
-// PoseWithCovariance wants it in the `map` frame: (x, y, z, rotation about
-// X, Y, Z) in the fixed-axis (roll, pitch, yaw) representation of
-// R_enu_body = Rz(yaw) Ry(pitch) Rx(roll). J P J^T with J = diag(I, E^-1),
-// where E maps (d roll, d pitch, d yaw) to dtheta. Within 1e-6 of pitch
-// +-90 deg (gimbal lock, where E is singular) J = I.
-Matrix6d RosPoseCovariance(const Matrix6d& P_filter, const Eigen::Quaterniond& q_enu_body);
-// The 3x3 Jacobian d(roll, pitch, yaw) / d(dtheta in ENU axes) of the above.
-Eigen::Matrix3d RpyFromEnuAttitudeJacobian(const Eigen::Matrix3d& R_enu_body);
 
 }  // namespace locaid::output
