@@ -33,7 +33,7 @@ using output::ModeName;  // every format names the modes as the proto does
 inline const char* kCsvHeader =
     "t_s,frame_index,sequence,e_m,n_m,u_m,lat_deg,lon_deg,alt_m,qw,qx,qy,qz,ve_mps,vn_mps,vu_mps,"
     "sigma_e_m,sigma_n_m,sigma_u_m,mode,seconds_since_gps,vo_inliers,gps_used,gps_rejected,"
-    "gps_outage,processing_latency_ms,delay_ms,dropped,gps_resets,smoothed";
+    "gps_outage,processing_latency_ms,delay_ms,dropped,gps_resets,smoothed,vo_health";
 
 // Thrown when the record file cannot be written (disk full, file size
 // limit, I/O error). The file has already been cut back to the last complete
@@ -123,7 +123,8 @@ class Recorder {
           << "," << sigma(2) << "," << ModeName(p.mode()) << "," << p.seconds_since_gps() << ","
           << p.vo_inliers() << "," << p.gps_used() << "," << p.gps_rejected() << ","
           << (p.gps_outage_active() ? 1 : 0) << "," << p.processing_latency_ms() << "," << delay_ms << ","
-          << p.dropped_for_subscriber() << "," << p.gps_resets() << "," << (p.smoothed() ? 1 : 0) << "\n";
+          << p.dropped_for_subscriber() << "," << p.gps_resets() << "," << (p.smoothed() ? 1 : 0) << ","
+          << output::VoHealthName(p.vo_health()) << "\n";
     } else if (format_ == "geojson") {
       // The feature overwrites the closing brackets and brings them back.
       out << (poses_ ? "," : "") << "{\"type\":\"Feature\",\"geometry\":{\"type\":\"Point\",\"coordinates\":["

@@ -27,16 +27,20 @@ CSV_COLUMNS = [
     "t_s", "frame_index", "sequence", "e_m", "n_m", "u_m", "lat_deg", "lon_deg", "alt_m",
     "qw", "qx", "qy", "qz", "ve_mps", "vn_mps", "vu_mps", "sigma_e_m", "sigma_n_m", "sigma_u_m",
     "mode", "seconds_since_gps", "vo_inliers", "gps_used", "gps_rejected", "gps_outage",
-    "processing_latency_ms", "delay_ms", "dropped", "gps_resets", "smoothed",
+    "processing_latency_ms", "delay_ms", "dropped", "gps_resets", "smoothed", "vo_health",
 ]
 
 
-def mode_name(pb2, mode):
-    """The proto's name of a mode without its prefix (as the C++ client writes it); the number if unknown."""
+def enum_name(enum, value, prefix):
+    """The proto's name of an enum value without its prefix (as the C++ client writes it); the number if unknown."""
     try:
-        return pb2.Mode.Name(mode).removeprefix("MODE_")
+        return enum.Name(value).removeprefix(prefix)
     except ValueError:
-        return str(mode)
+        return str(value)
+
+
+def mode_name(pb2, mode):
+    return enum_name(pb2.Mode, mode, "MODE_")
 
 
 def _import_stubs(stubs_dir):
@@ -77,7 +81,7 @@ def pose_row(pb2, p, delay_ms):
         sigma[0], sigma[1], sigma[2],
         mode_name(pb2, p.mode), p.seconds_since_gps, p.vo_inliers, p.gps_used, p.gps_rejected,
         1 if p.gps_outage_active else 0, p.processing_latency_ms, delay_ms, p.dropped_for_subscriber,
-        p.gps_resets, 1 if p.smoothed else 0,
+        p.gps_resets, 1 if p.smoothed else 0, enum_name(pb2.VoHealth, p.vo_health, "VO_HEALTH_"),
     ]
 
 

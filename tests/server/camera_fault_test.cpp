@@ -2,11 +2,13 @@
 // injected with the real CLI drops the images of its frames (VO LOST there
 // and only there), a scenario's `camera:` list does the same, bad requests
 // are INVALID_ARGUMENT naming the field, unknown sessions NOT_FOUND, stopped
-// ones FAILED_PRECONDITION (as InjectOutage).
+// ones FAILED_PRECONDITION (as InjectOutage); `locaid subscribe --format
+// csv` records what the cameras gave VO (vo_health).
 #include "test_support.hpp"
 
 #include <cmath>
 #include <functional>
+#include <sstream>
 #include <limits>
 
 namespace locaid::server::testing {
@@ -92,6 +94,46 @@ TEST_F(CameraFaultRequests, WindowInjectedWithTheCliDropsTheImagesOfItsFrames) {
 TEST_F(CameraFaultRequests, ScenarioCameraListDropsTheImagesOfItsWindow) {
   const v1::Session session = StartDrive(0, "name: cams\ncamera: [{start_s: 2.5, duration_s: 1, fault: drop}]\n");
   ExpectLostExactlyInWindow(AllPoses(session.id()));
+}
+
+// `locaid subscribe --format csv` says what the cameras gave VO, as the
+// print format does: a camera the scenario freezes 2.5-3.5 s is FROZEN in
+// the CSV's vo_health there and TRACKING around it, line for line what
+// `--format print` shows for the same poses.
+TEST_F(CameraFaultRequests, SubscribeCsvHasTheVoHealthThePrintFormatShows) {
+  const v1::Session session = StartDrive(0, "name: cams\ncamera: [{start_s: 2.5, duration_s: 1, fault: frozen}]\n");
+  const fs::path csv = dir_ / "poses.csv";
+  const CliResult recorded =
+      RunCli(server_->port(), {"subscribe", session.id(), "--from-start", "--format", "csv", "--out", csv.string()});
+  ASSERT_EQ(recorded.exit_code, 0) << recorded.err;
+  const CliResult printed = RunCli(server_->port(), {"subscribe", session.id(), "--from-start"});
+  ASSERT_EQ(printed.exit_code, 0) << printed.err;
+
+  const std::string text = Slurp(csv);
+  const std::vector<std::string> health = CsvColumn(text, "vo_health"), t_s = CsvColumn(text, "t_s");
+  ASSERT_EQ(health.size(), static_cast<size_t>(kFrames)) << text.substr(0, text.find('\n'));
+  std::vector<std::string> shown;
+  std::istringstream lines(printed.out);
+  for (std::string line; std::getline(lines, line);) {
+    const size_t at = line.find(" vo_health=");
+    ASSERT_NE(at, std::string::npos) << line;
+    const size_t from = at + std::string(" vo_health=").size();
+    shown.push_back(line.substr(from, line.find(' ', from) - from));
+  }
+  EXPECT_EQ(health, shown);
+
+  int frozen = 0, tracking_outside = 0;
+  for (size_t i = 0; i < health.size(); ++i) {
+    const double t = std::stod(t_s[i]) - std::stod(t_s.front());
+    if (t >= kWindowStartS + 1e-3 && t < kWindowStartS + kWindowDurationS - 1e-3) {
+      EXPECT_EQ(health[i], "FROZEN") << "pose " << i << " at " << t << " s";
+      ++frozen;
+    } else if (health[i] == "TRACKING") {
+      ++tracking_outside;
+    }
+  }
+  EXPECT_GE(frozen, 9);
+  EXPECT_GE(tracking_outside, (kFrames - frozen) / 2) << "VO should track outside the window";
 }
 
 TEST_F(CameraFaultRequests, BadRequestsAreInvalidArgumentNamingTheField) {

@@ -89,7 +89,7 @@ v1::Session WaitSessionEnd(v1::Localization::Stub* stub, const std::string& id, 
 }
 
 // Data lines of a CLI CSV record (header checked and dropped). Every line
-// must be complete: as many fields as the header (30), sequence column == row number + first_seq.
+// must be complete: as many fields as the header (31), sequence column == row number + first_seq.
 std::vector<std::vector<std::string>> CsvRows(const fs::path& p, const std::string& who) {
   const std::string text = Slurp(p);
   EXPECT_TRUE(text.empty() || text.back() == '\n') << who << ": last line of " << p << " incomplete";
@@ -98,7 +98,7 @@ std::vector<std::vector<std::string>> CsvRows(const fs::path& p, const std::stri
   if (lines.empty()) return rows;
   EXPECT_EQ(lines[0].rfind("t_s,frame_index,sequence,", 0), 0u) << who << ": header " << lines[0];
   const size_t fields = Split(lines[0], ',').size();
-  EXPECT_EQ(fields, 30u) << who << ": header " << lines[0];
+  EXPECT_EQ(fields, 31u) << who << ": header " << lines[0];
   for (size_t i = 1; i < lines.size(); ++i) {
     rows.push_back(Split(lines[i], ','));
     EXPECT_EQ(rows.back().size(), fields) << who << ": line " << i + 1 << ": " << lines[i];

@@ -309,6 +309,9 @@ TEST_F(ServerTest, PythonClientRecordsCsvWithTheCliColumns) {
   const std::string a = Slurp(py_csv), b = Slurp(cli_csv);
   EXPECT_EQ(a.substr(0, a.find('\n')), b.substr(0, b.find('\n')));  // same header
   EXPECT_EQ(std::count(a.begin(), a.end(), '\n'), kFrames + 1);
+  for (const char* column : {"sequence", "mode", "vo_health"}) {
+    EXPECT_EQ(CsvColumn(a, column), CsvColumn(b, column)) << column;  // the same values
+  }
 }
 
 // The Python recorder on a 1 KiB file-size limit (`ulimit -f 1`; Python

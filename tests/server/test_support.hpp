@@ -147,6 +147,32 @@ inline std::string Slurp(const std::filesystem::path& p) {
   return std::string(std::istreambuf_iterator<char>(in), {});
 }
 
+// The values of one column of a CSV record (`locaid subscribe --format csv`),
+// found by its name in the header, one per data line; empty when the
+// header has no such column.
+inline std::vector<std::string> CsvColumn(const std::string& text, const std::string& name) {
+  std::istringstream in(text);
+  std::string line, cell;
+  std::getline(in, line);
+  std::istringstream header(line);
+  size_t column = 0;
+  while (std::getline(header, cell, ',') && cell != name) ++column;
+  if (cell != name) return {};
+  std::vector<std::string> values;
+  while (std::getline(in, line)) {
+    std::istringstream fields(line);
+    std::string value;
+    for (size_t i = 0; i <= column; ++i) {
+      if (!std::getline(fields, value, ',')) {
+        value.clear();  // a short line: no value
+        break;
+      }
+    }
+    values.push_back(value);
+  }
+  return values;
+}
+
 inline std::string ShellQuote(const std::string& s) {
   std::string q = "'";
   for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
