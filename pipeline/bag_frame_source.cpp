@@ -2,7 +2,7 @@
 
 #include "ros/cdr.hpp"
 #include "ros/images.hpp"
-#include "ros/tf_tree.hpp"
+#include "ros/sensor_setup.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -12,18 +12,6 @@
 
 namespace locaid::pipeline {
 namespace {
-
-// The body (x forward, y left, z up) in the rectified left camera (x right,
-// y down, z forward) when there is no IMU to define it.
-Eigen::Isometry3d CameraBodyWithoutImu() {
-  Eigen::Matrix3d R;
-  R << 0, -1, 0,  //
-      0, 0, -1,   //
-      1, 0, 0;
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = R;
-  return T;
-}
 
 std::string Seconds(int64_t ns) {
   char buf[32];
@@ -69,9 +57,6 @@ BagFrameSource::BagFrameSource(const std::filesystem::path& path, BagSourceOptio
                                e.what());
     }
 
-    // T_rect_cam: the left camera's optical frame into its rectified frame.
-    Eigen::Isometry3d T_rect_cam = Eigen::Isometry3d::Identity();
-    T_rect_cam.linear() = ros::RectificationRotation(left);
     const std::string& cam_frame = left.header.frame_id;
     if (!topics_.imu.empty()) {
       const std::string imu_frame = inv.topics.count(topics_.imu) ? inv.topics.at(topics_.imu).frame_id : "";
@@ -79,24 +64,23 @@ BagFrameSource::BagFrameSource(const std::filesystem::path& path, BagSourceOptio
         throw std::runtime_error(path.string() + ": no message on " + topics_.imu + " in the first " +
                                  std::to_string(options_.preview_s) + " s: cannot tell the IMU's frame");
       }
-      const auto T_imu_cam = ros::FindTransform(inv.static_transforms, imu_frame, cam_frame);
-      if (!T_imu_cam) {
+      const auto T_cam0_imu = ros::CameraImuExtrinsic(left, inv.static_transforms, imu_frame);
+      if (!T_cam0_imu) {
         throw std::runtime_error(path.string() + ": /tf_static does not connect the IMU frame '" + imu_frame +
                                  "' and the left camera frame '" + cam_frame +
                                  "' (the camera-IMU extrinsic); record /tf_static or run without the IMU "
                                  "(imu: none in --bag-topics FILE)");
       }
-      T_cam0_imu_ = T_rect_cam * T_imu_cam->inverse();
+      T_cam0_imu_ = *T_cam0_imu;
       setup_notes_.push_back("camera-IMU extrinsic from /tf_static: " + imu_frame + " -> " + cam_frame);
     } else {
-      T_cam0_imu_ = CameraBodyWithoutImu();
+      T_cam0_imu_ = ros::CameraBodyWithoutImu();
       setup_notes_.push_back("no IMU topic: the body frame is the rectified left camera turned x forward");
     }
     if (!topics_.gps.empty() && inv.topics.count(topics_.gps)) {
       const std::string gps_frame = inv.topics.at(topics_.gps).frame_id;
-      const auto T_cam_gps = ros::FindTransform(inv.static_transforms, cam_frame, gps_frame);
-      if (T_cam_gps) {
-        lever_arm_ = (T_cam0_imu_.inverse() * T_rect_cam * *T_cam_gps).translation();
+      if (const auto lever_arm = ros::GpsLeverArm(left, inv.static_transforms, T_cam0_imu_, gps_frame)) {
+        lever_arm_ = *lever_arm;
       } else {
         setup_notes_.push_back("no /tf_static transform to the GPS frame '" + gps_frame +
                                "': antenna lever arm taken as zero");
@@ -314,10 +298,7 @@ void BagFrameSource::AddSensor(const Pending& p) {
     } else if (p.role == Role::kGps) {
       const auto nav = ros::DecodeNavSatFix(p.data);
       if (!in_order(nav.header.stamp_ns, last_gps_ns_, true, "fix")) return;
-      const bool position = std::isfinite(nav.latitude) && std::isfinite(nav.longitude) &&
-                            std::isfinite(nav.altitude) && std::abs(nav.latitude) <= 90 &&
-                            std::abs(nav.longitude) <= 180;
-      if (nav.status <= ros::NavSatFix::kNoFix || !position) {
+      if (!ros::HasPosition(nav)) {
         sensors_.receiver_has_fix = false;
         ++stats_.no_fix;
         return;
@@ -329,18 +310,7 @@ void BagFrameSource::AddSensor(const Pending& p) {
       a.fix.alt_m = nav.altitude;
       a.fix.sigma_h_m = options_.gps_sigma_h_m;
       a.fix.sigma_v_m = options_.gps_sigma_v_m;
-      const auto& c = nav.position_covariance;
-      const bool known = nav.position_covariance_type != ros::NavSatFix::kCovUnknown &&
-                         std::all_of(c.begin(), c.end(), [](double v) { return std::isfinite(v); }) && c[0] > 0 &&
-                         c[4] > 0 && c[8] > 0;
-      if (known) {
-        Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-        for (int i = 0; i < 3; ++i)
-          for (int j = 0; j < 3; ++j)
-            if (i == j || nav.position_covariance_type != ros::NavSatFix::kCovDiagonalKnown)
-              cov(i, j) = c[static_cast<size_t>(3 * i + j)];
-        a.fix.cov_enu_m2 = 0.5 * (cov + cov.transpose());
-      }
+      if (const auto cov = ros::StatedCovariance(nav)) a.fix.cov_enu_m2 = *cov;
       sensors_.gps.push_back(a);
       sensors_.receiver_has_fix = true;
       ++stats_.fixes;
