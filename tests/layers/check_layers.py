@@ -24,13 +24,13 @@ LAYERS = {
     "synth": 3, "eval": 3,
     "pipeline": 4,
     "output": 5, "connection": 5, "sweep": 5,
-    "server": 6, "foxglove": 6,
+    "server": 6, "foxglove": 6, "ros2": 6,  # ros2/: ROS 2 topics over DDS (locaid-ros2)
 }
 PROGRAMS = 5.5   # apps/ folders and clients/: above output/ and connection/, below server/ and foxglove/
 ANYTHING = 100   # tests/, bench/, fuzz/
 LAYERS["clients"] = PROGRAMS
 SCANNED = ["core", "fusion", "record", "kitti", "ros", "bag", "sim", "sensors", "synth", "eval", "vo", "pipeline",
-           "output", "connection", "sweep", "server", "foxglove", "clients", "tests", "bench", "fuzz"]
+           "output", "connection", "sweep", "server", "foxglove", "ros2", "clients", "tests", "bench", "fuzz"]
 INCLUDE = re.compile(r'^\s*#\s*include\s+"(([a-z_0-9]+)/[^"]*)"')
 
 
