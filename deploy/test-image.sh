@@ -507,8 +507,8 @@ else
   # containers' states below are the check.
   compose up -d --no-build >"$STATE/compose-up.log" 2>&1 ||
     { tail -n 30 "$STATE/compose-up.log" >&2; fail "compose up -d (log $STATE/compose-up.log)"; }
-  csrv=$(cid_of server) crec=$(cid_of recorder) cfox=$(cid_of foxglove)
-  for c in "server:$csrv" "recorder:$crec" "foxglove:$cfox"; do
+  csrv=$(cid_of server) crec=$(cid_of recorder) cfox=$(cid_of foxglove) cros=$(cid_of ros2)
+  for c in "server:$csrv" "recorder:$crec" "foxglove:$cfox" "ros2:$cros"; do
     [[ -n ${c#*:} ]] || { tail -n 30 "$STATE/compose-up.log" >&2; fail "compose: no container for service ${c%%:*}"; }
   done
   if [[ $ENGINE == podman ]]; then
@@ -524,7 +524,7 @@ else
     sleep 1
   done
   h=$(outside locaid --server "127.0.0.1:$cport" health) || fail "compose: published port 127.0.0.1:$cport: $h"
-  note "compose: $cversion up -d: 3 containers in $((tc1 - tc0)) s, network ${proj}_default${dns:+ (dns_enabled=$dns)}; server SERVING after $(($(date +%s) - tc1)) s, $h through 127.0.0.1:$cport"
+  note "compose: $cversion up -d: 4 containers in $((tc1 - tc0)) s, network ${proj}_default${dns:+ (dns_enabled=$dns)}; server SERVING after $(($(date +%s) - tc1)) s, $h through 127.0.0.1:$cport"
   tc1=$(date +%s)
   until cdemo=$("$ENGINE" exec "$csrv" cat /var/lib/locaid/demo-session-id 2>/dev/null) && [[ -n $cdemo ]]; do
     (($(date +%s) - tc1 < 300)) || { clog "$csrv" >&2; fail "compose: no demo session after 300 s"; }
@@ -587,6 +587,13 @@ PY
   grep -q "following session $cdemo" <<<"$flog" || { echo "$flog" | tail -n 20 >&2; fail "compose: the Foxglove bridge did not follow $cdemo"; }
   [[ $(cstate "$cfox") == running* ]] || fail "compose: foxglove $(cstate "$cfox")"
   note "compose: the foxglove container follows $cdemo (resolved server:50051)"
+  # The ROS 2 adapter: a DDS participant (deploy/cyclonedds.xml: multicast
+  # off, the host as its only peer, so nothing leaves the machine) following
+  # the same session.
+  olog=$("$ENGINE" logs "$cros" 2>&1)
+  grep -q "following session $cdemo" <<<"$olog" || { echo "$olog" | tail -n 20 >&2; fail "compose: the ROS 2 adapter did not follow $cdemo"; }
+  [[ $(cstate "$cros") == running* ]] || { echo "$olog" | tail -n 20 >&2; fail "compose: ros2 $(cstate "$cros")"; }
+  note "compose: the ros2 container follows $cdemo: $(grep -m1 'DDS domain' <<<"$olog" || true)"
   if ((KEEP == 1)); then
     note "compose: --keep, project $proj left up (LOCAID_IMAGE=$TAG ${ccmd[*]} down -v)"
     proj=""
