@@ -130,7 +130,7 @@ VoUpdate Ekf::ApplyVoUpdate(const VoMeasurement& m, const VoPlan& plan, VoUpdate
     if (gate->rejected) ++stats_.vo_rejected;
   }
   out.used = plan.vo_ok && !out.rejected;
-  ApplyVehicleConstraints(m.t_ns);
+  ApplyVehicleConstraints(m.t_ns, plan.vo_ok);
   return out;
 }
 

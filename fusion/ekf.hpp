@@ -179,8 +179,8 @@ class Ekf {
   void ChainStartup(const VoMeasurement& m, const VoPlan& plan);
   VoUpdate ApplyVoUpdate(const VoMeasurement& m, const VoPlan& plan, VoUpdate out);
   // Vehicle (ekf_vehicle.cpp): the constraints at a frame, and whether the car stands still.
-  void ApplyVehicleConstraints(int64_t t_ns);
-  bool VehicleConstraintsActive() const;
+  void ApplyVehicleConstraints(int64_t t_ns, bool vo_ok);
+  bool VehicleConstraintsActive(bool vo_ok) const;
   bool Standstill(int64_t t_ns) const;
   // The newest speed reading when it is at most max_age_s older than t_ns.
   std::optional<double> FreshSpeedReading(int64_t t_ns, double max_age_s) const;

@@ -117,12 +117,13 @@ bool Ekf::SurelyMovingFasterThan(int64_t t_ns, double speed_mps) const {
   return v - 3 * sigma > speed_mps;
 }
 
-bool Ekf::VehicleConstraintsActive() const {
-  return config_.vehicle.constraints && (!config_.vehicle.constraints_need_speed || stats_.speed_used > 0);
+bool Ekf::VehicleConstraintsActive(bool vo_ok) const {
+  return config_.vehicle.constraints &&
+         (!config_.vehicle.constraints_need_speed || stats_.speed_used > 0 || !vo_ok);
 }
 
-void Ekf::ApplyVehicleConstraints(int64_t t_ns) {
-  if (!VehicleConstraintsActive() || !s_.initialized) return;
+void Ekf::ApplyVehicleConstraints(int64_t t_ns, bool vo_ok) {
+  if (!VehicleConstraintsActive(vo_ok) || !s_.initialized) return;
   if (Standstill(t_ns)) {
     // Stillness only holds a car already believed stopped: no gate.
     if (const auto g = model_->FuseZeroVelocity(s_, config_.vehicle.zupt_sigma_mps, 0); g && !g->rejected)

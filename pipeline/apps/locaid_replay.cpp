@@ -119,7 +119,7 @@ void AddOptions(CLI::App& app, ReplayArgs& a) {
       ->check(CLI::IsMember({"adaptive", "learned"}));
   app.add_option("--vehicle-constraints", a.vehicle_constraints,
                  "car motion constraints (non-holonomic, zero-velocity updates): auto (once a speed sensor "
-                 "reports), on (always), off (a platform that slides)")
+                 "reports, and at every frame VO cannot use), on (always), off (a platform that slides)")
       ->check(CLI::IsMember({"auto", "on", "off"}));
   app.add_option("--vo-method", a.vo_method, "VO method (default, thesis)");
   app.add_option("--max-frames", a.max_frames, "stop after N frames (0: all)");
