@@ -236,7 +236,8 @@ void InputAssembler::AddImage(InputRole side, int64_t stamp_ns, std::string_view
   // Images the other side has passed by more than the tolerance never pair;
   // at most 16 wait (a side that fell silent).
   const auto prune = [&](std::deque<Image>& images, InputRole role, int64_t other_newest) {
-    while (!images.empty() && (images.front().stamp_ns < other_newest - tol_ns || images.size() > 16)) {
+    const bool passed = other_newest != INT64_MIN;  // the other side has spoken
+    while (!images.empty() && ((passed && images.front().stamp_ns < other_newest - tol_ns) || images.size() > 16)) {
       Problem(role, &TopicStats::unpaired,
               "image at " + Seconds(images.front().stamp_ns) + " s has no stereo partner within " +
                   Fixed(options_.stereo_tolerance_s * 1e3, 1) + " ms: dropped");

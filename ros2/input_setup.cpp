@@ -87,6 +87,8 @@ std::string InputSetup::TypeOf(const std::string& topic, const std::string& fall
   const auto it = publications_.find(topic);
   if (it != publications_.end()) return it->second;
   if (topic == given_.left_info || topic == given_.right_info) return std::string(ros::kCameraInfo);
+  if (topic == given_.imu) return std::string(ros::kImu);
+  if (topic == given_.gps) return std::string(ros::kNavSatFix);
   for (size_t i = 0; i < kInputRoleCount; ++i)
     if (topics_.topic[i] == topic) return topics_.type[i];
   return fallback;
@@ -119,8 +121,9 @@ bool InputSetup::Choose(double elapsed_s, std::string* missing) {
     throw std::runtime_error("cannot choose the input topics: " + why);
   }
   const auto set = [&](InputRole r, const std::string& topic, const std::string& guessed_type) {
+    const auto discovered = publications_.find(topic);
     topics_.topic[Index(r)] = topic;
-    topics_.type[Index(r)] = topic.empty() ? "" : TypeOf(topic, guessed_type);
+    topics_.type[Index(r)] = topic.empty() ? "" : discovered != publications_.end() ? discovered->second : guessed_type;
   };
   const auto image_type = [](const std::string& topic) {
     return std::string(topic.size() > 11 && topic.substr(topic.size() - 11) == "/compressed" ? ros::kCompressedImage

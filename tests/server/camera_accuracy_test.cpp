@@ -7,6 +7,7 @@
 #include "camera_test_support.hpp"
 #include "free_port.hpp"
 #include "needs_tool.hpp"
+#include "track_errors.hpp"
 
 #include "kitti/dataset.hpp"
 
@@ -24,75 +25,12 @@
 namespace locaid::server::testing {
 namespace {
 
-// A CSV with a header: column name -> values.
-std::map<std::string, std::vector<std::string>> ReadCsv(const fs::path& path) {
-  std::ifstream in(path);
-  std::string line;
-  std::getline(in, line);
-  std::vector<std::string> names;
-  std::stringstream header(line);
-  for (std::string name; std::getline(header, name, ',');) names.push_back(name);
-  std::map<std::string, std::vector<std::string>> columns;
-  while (std::getline(in, line)) {
-    std::stringstream row(line);
-    std::string cell;
-    for (const auto& name : names) {
-      if (!std::getline(row, cell, ',')) cell.clear();
-      columns[name].push_back(cell);
-    }
-  }
-  return columns;
-}
-
-double HorizontalM(double lat1, double lon1, double lat2, double lon2) {
-  constexpr double kR = 6378137.0, kDeg = M_PI / 180;
-  const double dn = (lat2 - lat1) * kDeg * kR, de = (lon2 - lon1) * kDeg * kR * std::cos(lat1 * kDeg);
-  return std::hypot(dn, de);
-}
-
-// The excerpt's truth (OXTS) at drive time t_ns, interpolated.
-std::pair<double, double> TruthAt(const std::vector<kitti::OxtsSample>& oxts, int64_t t_ns) {
-  auto it = std::lower_bound(oxts.begin(), oxts.end(), t_ns, [](const auto& s, int64_t t) { return s.t_ns < t; });
-  if (it == oxts.begin()) return {it->record.lat_deg, it->record.lon_deg};
-  if (it == oxts.end()) return {oxts.back().record.lat_deg, oxts.back().record.lon_deg};
-  const auto& a = *(it - 1);
-  const double w = static_cast<double>(t_ns - a.t_ns) / static_cast<double>(it->t_ns - a.t_ns);
-  return {a.record.lat_deg + w * (it->record.lat_deg - a.record.lat_deg),
-          a.record.lon_deg + w * (it->record.lon_deg - a.record.lon_deg)};
-}
-
-// A track's horizontal errors against the truth: RMSE while GPS was used,
-// and at the end of the (one) outage, with the distance driven in it.
-struct TrackErrors {
-  double sum2 = 0;
-  int n = 0;
-  double outage_end_m = -1, outage_m = 0, outage_sum2 = 0;
-  int outage_n = 0;
-  double last_lat = 0, last_lon = 0;
-
-  void Add(double err, bool in_outage, double truth_lat, double truth_lon) {
-    if (in_outage) {
-      outage_sum2 += err * err;
-      ++outage_n;
-      if (outage_end_m >= 0) outage_m += HorizontalM(last_lat, last_lon, truth_lat, truth_lon);
-      last_lat = truth_lat;
-      last_lon = truth_lon;
-      outage_end_m = err;
-    } else {
-      sum2 += err * err;
-      ++n;
-    }
-  }
-  double rmse() const { return n ? std::sqrt(sum2 / n) : std::nan(""); }
-  double outage_rmse() const { return outage_n ? std::sqrt(outage_sum2 / outage_n) : std::nan(""); }
-};
-
-// The frame of the drive nearest to drive time t_ns.
-size_t NearestFrame(const kitti::StereoDataset& d, int64_t t_ns) {
-  size_t k = 0;
-  while (k + 1 < d.size() && std::llabs(d.time_ns(k + 1) - t_ns) < std::llabs(d.time_ns(k) - t_ns)) ++k;
-  return k;
-}
+using test_support::HorizontalM;
+using test_support::NearestFrame;
+using test_support::ReadCsv;
+using test_support::ReplayErrors;
+using test_support::TrackErrors;
+using test_support::TruthAt;
 
 // The excerpt's complete pairs from frame `first` on (a bag of it holds no
 // others), linked in `dir` as one gapless sequence for multifilesrc; returns
@@ -185,20 +123,9 @@ TEST_F(CameraSession, PushedFixesLikeTheReplayOfTheDriveAsABag) {
   const auto dataset = kitti::OpenDataset(kDrive);
   const int64_t t_first = dataset->time_ns(kFirst);  // the bag's first frame: replay's t_s = 0
   auto fixes = ReadCsv(fixes_csv);
-  auto rows = ReadCsv(replay_csv);
   ASSERT_FALSE(fixes["t_ns"].empty());
   // The replay's errors per frame.
-  std::map<size_t, std::pair<double, bool>> replayed;  // frame -> (error, in outage)
-  const double lat0 = std::stod(fixes["lat_deg"][0]), lon0 = std::stod(fixes["lon_deg"][0]);  // its ENU origin
-  for (size_t i = 0; i < rows["t_s"].size(); ++i) {
-    if (rows["initialized"][i] != "1") continue;
-    const int64_t t = t_first + std::llround(std::stod(rows["t_s"][i]) * 1e9);
-    const auto [lat, lon] = TruthAt(dataset->oxts(), t);
-    constexpr double kR = 6378137.0, kDeg = M_PI / 180;
-    const double e = (lon - lon0) * kDeg * kR * std::cos(lat0 * kDeg), n = (lat - lat0) * kDeg * kR;
-    replayed[NearestFrame(*dataset, t)] = {
-        std::hypot(std::stod(rows["est_e"][i]) - e, std::stod(rows["est_n"][i]) - n), rows["in_outage"][i] == "1"};
-  }
+  const auto replayed = ReplayErrors(*dataset, replay_csv, fixes_csv, t_first);
 
   const std::vector<size_t> played = LinkCompletePairs(*dataset, kFirst, dir_ / "play");
   const int frames = static_cast<int>(played.size());

@@ -1,0 +1,112 @@
+// The end-to-end fixture of the locaid-ros2 tests: the real locaid-server,
+// the real locaid-ros2 (child processes; their logs in the test's folder) and
+// a Fast DDS peer in the test process, all on loopback in a domain of the
+// test's own. Builds on the server tests' processes (server/test_support.hpp).
+#pragma once
+
+#include "fast_peer.hpp"
+#include "server/test_support.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <gtest/gtest.h>
+
+#include <csignal>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace locaid::ros2::testing {
+
+namespace st = locaid::server::testing;
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+// locaid-ros2 against the server; its log and --stats-json in `dir`.
+class Ros2Process {
+ public:
+  Ros2Process(const fs::path& dir, int server_port, uint32_t domain, const std::vector<std::string>& extra)
+      : log_(dir / "ros2.err"), stats_(dir / "ros2_stats.json") {
+    std::vector<std::string> argv = {std::string(LOCAID_BIN_DIR) + "/locaid-ros2", "--server",
+                                     "127.0.0.1:" + std::to_string(server_port), "--domain", std::to_string(domain),
+                                     "--stats-json", stats_.string()};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    child_ = std::make_unique<st::ChildProcess>(argv, st::ChildProcess::Options{dir / "ros2.out", log_, 0});
+  }
+  st::ChildProcess& process() { return *child_; }
+  std::string log() const { return st::Slurp(log_); }
+  bool WaitForLog(const std::string& text, double timeout_s) {
+    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    while (log().find(text) == std::string::npos) {
+      if (std::chrono::steady_clock::now() >= until || child_->Wait(0)) return false;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    return true;
+  }
+  // The --stats-json file as last written (null before the first write).
+  json Stats() const { return json::parse(st::Slurp(stats_), nullptr, false); }
+  // SIGTERM, then the exit code (-1: it did not end within the time).
+  int Stop(double timeout_s = 30) {
+    child_->Signal(SIGTERM);
+    return child_->Wait(timeout_s) ? child_->exit_code() : -1;
+  }
+
+ private:
+  fs::path log_, stats_;
+  std::unique_ptr<st::ChildProcess> child_;
+};
+
+class Ros2Car : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    loopback_ = std::make_unique<DdsLoopback>(dir_.path());
+    fast_ = std::make_unique<FastPeer>(loopback_->domain, loopback_->fastdds);
+    server_ = std::make_unique<st::ServerProcess>(dir_ / "server");
+    ASSERT_GT(server_->port(), 0) << server_->log();
+    stub_ = v1::Localization::NewStub(server_->NewChannel());
+  }
+  void TearDown() override {
+    ros2_.reset();
+    fast_.reset();  // its readers and writers go with its participant
+  }
+  void StartRos2(const std::vector<std::string>& extra) {
+    ros2_ = std::make_unique<Ros2Process>(dir_.path(), server_->port(), loopback_->domain, extra);
+  }
+  // The newest live session's id, waiting (bounded) for one.
+  std::string WaitSession(double timeout_s) {
+    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    while (std::chrono::steady_clock::now() < until) {
+      grpc::ClientContext ctx;
+      st::SetDeadline(&ctx, 5);
+      v1::ListSessionsResponse r;
+      if (stub_->ListSessions(&ctx, {}, &r).ok()) {
+        for (const auto& s : r.sessions())
+          if (s.state() == v1::SESSION_STATE_RUNNING) return s.id();
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return "";
+  }
+
+  test_support::ScopedTempDir dir_{"ros2_e2e"};
+  std::unique_ptr<DdsLoopback> loopback_;
+  std::unique_ptr<FastPeer> fast_;
+  std::unique_ptr<st::ServerProcess> server_;
+  std::unique_ptr<v1::Localization::Stub> stub_;
+  std::unique_ptr<Ros2Process> ros2_;
+};
+
+// Waits (bounded) until the reader matched a writer.
+template <class Reader>
+bool WaitMatched(Reader& reader, double timeout_s) {
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  fdds::SubscriptionMatchedStatus m;
+  for (;;) {
+    reader.reader->get_subscription_matched_status(m);
+    if (m.current_count > 0) return true;
+    if (std::chrono::steady_clock::now() >= until) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+}
+
+}  // namespace locaid::ros2::testing
