@@ -1,4 +1,4 @@
-#include "pipeline/apps/replay_mcap.hpp"
+#include "replay/replay_mcap.hpp"
 
 #include "output/pose_message.hpp"
 

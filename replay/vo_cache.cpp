@@ -1,4 +1,4 @@
-#include "pipeline/apps/vo_cache.hpp"
+#include "replay/vo_cache.hpp"
 
 #include <Eigen/Core>
 

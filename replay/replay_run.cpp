@@ -1,4 +1,4 @@
-#include "pipeline/apps/replay_run.hpp"
+#include "replay/replay_run.hpp"
 
 #include "kitti/oxts_pose.hpp"
 
