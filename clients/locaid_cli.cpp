@@ -271,152 +271,176 @@ int Subscribe(const Common& c, v1::Localization::Stub& stub, const SubscribeOpti
   return 0;
 }
 
-}  // namespace
+// The command line: the options every command shares, each command's
+// subcommand (parsed() says which ran) and what its options fill.
+struct Commands {
+  Common common;
+  CLI::App* health = nullptr;
+  std::string health_service;
+  double health_wait_s = 0;
+  CLI::App *start = nullptr, *list = nullptr, *get = nullptr, *stop = nullptr;
+  StartOptions start_options;
+  std::string session_id;  // every command on one session
+  bool remove = false;
+  CLI::App* subscribe = nullptr;
+  SubscribeOptions sub;
+  CLI::App *outage = nullptr, *outage_start = nullptr, *outage_stop = nullptr;
+  double outage_start_s = 0, outage_duration_s = 0;
+  CameraFaultCommand camera_fault;
+  CLI::App* scenario = nullptr;
+  std::string scenario_name, scenario_file;
+  CLI::App* stats = nullptr;
+};
 
-int main(int argc, char** argv) {
-  Common c;
-  CLI::App app{"locaid: client of locaid-server"};
+void AddCommands(CLI::App& app, Commands& c) {
+  Common& common = c.common;
   app.require_subcommand(1);
-  app.add_option("--server", c.server,
+  app.add_option("--server", common.server,
                  "host:port, or unix:PATH for the server's --listen-unix socket (unix:/abs/path, unix:rel/path)")
       ->capture_default_str();
-  app.add_option("--token", c.token, "bearer token");
-  app.add_option("--token-file", c.token_file, "file holding the bearer token (keeps it out of argv)");
-  app.add_option("--tls-ca", c.tls_ca, "PEM file of the CA (or self-signed cert) to trust; enables TLS");
-  app.add_option("--timeout-s", c.timeout_s, "deadline of unary calls, seconds")->capture_default_str();
+  app.add_option("--token", common.token, "bearer token");
+  app.add_option("--token-file", common.token_file, "file holding the bearer token (keeps it out of argv)");
+  app.add_option("--tls-ca", common.tls_ca, "PEM file of the CA (or self-signed cert) to trust; enables TLS");
+  app.add_option("--timeout-s", common.timeout_s, "deadline of unary calls, seconds")->capture_default_str();
 
-  auto* health = app.add_subcommand("health", "grpc.health.v1 check: prints SERVING / NOT_SERVING");
-  std::string health_service;
-  health->add_option("--service", health_service, "service name (empty = whole server)");
-  double health_wait_s = 0;
-  health->add_option("--wait", health_wait_s, "wait up to this many seconds for a server that is still starting")
+  c.health = app.add_subcommand("health", "grpc.health.v1 check: prints SERVING / NOT_SERVING");
+  c.health->add_option("--service", c.health_service, "service name (empty = whole server)");
+  c.health->add_option("--wait", c.health_wait_s, "wait up to this many seconds for a server that is still starting")
       ->check(CLI::Range(0.0, 3600.0));
 
   auto* session = app.add_subcommand("session", "start, list, get or stop sessions");
   session->require_subcommand(1);
-  auto* start = session->add_subcommand("start", "start a session; prints its id");
-  StartOptions so;
-  AddStartOptions(*start, so);
-  auto* list = session->add_subcommand("list", "list sessions");
-  auto* get = session->add_subcommand("get", "show one session");
-  auto* stop = session->add_subcommand("stop", "stop a session");
-  std::string session_id;
-  bool remove = false;
-  get->add_option("id", session_id)->required();
-  stop->add_option("id", session_id)->required();
-  stop->add_flag("--remove", remove, "also forget it");
+  c.start = session->add_subcommand("start", "start a session; prints its id");
+  AddStartOptions(*c.start, c.start_options);
+  c.list = session->add_subcommand("list", "list sessions");
+  c.get = session->add_subcommand("get", "show one session");
+  c.stop = session->add_subcommand("stop", "stop a session");
+  c.get->add_option("id", c.session_id)->required();
+  c.stop->add_option("id", c.session_id)->required();
+  c.stop->add_flag("--remove", c.remove, "also forget it");
 
-  auto* subscribe = app.add_subcommand("subscribe", "stream a session's poses");
-  SubscribeOptions sub;
-  subscribe->add_option("id", sub.session_id)->required();
-  subscribe->add_flag("--from-start", sub.from_start, "begin with the session's history");
-  subscribe->add_option("--format", sub.format,
-                        "print|tum|kitti|csv|geojson|mcap (Foxglove channels)|ros2-mcap (ROS 2 bag); see docs/api.md")
+  c.subscribe = app.add_subcommand("subscribe", "stream a session's poses");
+  SubscribeOptions& sub = c.sub;
+  c.subscribe->add_option("id", sub.session_id)->required();
+  c.subscribe->add_flag("--from-start", sub.from_start, "begin with the session's history");
+  c.subscribe->add_option("--format", sub.format,
+                          "print|tum|kitti|csv|geojson|mcap (Foxglove channels)|ros2-mcap (ROS 2 bag); see docs/api.md")
       ->check(CLI::IsMember({"print", "tum", "kitti", "csv", "geojson", "mcap", "ros2-mcap"}))
       ->capture_default_str();
-  subscribe->add_option("--out", sub.out_path, "record file (formats other than print)");
-  subscribe->add_option("--max", sub.max_poses, "stop after N poses (0 = until the stream ends)");
-  subscribe->add_option("--queue", sub.queue, "server-side queue length for this subscriber");
-  subscribe->add_option("--lag", sub.lag_s,
-                        "smoothed poses: each frame's pose given everything up to S seconds (sensor time) later, "
-                        "sent once the session is S s past it (0 = the causal stream; docs/api.md \"Lagged stream\")")
+  c.subscribe->add_option("--out", sub.out_path, "record file (formats other than print)");
+  c.subscribe->add_option("--max", sub.max_poses, "stop after N poses (0 = until the stream ends)");
+  c.subscribe->add_option("--queue", sub.queue, "server-side queue length for this subscriber");
+  c.subscribe->add_option("--lag", sub.lag_s,
+                          "smoothed poses: each frame's pose given everything up to S seconds (sensor time) later, "
+                          "sent once the session is S s past it (0 = the causal stream; docs/api.md \"Lagged stream\")")
       ->check(CLI::Range(0.0, 30.0));
-  subscribe->add_flag("--progress", sub.progress, "print progress to stderr");
-  subscribe->add_option("--stream-timeout-s", sub.stream_timeout_s, "deadline of the stream")->capture_default_str();
+  c.subscribe->add_flag("--progress", sub.progress, "print progress to stderr");
+  c.subscribe->add_option("--stream-timeout-s", sub.stream_timeout_s, "deadline of the stream")->capture_default_str();
 
-  auto* outage = app.add_subcommand("outage", "inject GPS outages into a running session");
-  outage->require_subcommand(1);
-  double o_start = 0, o_duration = 0;
-  auto* o_start_cmd = outage->add_subcommand("start", "GPS dropout from now");
-  o_start_cmd->add_option("id", session_id)->required();
-  o_start_cmd->add_option("--duration", o_duration, "seconds of sensor time (0 = until 'outage stop')");
-  auto* o_stop_cmd = outage->add_subcommand("stop", "end injected dropouts now");
-  o_stop_cmd->add_option("id", session_id)->required();
-  auto* o_window_cmd = outage->add_subcommand("window", "dropout in [start, start+duration) since the first frame");
-  o_window_cmd->add_option("id", session_id)->required();
-  o_window_cmd->add_option("--start", o_start, "seconds since the first frame")->required();
-  o_window_cmd->add_option("--duration", o_duration, "seconds")->required();
+  c.outage = app.add_subcommand("outage", "inject GPS outages into a running session");
+  c.outage->require_subcommand(1);
+  c.outage_start = c.outage->add_subcommand("start", "GPS dropout from now");
+  c.outage_start->add_option("id", c.session_id)->required();
+  c.outage_start->add_option("--duration", c.outage_duration_s, "seconds of sensor time (0 = until 'outage stop')");
+  c.outage_stop = c.outage->add_subcommand("stop", "end injected dropouts now");
+  c.outage_stop->add_option("id", c.session_id)->required();
+  auto* window = c.outage->add_subcommand("window", "dropout in [start, start+duration) since the first frame");
+  window->add_option("id", c.session_id)->required();
+  window->add_option("--start", c.outage_start_s, "seconds since the first frame")->required();
+  window->add_option("--duration", c.outage_duration_s, "seconds")->required();
 
-  const CameraFaultCommand cam = AddCameraFaultCommand(app, session_id);
+  c.camera_fault = AddCameraFaultCommand(app, c.session_id);
 
-  auto* scenario = app.add_subcommand("scenario", "change a running session's GPS scenario");
-  std::string scenario_name, scenario_file;
-  scenario->add_option("id", session_id)->required();
-  auto* sc_name = scenario->add_option("--name", scenario_name, "built-in scenario (or a .yaml/.yml file)");
-  auto* sc_file = scenario->add_option("--file", scenario_file, "scenario YAML file");
+  c.scenario = app.add_subcommand("scenario", "change a running session's GPS scenario");
+  c.scenario->add_option("id", c.session_id)->required();
+  auto* sc_name = c.scenario->add_option("--name", c.scenario_name, "built-in scenario (or a .yaml/.yml file)");
+  auto* sc_file = c.scenario->add_option("--file", c.scenario_file, "scenario YAML file");
   sc_name->excludes(sc_file);
 
-  auto* stats = app.add_subcommand("stats", "session statistics");
-  stats->add_option("id", session_id)->required();
+  c.stats = app.add_subcommand("stats", "session statistics");
+  c.stats->add_option("id", c.session_id)->required();
+}
 
+// Runs the parsed command against the server; its exit status (see Fail).
+int Run(const Commands& c) {
+  const Common& common = c.common;
+  auto channel = locaid::connection::MakeChannel(common);
+  auto stub = v1::Localization::NewStub(channel);
+  auto with_id = [&c](auto req) {
+    req.set_session_id(c.session_id);
+    return req;
+  };
+  if (c.health->parsed()) return Health(common, channel, c.health_service, c.health_wait_s);
+  if (c.start->parsed()) {
+    return Unary(common, *stub, &v1::Localization::Stub::StartSession, StartSessionRequest(c.start_options),
+                 [](const v1::Session& s) { std::cout << s.id() << "\n"; });
+  }
+  if (c.subscribe->parsed()) return Subscribe(common, *stub, c.sub);
+  if (c.list->parsed()) {
+    return Unary(common, *stub, &v1::Localization::Stub::ListSessions, v1::ListSessionsRequest{},
+                 [](const v1::ListSessionsResponse& r) {
+                   for (const auto& s : r.sessions()) PrintSession(s);
+                 });
+  }
+  if (c.get->parsed()) {
+    return Unary(common, *stub, &v1::Localization::Stub::GetSession, with_id(v1::GetSessionRequest{}), PrintSession);
+  }
+  if (c.stop->parsed()) {
+    v1::StopSessionRequest req = with_id(v1::StopSessionRequest{});
+    req.set_remove(c.remove);
+    return Unary(common, *stub, &v1::Localization::Stub::StopSession, req, PrintSession);
+  }
+  if (c.stats->parsed()) {
+    return Unary(common, *stub, &v1::Localization::Stub::GetStats, with_id(v1::GetStatsRequest{}), PrintStats);
+  }
+  if (c.outage->parsed()) {
+    v1::InjectOutageRequest req = with_id(v1::InjectOutageRequest{});
+    req.set_start_s(c.outage_start_s);
+    req.set_duration_s(c.outage_duration_s);
+    req.set_action(c.outage_start->parsed()  ? v1::InjectOutageRequest::START_NOW
+                   : c.outage_stop->parsed() ? v1::InjectOutageRequest::STOP_NOW
+                                             : v1::InjectOutageRequest::WINDOW);
+    return Unary(common, *stub, &v1::Localization::Stub::InjectOutage, req, PrintSession);
+  }
+  const CameraFaultCommand& cam = c.camera_fault;
+  if (cam.command->parsed()) {
+    v1::InjectCameraFaultRequest req = with_id(v1::InjectCameraFaultRequest{});
+    req.set_action(cam.start->parsed()  ? v1::InjectCameraFaultRequest::START_NOW
+                   : cam.stop->parsed() ? v1::InjectCameraFaultRequest::STOP_NOW
+                                        : v1::InjectCameraFaultRequest::WINDOW);
+    if (!cam.stop->parsed()) *req.mutable_fault() = CameraFaultMessage(*cam.args);
+    return Unary(common, *stub, &v1::Localization::Stub::InjectCameraFault, req, PrintSession);
+  }
+  if (c.scenario->parsed()) {
+    v1::SetScenarioRequest req = with_id(v1::SetScenarioRequest{});
+    FillScenario(c.scenario_name, c.scenario_file, req.mutable_scenario());
+    return Unary(common, *stub, &v1::Localization::Stub::SetScenario, req, PrintSession);
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"locaid: client of locaid-server"};
+  Commands commands;  // the parser fills it: it stays where it is
+  AddCommands(app, commands);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     // --help / --version exit 0; every usage error exits 2 (not CLI11's own codes).
     return app.exit(e) == 0 ? 0 : 2;
   }
-  if (const std::string why = CheckServerAddress(c.server); !why.empty()) {
-    std::cerr << "error: --server '" << c.server << "': " << why << "\n";
+  if (const std::string why = CheckServerAddress(commands.common.server); !why.empty()) {
+    std::cerr << "error: --server '" << commands.common.server << "': " << why << "\n";
     return 2;
   }
   // A file size limit (RLIMIT_FSIZE) must show up as EFBIG from write(2),
   // handled like a full disk, not kill the recorder.
   std::signal(SIGXFSZ, SIG_IGN);
-
   try {
-    locaid::connection::ResolveToken(c);
-    auto channel = locaid::connection::MakeChannel(c);
-    auto stub = v1::Localization::NewStub(channel);
-    auto with_id = [&session_id](auto req) {
-      req.set_session_id(session_id);
-      return req;
-    };
-
-    if (health->parsed()) return Health(c, channel, health_service, health_wait_s);
-    if (start->parsed()) {
-      return Unary(c, *stub, &v1::Localization::Stub::StartSession, StartSessionRequest(so),
-                   [](const v1::Session& s) { std::cout << s.id() << "\n"; });
-    }
-    if (subscribe->parsed()) return Subscribe(c, *stub, sub);
-    if (list->parsed()) {
-      return Unary(c, *stub, &v1::Localization::Stub::ListSessions, v1::ListSessionsRequest{},
-                   [](const v1::ListSessionsResponse& r) {
-                     for (const auto& s : r.sessions()) PrintSession(s);
-                   });
-    }
-    if (get->parsed()) {
-      return Unary(c, *stub, &v1::Localization::Stub::GetSession, with_id(v1::GetSessionRequest{}), PrintSession);
-    }
-    if (stop->parsed()) {
-      v1::StopSessionRequest req = with_id(v1::StopSessionRequest{});
-      req.set_remove(remove);
-      return Unary(c, *stub, &v1::Localization::Stub::StopSession, req, PrintSession);
-    }
-    if (stats->parsed()) {
-      return Unary(c, *stub, &v1::Localization::Stub::GetStats, with_id(v1::GetStatsRequest{}), PrintStats);
-    }
-    if (outage->parsed()) {
-      v1::InjectOutageRequest req = with_id(v1::InjectOutageRequest{});
-      req.set_start_s(o_start);
-      req.set_duration_s(o_duration);
-      req.set_action(o_start_cmd->parsed()  ? v1::InjectOutageRequest::START_NOW
-                     : o_stop_cmd->parsed() ? v1::InjectOutageRequest::STOP_NOW
-                                            : v1::InjectOutageRequest::WINDOW);
-      return Unary(c, *stub, &v1::Localization::Stub::InjectOutage, req, PrintSession);
-    }
-    if (cam.command->parsed()) {
-      v1::InjectCameraFaultRequest req = with_id(v1::InjectCameraFaultRequest{});
-      req.set_action(cam.start->parsed()  ? v1::InjectCameraFaultRequest::START_NOW
-                     : cam.stop->parsed() ? v1::InjectCameraFaultRequest::STOP_NOW
-                                          : v1::InjectCameraFaultRequest::WINDOW);
-      if (!cam.stop->parsed()) *req.mutable_fault() = CameraFaultMessage(*cam.args);
-      return Unary(c, *stub, &v1::Localization::Stub::InjectCameraFault, req, PrintSession);
-    }
-    if (scenario->parsed()) {
-      v1::SetScenarioRequest req = with_id(v1::SetScenarioRequest{});
-      FillScenario(scenario_name, scenario_file, req.mutable_scenario());
-      return Unary(c, *stub, &v1::Localization::Stub::SetScenario, req, PrintSession);
-    }
+    locaid::connection::ResolveToken(commands.common);
+    return Run(commands);
   } catch (const RecordError& e) {
     std::cerr << "error: " << e.what() << "\n";
     return 4;
@@ -424,5 +448,4 @@ int main(int argc, char** argv) {
     std::cerr << "error: " << e.what() << "\n";
     return 2;
   }
-  return 0;
 }

@@ -231,123 +231,134 @@ void LiveFrameSource::Wake() {
 }
 
 SourceItem LiveFrameSource::Next() {
-  SourceItem out;
   for (;;) {
-    LiveItem item;
-    std::function<void()> resume;
-    {
-      std::unique_lock lock(mu_);
-      if (queue_.empty() && async_fixes_.empty() && !closed_ && !cancelled_ && !woken_ && !HasReleasable()) {
-        cv_.wait_for(lock, std::chrono::milliseconds(50));
-      }
-      while (!async_fixes_.empty()) {
-        TakeGps(std::move(async_fixes_.front()));
-        async_fixes_.pop_front();
-      }
-      if (std::exchange(woken_, false)) {
-        out.kind = SourceItem::Kind::kIdle;
-        return out;
-      }
-      if (cancelled_ || (queue_.empty() && closed_)) {
-        out.kind = SourceItem::Kind::kEnd;
-        return out;
-      }
-      if (queue_.empty() && HasReleasable()) {
-        // Typed data between frames is fused now, not at the next frame.
-        out.kind = SourceItem::Kind::kSamples;
-        out.t_ns = sensor_time_ns_;
-        Release(sensor_time_ns_, out);
-        return out;
-      }
-      if (queue_.empty()) {
-        out.kind = SourceItem::Kind::kIdle;
-        out.oxts_bad_lines = std::exchange(bad_lines_, 0);
-        if (out.oxts_bad_lines > 0) out.error = last_error_;
-        return out;
-      }
-      item = std::move(queue_.front());
-      queue_.pop_front();
-      if (pending_) {
-        queue_.push_back(std::move(*pending_));
-        pending_.reset();
-        resume.swap(resume_);
-      }
+    SourceItem out;
+    std::optional<LiveItem> item = Dequeue(out);
+    if (!item) return out;
+    switch (item->kind) {
+      case LiveItem::Kind::kImu:
+        TakeImu(*item);
+        continue;
+      case LiveItem::Kind::kGps:
+        TakeGps(std::move(*item));
+        continue;
+      case LiveItem::Kind::kSpeed:
+        TakeSpeed(*item);
+        continue;
+      case LiveItem::Kind::kOxts:
+        TakeOxts(*item);
+        continue;
+      case LiveItem::Kind::kFrame:
+        return Frame(std::move(*item));
     }
-    if (resume) resume();
+  }
+}
 
-    if (item.kind == LiveItem::Kind::kImu) {
-      TakeImu(item);
-      continue;
+std::optional<LiveItem> LiveFrameSource::Dequeue(SourceItem& out) {
+  LiveItem item;
+  std::function<void()> resume;
+  {
+    std::unique_lock lock(mu_);
+    if (queue_.empty() && async_fixes_.empty() && !closed_ && !cancelled_ && !woken_ && !HasReleasable()) {
+      cv_.wait_for(lock, std::chrono::milliseconds(50));
     }
-    if (item.kind == LiveItem::Kind::kGps) {
-      TakeGps(std::move(item));
-      continue;
+    while (!async_fixes_.empty()) {
+      TakeGps(std::move(async_fixes_.front()));
+      async_fixes_.pop_front();
     }
-    if (item.kind == LiveItem::Kind::kSpeed) {
-      TakeSpeed(item);
-      continue;
+    if (std::exchange(woken_, false)) {
+      out.kind = SourceItem::Kind::kIdle;
+      return std::nullopt;
     }
-    if (item.kind == LiveItem::Kind::kOxts) {
-      const int64_t n = oxts_count_++;
-      try {
-        kitti::OxtsSample s;
-        s.t_ns = item.t_ns;
-        s.index = static_cast<int>(n);
-        s.record = kitti::ParseOxtsLine(item.oxts_line, "pushed oxts record " + std::to_string(n));
-        // Against the last accepted record, not the buffer: the buffer is
-        // handed to the pipeline at every frame and may be empty.
-        if (last_oxts_t_ns_ && s.t_ns <= *last_oxts_t_ns_) {
-          throw std::invalid_argument("pushed oxts record " + std::to_string(n) + ": t_ns " +
-                                      std::to_string(s.t_ns) + " not after the previous record (" +
-                                      std::to_string(*last_oxts_t_ns_) + ")");
-        }
-        last_oxts_t_ns_ = s.t_ns;
-        AppendOxts(s, reference_);
-      } catch (const std::exception& e) {
-        ++bad_lines_;
-        last_error_ = e.what();
-      }
-      continue;
+    if (cancelled_ || (queue_.empty() && closed_)) {
+      out.kind = SourceItem::Kind::kEnd;
+      return std::nullopt;
     }
+    if (queue_.empty() && HasReleasable()) {
+      // Typed data between frames is fused now, not at the next frame.
+      out.kind = SourceItem::Kind::kSamples;
+      out.t_ns = sensor_time_ns_;
+      Release(sensor_time_ns_, out);
+      return std::nullopt;
+    }
+    if (queue_.empty()) {
+      out.kind = SourceItem::Kind::kIdle;
+      out.oxts_bad_lines = std::exchange(bad_lines_, 0);
+      if (out.oxts_bad_lines > 0) out.error = last_error_;
+      return std::nullopt;
+    }
+    item = std::move(queue_.front());
+    queue_.pop_front();
+    if (pending_) {
+      queue_.push_back(std::move(*pending_));
+      pending_.reset();
+      resume.swap(resume_);
+    }
+  }
+  if (resume) resume();
+  return item;
+}
 
-    out.index = frames_++;
-    if (setup_.expects_imu && frames_ == kFramesBeforeNoImuNotice && !last_imu_ns_) {
-      std::lock_guard s(stats_mu_);
-      stats_.last_error = std::to_string(kFramesBeforeNoImuNotice) +
-                          " frames and no IMU sample: the filter is IMU-driven and drifts fast without one; a car "
-                          "without IMU starts its session with live.no_imu";
+void LiveFrameSource::TakeOxts(const LiveItem& item) {
+  const int64_t n = oxts_count_++;
+  try {
+    kitti::OxtsSample s;
+    s.t_ns = item.t_ns;
+    s.index = static_cast<int>(n);
+    s.record = kitti::ParseOxtsLine(item.oxts_line, "pushed oxts record " + std::to_string(n));
+    // Against the last accepted record, not the buffer: the buffer is
+    // handed to the pipeline at every frame and may be empty.
+    if (last_oxts_t_ns_ && s.t_ns <= *last_oxts_t_ns_) {
+      throw std::invalid_argument("pushed oxts record " + std::to_string(n) + ": t_ns " + std::to_string(s.t_ns) +
+                                  " not after the previous record (" + std::to_string(*last_oxts_t_ns_) + ")");
     }
-    out.t_ns = item.t_ns;
-    out.oxts_bad_lines = std::exchange(bad_lines_, 0);
-    if (out.oxts_bad_lines > 0) out.error = last_error_;
-    // Hand over the reference samples up to the frame time; later ones wait.
-    reference_.MoveUpTo(item.t_ns, out.sensors);
-    if (item.t_ns > last_frame_ns_) sensor_time_ns_ = std::max(sensor_time_ns_, item.t_ns);
-    Release(item.t_ns, out);
-    if (item.t_ns <= last_frame_ns_) {
-      out.kind = SourceItem::Kind::kCorrupt;
-      out.error = "pushed frame " + std::to_string(out.index) + ": t_ns " + std::to_string(item.t_ns) +
-                  " not after the previous frame (" + std::to_string(last_frame_ns_) + ")";
-      return out;
-    }
-    try {
-      if (item.no_images) {
-        out.no_images = true;  // a pose without VO: out.left / out.right stay empty
-      } else if (!item.left_image.empty() || !item.right_image.empty()) {
-        out.left = CheckedLiveImage(item.left_image, setup_.camera, "left");
-        out.right = CheckedLiveImage(item.right_image, setup_.camera, "right");
-      } else {
-        pair_runner().Run([&] { out.left = DecodeLiveImage(item.left, item.png, setup_.camera, "left"); },
-                          [&] { out.right = DecodeLiveImage(item.right, item.png, setup_.camera, "right"); });
-      }
-      out.kind = SourceItem::Kind::kFrame;
-      last_frame_ns_ = item.t_ns;
-    } catch (const std::exception& e) {
-      out.kind = SourceItem::Kind::kCorrupt;
-      out.error = "pushed frame " + std::to_string(out.index) + ": " + e.what();
-    }
+    last_oxts_t_ns_ = s.t_ns;
+    AppendOxts(s, reference_);
+  } catch (const std::exception& e) {
+    ++bad_lines_;
+    last_error_ = e.what();
+  }
+}
+
+SourceItem LiveFrameSource::Frame(LiveItem item) {
+  SourceItem out;
+  out.index = frames_++;
+  if (setup_.expects_imu && frames_ == kFramesBeforeNoImuNotice && !last_imu_ns_) {
+    std::lock_guard s(stats_mu_);
+    stats_.last_error = std::to_string(kFramesBeforeNoImuNotice) +
+                        " frames and no IMU sample: the filter is IMU-driven and drifts fast without one; a car "
+                        "without IMU starts its session with live.no_imu";
+  }
+  out.t_ns = item.t_ns;
+  out.oxts_bad_lines = std::exchange(bad_lines_, 0);
+  if (out.oxts_bad_lines > 0) out.error = last_error_;
+  // Hand over the reference samples up to the frame time; later ones wait.
+  reference_.MoveUpTo(item.t_ns, out.sensors);
+  if (item.t_ns > last_frame_ns_) sensor_time_ns_ = std::max(sensor_time_ns_, item.t_ns);
+  Release(item.t_ns, out);
+  if (item.t_ns <= last_frame_ns_) {
+    out.kind = SourceItem::Kind::kCorrupt;
+    out.error = "pushed frame " + std::to_string(out.index) + ": t_ns " + std::to_string(item.t_ns) +
+                " not after the previous frame (" + std::to_string(last_frame_ns_) + ")";
     return out;
   }
+  try {
+    if (item.no_images) {
+      out.no_images = true;  // a pose without VO: out.left / out.right stay empty
+    } else if (!item.left_image.empty() || !item.right_image.empty()) {
+      out.left = CheckedLiveImage(item.left_image, setup_.camera, "left");
+      out.right = CheckedLiveImage(item.right_image, setup_.camera, "right");
+    } else {
+      pair_runner().Run([&] { out.left = DecodeLiveImage(item.left, item.png, setup_.camera, "left"); },
+                        [&] { out.right = DecodeLiveImage(item.right, item.png, setup_.camera, "right"); });
+    }
+    out.kind = SourceItem::Kind::kFrame;
+    last_frame_ns_ = item.t_ns;
+  } catch (const std::exception& e) {
+    out.kind = SourceItem::Kind::kCorrupt;
+    out.error = "pushed frame " + std::to_string(out.index) + ": " + e.what();
+  }
+  return out;
 }
 
 }  // namespace locaid::pipeline

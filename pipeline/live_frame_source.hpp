@@ -97,6 +97,13 @@ class LiveFrameSource : public FrameSource {
   void TakeImu(const LiveItem& item);
   void TakeGps(LiveItem item);
   void TakeSpeed(const LiveItem& item);
+  void TakeOxts(const LiveItem& item);  // a bad record is counted, its error kept for the next item
+  // The next pushed item, waiting up to 50 ms for one; nullopt when Next()
+  // returns `out` instead (the end, idle, woken, or samples due between
+  // frames).
+  std::optional<LiveItem> Dequeue(SourceItem& out);
+  // A frame: its samples, its images decoded or checked.
+  SourceItem Frame(LiveItem item);
   // Moves the pending typed data up to t_ns into `out`.
   void Release(int64_t t_ns, SourceItem& out);
   bool HasReleasable() const;

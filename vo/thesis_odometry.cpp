@@ -39,7 +39,38 @@ class ThesisOdometry final : public StereoOdometry {
   void Reset() override { has_prev_ = false; }
 
  private:
+  // The previous frame's features matched into this frame's.
+  struct Matches {
+    std::vector<cv::DMatch> good;  // previous (query) -> current (train)
+    std::vector<cv::Point2f> p_prev, p_curr;
+  };
+  // What PnP on the previous frame's depth gives.
+  struct PnpResult {
+    bool ok = false;
+    cv::Mat rvec, tvec;
+    std::vector<int> inliers;
+    std::vector<StereoObservation> observations;  // one per 3D point PnP saw
+  };
+
   std::vector<cv::KeyPoint> DetectGrid(const cv::Mat& left) const;
+  // Brute-force knn (k = 2) from the previous frame's descriptors, Lowe's
+  // ratio test and the angle filter.
+  Matches MatchPrevious(const std::vector<cv::KeyPoint>& kps, const cv::Mat& desc) const;
+  // Whether the median image motion is below the standstill threshold.
+  bool Standstill(const Matches& m) const;
+  // Rotation from the essential matrix (5-point RANSAC, left camera); false
+  // when it fails.
+  bool RotationFromEssential(const Matches& m, cv::Mat& R_curr_prev) const;
+  // PnP RANSAC with 3D points from the previous frame's depth map.
+  PnpResult TranslationFromDepth(const Matches& m) const;
+  // The motion from the PnP translation and the chosen rotation; kLost when
+  // it is not finite.
+  RelativeMotion MotionOf(const PnpResult& pnp, bool rotation_ok, const cv::Mat& R_curr_prev,
+                          int64_t t_ns) const;
+  // Keeps this frame for the next one and completes `m` (times, timings; the
+  // first frame is the identity).
+  RelativeMotion Finish(RelativeMotion m, const StereoFrame& frame, std::vector<cv::KeyPoint> kps,
+                        const cv::Mat& desc, const cv::Mat& disparity, const StageTimings& timings);
 
   StereoCamera cam_;
   ThesisConfig cfg_;
@@ -84,7 +115,45 @@ RelativeMotion ThesisOdometry::Track(const StereoFrame& frame) {
   orb_->compute(left, kps, desc);  // drops keypoints too close to the border
   timer.Stop("detect_describe");
 
-  std::vector<cv::DMatch> good;
+  const Matches matches = MatchPrevious(kps, desc);
+  timer.Stop("match");
+
+  cv::Mat disparity;
+  bm_->compute(left, right, disparity);
+  timer.Stop("depth");
+
+  const auto finish = [&](RelativeMotion m) {
+    return Finish(std::move(m), frame, std::move(kps), desc, disparity, out.timings);
+  };
+  if (!has_prev_) return finish(out);
+  if (static_cast<int>(matches.good.size()) < cfg_.min_inliers_degraded)
+    return finish(NoMotion(frame.t_ns, Status::kLost));
+
+  // Guard (not in the thesis): no image motion -> the essential matrix is
+  // undefined; report identity.
+  if (Standstill(matches)) {
+    RelativeMotion still;
+    still.status = Status::kOk;
+    still.inliers = static_cast<int>(matches.good.size());
+    still.covariance = Matrix6d::Identity() * 1e-6;
+    timer.Stop("rotation");
+    timer.Stop("translation");
+    return finish(still);
+  }
+
+  cv::Mat R_curr_prev;
+  const bool rotation_ok = RotationFromEssential(matches, R_curr_prev);
+  timer.Stop("rotation");
+  const PnpResult pnp = TranslationFromDepth(matches);
+  timer.Stop("translation");
+  if (!pnp.ok || static_cast<int>(pnp.inliers.size()) < cfg_.min_inliers_degraded)
+    return finish(NoMotion(frame.t_ns, Status::kLost));
+  return finish(MotionOf(pnp, rotation_ok, R_curr_prev, frame.t_ns));
+}
+
+ThesisOdometry::Matches ThesisOdometry::MatchPrevious(const std::vector<cv::KeyPoint>& kps,
+                                                      const cv::Mat& desc) const {
+  Matches out;
   if (has_prev_ && !prev_desc_.empty() && !desc.empty()) {
     std::vector<std::vector<cv::DMatch>> knn;
     matcher_->knnMatch(prev_desc_, desc, knn, 2);
@@ -94,127 +163,108 @@ RelativeMotion ThesisOdometry::Track(const StereoFrame& frame) {
                               kps[static_cast<size_t>(m[0].trainIdx)].angle);
       dangle = std::min(dangle, 360.f - dangle);
       if (dangle > cfg_.max_angle_deg) continue;
-      good.push_back(m[0]);
+      out.good.push_back(m[0]);
     }
   }
-  timer.Stop("match");
-
-  cv::Mat disparity;
-  bm_->compute(left, right, disparity);
-  timer.Stop("depth");
-
-  const auto finish = [&](RelativeMotion m) {
-    prev_kps_ = std::move(kps);
-    prev_desc_ = desc;
-    prev_disparity_ = disparity;
-    const bool first = !has_prev_;
-    has_prev_ = true;
-    if (first) {
-      m.status = Status::kOk;
-      m.T_prev_curr = Eigen::Isometry3d::Identity();
-      m.covariance = Matrix6d::Identity() * 1e-12;
-    }
-    m.timings = out.timings;
-    m.t_ns = frame.t_ns;
-    m.t_prev_ns = m.status == Status::kLost || first ? frame.t_ns : prev_t_ns_;
-    prev_t_ns_ = frame.t_ns;
-    m.total_ms = SumTimings(m.timings);
-    return m;
-  };
-  if (!has_prev_) return finish(out);
-
-  std::vector<cv::Point2f> p_prev, p_curr;
-  for (const cv::DMatch& m : good) {
-    p_prev.push_back(prev_kps_[static_cast<size_t>(m.queryIdx)].pt);
-    p_curr.push_back(kps[static_cast<size_t>(m.trainIdx)].pt);
+  for (const cv::DMatch& m : out.good) {
+    out.p_prev.push_back(prev_kps_[static_cast<size_t>(m.queryIdx)].pt);
+    out.p_curr.push_back(kps[static_cast<size_t>(m.trainIdx)].pt);
   }
-  if (static_cast<int>(good.size()) < cfg_.min_inliers_degraded)
-    return finish(NoMotion(frame.t_ns, Status::kLost));
+  return out;
+}
 
-  // Guard (not in the thesis): no image motion -> the essential matrix is
-  // undefined; report identity.
+bool ThesisOdometry::Standstill(const Matches& m) const {
   std::vector<double> flow;
-  for (size_t i = 0; i < p_prev.size(); ++i) flow.push_back(cv::norm(p_curr[i] - p_prev[i]));
+  for (size_t i = 0; i < m.p_prev.size(); ++i) flow.push_back(cv::norm(m.p_curr[i] - m.p_prev[i]));
   std::nth_element(flow.begin(), flow.begin() + static_cast<std::ptrdiff_t>(flow.size() / 2),
                    flow.end());
-  if (flow[flow.size() / 2] < cfg_.standstill_flow_px) {
-    RelativeMotion still;
-    still.status = Status::kOk;
-    still.inliers = static_cast<int>(good.size());
-    still.covariance = Matrix6d::Identity() * 1e-6;
-    timer.Stop("rotation");
-    timer.Stop("translation");
-    return finish(still);
-  }
+  return flow[flow.size() / 2] < cfg_.standstill_flow_px;
+}
 
-  // Rotation: essential matrix, 5-point RANSAC, left camera.
-  cv::Mat R_curr_prev;
-  bool rotation_ok = false;
+bool ThesisOdometry::RotationFromEssential(const Matches& m, cv::Mat& R_curr_prev) const {
   try {
     cv::Mat mask;
-    const cv::Mat E = cv::findEssentialMat(p_prev, p_curr, K_, cv::RANSAC, 0.999,
+    const cv::Mat E = cv::findEssentialMat(m.p_prev, m.p_curr, K_, cv::RANSAC, 0.999,
                                            cfg_.essential_threshold_px, mask);
-    if (E.rows == 3 && E.cols == 3) {
-      cv::Mat t_unit;
-      const int n = cv::recoverPose(E, p_prev, p_curr, K_, R_curr_prev, t_unit, mask);
-      rotation_ok = n >= cfg_.min_inliers_degraded;
-    }
+    if (E.rows != 3 || E.cols != 3) return false;
+    cv::Mat t_unit;
+    const int n = cv::recoverPose(E, m.p_prev, m.p_curr, K_, R_curr_prev, t_unit, mask);
+    return n >= cfg_.min_inliers_degraded;
   } catch (const cv::Exception&) {
-    rotation_ok = false;
+    return false;
   }
-  timer.Stop("rotation");
+}
 
-  // Translation: PnP RANSAC with 3D points from the previous depth map.
+ThesisOdometry::PnpResult ThesisOdometry::TranslationFromDepth(const Matches& m) const {
+  PnpResult out;
   std::vector<cv::Point3f> object;
   std::vector<cv::Point2f> image;
-  std::vector<StereoObservation> obs;
-  for (size_t i = 0; i < p_prev.size(); ++i) {
-    const int u = cvRound(p_prev[i].x), v = cvRound(p_prev[i].y);
+  for (size_t i = 0; i < m.p_prev.size(); ++i) {
+    const int u = cvRound(m.p_prev[i].x), v = cvRound(m.p_prev[i].y);
     if (u < 0 || v < 0 || u >= prev_disparity_.cols || v >= prev_disparity_.rows) continue;
     const double d = prev_disparity_.at<int16_t>(v, u) / 16.0;
     if (d <= 1.0) continue;
-    const Eigen::Vector3d p = TriangulateStereo(cam_, p_prev[i].x, p_prev[i].y, p_prev[i].x - d);
+    const Eigen::Vector3d p = TriangulateStereo(cam_, m.p_prev[i].x, m.p_prev[i].y, m.p_prev[i].x - d);
     object.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()),
                         static_cast<float>(p.z()));
-    image.push_back(p_curr[i]);
+    image.push_back(m.p_curr[i]);
     StereoObservation ob;
     ob.p_ref = p;
-    ob.uv_left = {p_curr[i].x, p_curr[i].y};
-    obs.push_back(ob);
+    ob.uv_left = {m.p_curr[i].x, m.p_curr[i].y};
+    out.observations.push_back(ob);
   }
-  cv::Mat rvec, tvec;
-  std::vector<int> inliers;
-  bool pnp_ok = false;
   if (static_cast<int>(object.size()) >= cfg_.min_inliers_degraded) {
     try {
-      pnp_ok = cv::solvePnPRansac(object, image, K_, cv::noArray(), rvec, tvec, false,
+      out.ok = cv::solvePnPRansac(object, image, K_, cv::noArray(), out.rvec, out.tvec, false,
                                   cfg_.pnp_iterations, static_cast<float>(cfg_.pnp_threshold_px),
-                                  0.99, inliers);
+                                  0.99, out.inliers);
     } catch (const cv::Exception&) {
-      pnp_ok = false;
+      out.ok = false;
     }
   }
-  timer.Stop("translation");
-  if (!pnp_ok || static_cast<int>(inliers.size()) < cfg_.min_inliers_degraded)
-    return finish(NoMotion(frame.t_ns, Status::kLost));
+  return out;
+}
 
+RelativeMotion ThesisOdometry::MotionOf(const PnpResult& pnp, bool rotation_ok, const cv::Mat& R_curr_prev,
+                                        int64_t t_ns) const {
   cv::Mat R_pnp;
-  cv::Rodrigues(rvec, R_pnp);
+  cv::Rodrigues(pnp.rvec, R_pnp);
   const cv::Mat& R = rotation_ok ? R_curr_prev : R_pnp;
   Eigen::Isometry3d T_curr_prev = Eigen::Isometry3d::Identity();
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 3; ++c) T_curr_prev.linear()(r, c) = R.at<double>(r, c);
-    T_curr_prev.translation()(r) = tvec.at<double>(r);
+    T_curr_prev.translation()(r) = pnp.tvec.at<double>(r);
   }
-  if (!IsFinite(T_curr_prev)) return finish(NoMotion(frame.t_ns, Status::kLost));
+  if (!IsFinite(T_curr_prev)) return NoMotion(t_ns, Status::kLost);
   RelativeMotion m;
   m.T_prev_curr = T_curr_prev.inverse();
   std::vector<StereoObservation> inlier_obs;
-  for (int i : inliers) inlier_obs.push_back(obs[static_cast<size_t>(i)]);
+  for (int i : pnp.inliers) inlier_obs.push_back(pnp.observations[static_cast<size_t>(i)]);
   m.covariance = PoseCovariance(inlier_obs, cam_, m.T_prev_curr);
-  m.inliers = static_cast<int>(inliers.size());
+  m.inliers = static_cast<int>(pnp.inliers.size());
   m.status = (rotation_ok && m.inliers >= cfg_.min_inliers_ok) ? Status::kOk : Status::kDegraded;
-  return finish(m);
+  return m;
+}
+
+RelativeMotion ThesisOdometry::Finish(RelativeMotion m, const StereoFrame& frame, std::vector<cv::KeyPoint> kps,
+                                      const cv::Mat& desc, const cv::Mat& disparity,
+                                      const StageTimings& timings) {
+  prev_kps_ = std::move(kps);
+  prev_desc_ = desc;
+  prev_disparity_ = disparity;
+  const bool first = !has_prev_;
+  has_prev_ = true;
+  if (first) {
+    m.status = Status::kOk;
+    m.T_prev_curr = Eigen::Isometry3d::Identity();
+    m.covariance = Matrix6d::Identity() * 1e-12;
+  }
+  m.timings = timings;
+  m.t_ns = frame.t_ns;
+  m.t_prev_ns = m.status == Status::kLost || first ? frame.t_ns : prev_t_ns_;
+  prev_t_ns_ = frame.t_ns;
+  m.total_ms = SumTimings(m.timings);
+  return m;
 }
 
 }  // namespace
