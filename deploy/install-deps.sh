@@ -24,6 +24,7 @@ build_pkgs=(
   libyaml-cpp-dev nlohmann-json3-dev libcli11-dev prometheus-cpp-dev
   libgps-dev libzstd-dev liblz4-dev zlib1g-dev libboost-dev
   libgstreamer1.0-dev libgstreamer-plugins-base1.0-dev   # cameras through GStreamer (sensors/gst_camera)
+  cyclonedds-dev                  # locaid-ros2: ROS 2 topics over Eclipse Cyclone DDS (ros2/)
   python3 python3-matplotlib python3-grpcio python3-protobuf python3-grpc-tools
 )
 runtime_pkgs=(
@@ -33,6 +34,7 @@ runtime_pkgs=(
   libprometheus-cpp-pull1.0 libprometheus-cpp-core1.0 libgps28 libzstd1 liblz4-1 zlib1g
   libgstreamer1.0-0 libgstreamer-plugins-base1.0-0
   gstreamer1.0-plugins-base gstreamer1.0-plugins-good   # cameras: v4l2src, jpegdec, videoconvert, appsink
+  libddsc0debian                  # locaid-ros2 (Cyclone DDS)
 )
 
 test_pkgs=(
@@ -42,7 +44,9 @@ test_pkgs=(
   openssl                         # self-signed certificates (TLS tests)
   clang libclang-rt-14-dev        # libFuzzer + sanitizer runtimes (fuzz/ targets and their test)
   podman runc debootstrap         # the container image test (deploy/test-image.sh), on every test run
+  podman-compose golang-github-containernetworking-plugin-dnsname  # its deploy/compose.yaml step (dnsname: service names on podman's CNI networks)
   slurm-wlm munge                 # a real single-node Slurm for the locaid-sweep tests (tests/sweep)
+  libfastrtps-dev fastddsgen      # the Fast DDS peer of the locaid-ros2 tests (tests/ros2), types from ROS 2 IDL
 )
 node_pkgs=()  # Debian's Node.js only where none is installed (see above)
 command -v node >/dev/null 2>&1 || node_pkgs+=(nodejs)
