@@ -280,6 +280,11 @@ void InputAssembler::Release(InputClock::time_point now, Out& out, bool all) {
   if (!holding) limit = newest_ns_;
   const auto window_ns = static_cast<int64_t>(options_.reorder_window_s * 1e9);
   if (newest_ns_ != INT64_MIN) limit = std::max(limit, newest_ns_ - window_ns);
+  // A fix that may still come holds the others back for gps_hold_s at most:
+  // sent in order, it is fused where it belongs, not as a late fix.
+  const auto gps_hold_ns = static_cast<int64_t>(std::min(options_.gps_hold_s, options_.reorder_window_s) * 1e9);
+  if (IsStream(InputRole::kGps) && !S(InputRole::kGps).silent && gps_hold_ns > 0 && newest_ns_ != INT64_MIN)
+    limit = std::min(limit, std::max(newest_[Index(InputRole::kGps)], newest_ns_ - gps_hold_ns));
   if (all) limit = INT64_MAX;
   while (!held_.empty() && held_.top().stamp_ns <= limit) {
     Held h = held_.top();

@@ -164,6 +164,11 @@ int main(int argc, char** argv) {
                                                            "others back")
       ->check(CLI::Range(0.0, 10000.0))
       ->capture_default_str();
+  double gps_hold_ms = 200;
+  app.add_option("--gps-hold-ms", gps_hold_ms, "--inputs: how long the other topics wait for a fix that may still "
+                                               "come (sent in order; later fixes are fused as late fixes)")
+      ->check(CLI::Range(0.0, 10000.0))
+      ->capture_default_str();
   app.add_option("--silent-after-s", assembler.silent_after_s, "--inputs: a topic without a message this long "
                                                                "is reported silent")
       ->check(CLI::Range(0.1, 3600.0))
@@ -265,6 +270,7 @@ int main(int argc, char** argv) {
       li.setup = setup;
       assembler.stereo_tolerance_s = stereo_tolerance_ms * 1e-3;
       assembler.reorder_window_s = reorder_window_ms * 1e-3;
+      assembler.gps_hold_s = gps_hold_ms * 1e-3;
       li.assembler = assembler;
       li.scenario = scenario_msg;
       li.smoothing_lag_s = lag_s;
