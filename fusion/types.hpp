@@ -54,7 +54,7 @@ struct SpeedSample {
 // Where a reference unit (a recorded drive's OXTS RT3003: ground truth) says
 // the body was. Never fused: the scenario (sim/scenario.hpp) makes the
 // receiver fixes the filter sees from it, and evaluation compares with it.
-struct ReferencePose {
+struct TruthSample {
   int64_t t_ns = 0;
   double lat_deg = 0, lon_deg = 0, alt_m = 0;
   Eigen::Matrix3d R_enu_body = Eigen::Matrix3d::Identity();  // attitude (places an antenna)

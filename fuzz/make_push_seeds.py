@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Seed inputs for fuzz_push_sensors: PushSensorData streams (most begin after
+"""Seed inputs for fuzz_push_requests: PushSensorData streams (most begin after
 'start'; "live_start" begins with one) as length-delimited locaid.v1.PushRequest messages, written from text format
 with `protoc --encode`, so they follow proto/locaid/v1/localization.proto as
 it is today.

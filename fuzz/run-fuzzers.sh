@@ -39,7 +39,8 @@ while (($#)); do
 done
 data=${LOCAID_SHARED_DATA:-$repo/../shared/data/kitti}
 all_targets=(oxts timestamps pose_file calib_cam_to_cam calib_rigid calib_odometry
-             scenario_yaml server_config frame_decode push_sensors bag_reader)
+             scenario_yaml server_config frame_decode push_requests bag_reader
+             ros2_sample ros2_graph camera_info_yaml sweep_manifest)
 ((${#targets[@]})) || targets=("${all_targets[@]}")
 
 if ((do_build)); then
@@ -142,12 +143,20 @@ png = (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 0,
 open(sys.argv[1], "wb").write(b"\x01" + png)
 EOF
       printf '\x00\x80' | seed "$t" raw_1x1 ;;
-    push_sensors)
+    push_requests)
       # PushRequest streams written from text format by protoc (fuzz/make_push_seeds.py).
       /usr/bin/python3 "$repo/fuzz/make_push_seeds.py" "$work/$t" "$repo" ;;
     bag_reader)
       # Small MCAP files as rosbag2 writes them (fuzz/make_bag_seeds.py).
       /usr/bin/python3 "$repo/fuzz/make_bag_seeds.py" "$work/$t" ;;
+    ros2_sample) /usr/bin/python3 "$repo/fuzz/make_ros2_seeds.py" sample "$work/$t" ;;
+    ros2_graph) /usr/bin/python3 "$repo/fuzz/make_ros2_seeds.py" graph "$work/$t" ;;
+    camera_info_yaml)
+      printf 'image_width: 16\nimage_height: 12\ncamera_name: left\ncamera_matrix: {rows: 3, cols: 3, data: [10, 0, 8, 0, 10, 6, 0, 0, 1]}\ndistortion_model: plumb_bob\ndistortion_coefficients: {rows: 1, cols: 5, data: [-0.3, 0.1, 0.001, 0, 0]}\nrectification_matrix: {rows: 3, cols: 3, data: [1, 0, 0, 0, 1, 0, 0, 0, 1]}\nprojection_matrix: {rows: 3, cols: 4, data: [10, 0, 8, 0, 0, 10, 6, 0, 0, 0, 1, 0]}\n' | seed "$t" small
+      printf 'image_width: 1392\nimage_height: 512\ncamera_matrix:\n  rows: 3\n  cols: 3\n  data: [984.2, 0, 690, 0, 980.8, 233.2, 0, 0, 1]\ndistortion_model: rational_polynomial\ndistortion_coefficients: {rows: 1, cols: 8, data: [-0.37, 0.2, 0.001, 0.0013, -0.07, 0, 0, 0]}\nrectification_matrix: {rows: 3, cols: 3, data: [1, 0.01, 0, -0.01, 1, 0, 0, 0, 1]}\nprojection_matrix: {rows: 3, cols: 4, data: [721.5, 0, 609.6, -387.6, 0, 721.5, 172.9, 0, 0, 0, 1, 0]}\n' | seed "$t" kitti_like ;;
+    sweep_manifest)
+      printf 'recordings:\n  - path: drive_sync\n  - path: drive.mcap\n    bag_topics: outage.yaml\nscenarios: [open-sky, tunnel-30s, outage.yaml]\nseeds: {from: 1, to: 3}\nimu: [on, off]\nreplay_args: ["--vehicle-constraints", "off"]\nsmooth: true\n' | seed "$t" builtin
+      printf 'recordings: [{path: "*.mcap"}]\nscenarios: [urban-canyon]\nseeds: [1, 2, 3]\n' | seed "$t" builtin_glob ;;
   esac
   return 0
 }

@@ -152,7 +152,7 @@ bool BagFrameSource::Fill() {
 SourceItem BagFrameSource::Next() {
   while (ready_.empty()) {
     if (!Fill()) {
-      // The end: images without a partner, then the last sensor data.
+      // The end: images without a partner, then the last samples.
       for (auto* side : {&left_, &right_}) {
         if (!*side) continue;
         SourceItem s;
@@ -164,11 +164,11 @@ SourceItem BagFrameSource::Next() {
         side->reset();
         ready_.push_back(std::move(s));
       }
-      if (!sensors_.empty()) {
+      if (!samples_.empty()) {
         SourceItem s;
         s.kind = SourceItem::Kind::kSamples;
         s.t_ns = newest_stamp_ns_;
-        s.sensors = std::exchange(sensors_, {});
+        s.samples = std::exchange(samples_, {});
         ready_.push_back(std::move(s));
       }
       SourceItem end;
@@ -193,7 +193,7 @@ SourceItem BagFrameSource::Next() {
 
 void BagFrameSource::Handle(Pending p) {
   if (p.role != Role::kLeft && p.role != Role::kRight) {
-    AddSensor(p);
+    AddSample(p);
     return;
   }
   auto& mine = p.role == Role::kLeft ? left_ : right_;
@@ -242,7 +242,7 @@ SourceItem BagFrameSource::MakeFrame(Pending left, Pending right) {
   SourceItem item;
   item.index = next_index_++;
   item.t_ns = left.stamp_ns;
-  sensors_.MoveUpTo(item.t_ns, item.sensors);
+  samples_.MoveUpTo(item.t_ns, item.samples);
   if (item.t_ns <= last_frame_ns_) {
     item.kind = SourceItem::Kind::kCorrupt;
     item.error = left.where + ": frame time " + Seconds(item.t_ns) + " s is not after the previous frame's";
@@ -271,7 +271,7 @@ SourceItem BagFrameSource::MakeFrame(Pending left, Pending right) {
   return item;
 }
 
-void BagFrameSource::AddSensor(const Pending& p) {
+void BagFrameSource::AddSample(const Pending& p) {
   // A reading older than its topic's last one, or not finite, is dropped and
   // counted; otherwise `last` moves on to it.
   const auto in_order = [&](int64_t stamp_ns, int64_t& last, bool finite, const char* what) {
@@ -293,13 +293,13 @@ void BagFrameSource::AddSensor(const Pending& p) {
       s.t_ns = imu.header.stamp_ns;
       s.accel_mps2 = imu.linear_acceleration;
       s.gyro_radps = imu.angular_velocity;
-      sensors_.imu.push_back(s);
+      samples_.imu.push_back(s);
       ++stats_.imu;
     } else if (p.role == Role::kGps) {
       const auto nav = ros::DecodeNavSatFix(p.data);
       if (!in_order(nav.header.stamp_ns, last_gps_ns_, true, "fix")) return;
       if (!ros::HasPosition(nav)) {
-        sensors_.receiver_has_fix = false;
+        samples_.receiver_has_fix = false;
         ++stats_.no_fix;
         return;
       }
@@ -311,8 +311,8 @@ void BagFrameSource::AddSensor(const Pending& p) {
       a.fix.sigma_h_m = options_.gps_sigma_h_m;
       a.fix.sigma_v_m = options_.gps_sigma_v_m;
       if (const auto cov = ros::StatedCovariance(nav)) a.fix.cov_enu_m2 = *cov;
-      sensors_.gps.push_back(a);
-      sensors_.receiver_has_fix = true;
+      samples_.gps.push_back(a);
+      samples_.receiver_has_fix = true;
       ++stats_.fixes;
     } else {
       const auto twist = ros::DecodeTwistStamped(p.data);
@@ -320,7 +320,7 @@ void BagFrameSource::AddSensor(const Pending& p) {
       fusion::SpeedSample s;
       s.t_ns = twist.header.stamp_ns;
       s.speed_mps = twist.linear.x();
-      sensors_.speed.push_back(s);
+      samples_.speed.push_back(s);
       ++stats_.speed;
     }
   } catch (const ros::CdrError& e) {

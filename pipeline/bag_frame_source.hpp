@@ -99,7 +99,7 @@ class BagFrameSource : public FrameSource {
   // the window; false when nothing is left.
   bool Fill();
   void Handle(Pending p);
-  void AddSensor(const Pending& p);
+  void AddSample(const Pending& p);
   void TryPair();
   SourceItem MakeFrame(Pending left, Pending right);
   cv::Mat Decode(const Pending& image, const ros::Rectifier& rectifier) const;
@@ -120,7 +120,7 @@ class BagFrameSource : public FrameSource {
   int64_t newest_stamp_ns_ = INT64_MIN, released_stamp_ns_ = INT64_MIN;
   bool bag_done_ = false;
   std::optional<Pending> left_, right_;
-  SampleBatch sensors_;
+  SampleBatch samples_;
   int64_t last_imu_ns_ = INT64_MIN, last_gps_ns_ = INT64_MIN, last_speed_ns_ = INT64_MIN;
   int64_t last_frame_ns_ = INT64_MIN;
   int64_t next_index_ = 0;

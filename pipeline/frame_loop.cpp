@@ -15,10 +15,10 @@ StepResult FrameLoop::Step() {
   r.t_ns = item.t_ns;
   r.oxts_bad_lines = item.oxts_bad_lines;
   r.error = item.error;
-  if (item.kind == SourceItem::Kind::kFrame) scenario_.BeginFrame(item.t_ns, item.sensors);
-  if (!item.sensors.empty()) {
-    estimator_->Fuse(scenario_.Apply(item.sensors));
-    RecordFixLatency(item.sensors);
+  if (item.kind == SourceItem::Kind::kFrame) scenario_.BeginFrame(item.t_ns, item.samples);
+  if (!item.samples.empty()) {
+    estimator_->Fuse(scenario_.Apply(item.samples));
+    RecordFixLatency(item.samples);
   }
   switch (item.kind) {
     case SourceItem::Kind::kSamples: r.kind = StepResult::Kind::kFused; return r;
@@ -45,18 +45,18 @@ void FrameLoop::SetScenario(const sim::Scenario& scenario) {
   camera_faults_.SetScenario(scenario);
 }
 
-void FrameLoop::RecordFixLatency(const SampleBatch& sensors) {
+void FrameLoop::RecordFixLatency(const SampleBatch& samples) {
   const auto now = std::chrono::steady_clock::now().time_since_epoch();
   const auto now_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(now).count();
   std::lock_guard lock(latency_mu_);
-  for (const ArrivedFix& f : sensors.gps) {
+  for (const ArrivedFix& f : samples.gps) {
     if (f.arrival_steady_ns == 0) continue;
     fix_latency_ms_.push_back(static_cast<double>(now_ns - f.arrival_steady_ns) / 1e6);
     if (fix_latency_ms_.size() > kLatencyWindow) fix_latency_ms_.pop_front();
   }
 }
 
-TruthPose FrameLoop::Truth(const fusion::ReferencePose& ref) const {
+TruthPose FrameLoop::Truth(const fusion::TruthSample& ref) const {
   TruthPose t{ref.lat_deg, ref.lon_deg, ref.alt_m, std::nullopt};
   const fusion::EnuFrame& enu = estimator_->enu();
   if (enu.has_origin()) {

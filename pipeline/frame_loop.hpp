@@ -1,6 +1,6 @@
 // The one frame loop: source -> scenario stage -> camera faults -> estimator,
 // one StepResult per Step(). A FrameSource (KITTI drive, synthetic drive,
-// frames and sensors a client pushes) yields frames and typed sensor data;
+// frames and samples a client pushes) yields frames and samples;
 // the ScenarioStage (scenario_stage.hpp) makes the measurements and owns GPS
 // availability; the CameraFaultStage (camera_faults.hpp) does to the images
 // what the scenario's `camera:` list and injected faults say; the Estimator
@@ -45,7 +45,7 @@ struct StepResult {
     kCorrupt,  // frame could not be decoded / wrong size: skipped
     kIdle,     // nothing available yet (live input): call again
     kEnd,      // input exhausted
-    kFused,    // sensor data between frames fused (live input): no pose
+    kFused,    // samples between frames fused (live input): no pose
   };
   Kind kind = Kind::kIdle;
   int64_t frame_index = -1;
@@ -61,11 +61,12 @@ struct StepResult {
   double processing_ms = -1;
 };
 
-// What a session (or a replay) steps through. FrameLoop is the real one; the
-// server wraps it to build it on the session thread, tests plug in fakes.
-class Pipeline {
+// A run as a session (or a replay) steps through it. FrameLoop is the real
+// one; the server wraps it to build it on the session thread
+// (server/deferred_run_loop.hpp), tests plug in fakes.
+class RunLoop {
  public:
-  virtual ~Pipeline() = default;
+  virtual ~RunLoop() = default;
   virtual StepResult Step() = 0;
   // Unblocks a Step() waiting for input (live sources); Step then returns
   // kEnd. Thread-safe.
@@ -102,7 +103,7 @@ class Pipeline {
   virtual void SetPairRunner(const PairRunner* /*runner*/) {}
 };
 
-class FrameLoop final : public Pipeline {
+class FrameLoop final : public RunLoop {
  public:
   // The camera faults are the scenario stage's scenario's (`camera:`).
   FrameLoop(std::unique_ptr<FrameSource> source, ScenarioStage scenario, std::unique_ptr<Estimator> estimator)
@@ -111,7 +112,7 @@ class FrameLoop final : public Pipeline {
         camera_faults_(scenario_.scenario()),
         estimator_(std::move(estimator)) {}
 
-  // Reads the next item: its sensor data goes through the scenario stage to
+  // Reads the next item: its samples go through the scenario stage to
   // the estimator (so a fix reaches the filter before VO runs on the frame),
   // then a frame, with the active camera faults applied, is processed.
   StepResult Step() override;
@@ -136,9 +137,9 @@ class FrameLoop final : public Pipeline {
 
  private:
   // Records each received fix's time from arrival to use.
-  void RecordFixLatency(const SampleBatch& sensors);
+  void RecordFixLatency(const SampleBatch& samples);
   // The truth pose in the filter's ENU frame (no T_enu_body before it has an origin).
-  TruthPose Truth(const fusion::ReferencePose& reference) const;
+  TruthPose Truth(const fusion::TruthSample& sample) const;
 
   std::unique_ptr<FrameSource> source_;
   ScenarioStage scenario_;

@@ -50,8 +50,8 @@ SourceItem DatasetFrameSource::Next() {
   }
   item.t_ns = dataset_->time_ns(i);
   const auto& oxts = dataset_->oxts();
-  while (next_oxts_ < oxts.size() && oxts[next_oxts_].t_ns <= item.t_ns) AppendOxts(oxts[next_oxts_++], item.sensors);
-  // Ground truth at the frame time: OXTS is the reference (docs/architecture.md,
+  while (next_oxts_ < oxts.size() && oxts[next_oxts_].t_ns <= item.t_ns) AppendOxts(oxts[next_oxts_++], item.samples);
+  // The truth at the frame time: OXTS is the reference unit (docs/architecture.md,
 // "Data flow": the filter sees only a degraded copy of it).
   if (next_oxts_ > 0) item.truth = OxtsTruthAt(item.t_ns, oxts[next_oxts_ - 1], oxts[std::min(next_oxts_, oxts.size() - 1)]);
   if (!dataset_->has_stereo(i)) {

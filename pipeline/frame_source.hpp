@@ -1,8 +1,8 @@
-// What the frame loop (frame_loop.hpp) reads: stereo frames with the sensor
-// data that arrived since the previous frame. DatasetFrameSource plays a KITTI
-// dataset (real or synthetic) from disk, its OXTS as reference samples
+// What the frame loop (frame_loop.hpp) reads: stereo frames with the samples
+// that arrived since the previous frame. DatasetFrameSource plays a KITTI
+// dataset (real or synthetic) from disk, its OXTS as truth samples
 // (oxts_adapter.hpp); LiveFrameSource (live_frame_source.hpp) is fed by a
-// client pushing frames and sensor data.
+// client pushing frames and samples.
 // Both turn bad input into counted, skipped items instead of errors.
 #pragma once
 
@@ -50,9 +50,9 @@ struct SourceItem {
   int64_t t_ns = 0;
   cv::Mat left, right;                         // kFrame: CV_8UC1, camera size
   bool no_images = false;                      // kFrame: a tick while the live cameras are down (no images)
-  // Sensor data since the previous item, typed (t <= t_ns for frames).
-  SampleBatch sensors;
-  std::optional<fusion::ReferencePose> truth;  // recorded drives: the reference at the frame time
+  // Samples since the previous item (t <= t_ns for frames).
+  SampleBatch samples;
+  std::optional<fusion::TruthSample> truth;  // recorded drives: the truth at the frame time
   int oxts_bad_lines = 0;
   std::string error;                           // why skipped/corrupt, last bad OXTS line
 };
@@ -82,7 +82,7 @@ class FrameSource {
 };
 
 // Frames [first, last] of a dataset (last < 0: to the end), each with the
-// OXTS samples after the previous frame up to its time as reference samples
+// OXTS samples after the previous frame up to its time as truth samples
 // (samples before the first frame are not fed). A frame whose time is not after the previous
 // delivered frame's is kCorrupt (as for pushed frames); a frame without both
 // images is kSkipped and its OXTS samples go with the next frame.

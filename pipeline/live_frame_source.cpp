@@ -165,7 +165,7 @@ void LiveFrameSource::TakeGps(LiveItem item) {
   // Fused out of order a fix would pull the state back in time: too old
   // against the newest frame, or not after the previous fix, it is dropped.
   // Saturated: a frame at t_ns near INT64_MIN overflowed the subtraction
-  // (undefined behaviour, found by fuzz_push_sensors).
+  // (undefined behaviour, found by fuzz_push_requests).
   const int64_t oldest_ns = last_frame_ns_ < INT64_MIN + max_delay_ns ? INT64_MIN : last_frame_ns_ - max_delay_ns;
   const bool stale = last_frame_ns_ != INT64_MIN && item.t_ns < oldest_ns;
   const bool repeated = last_gps_ns_ && item.t_ns <= *last_gps_ns_;
@@ -193,17 +193,17 @@ bool LiveFrameSource::HasReleasable() const {
 
 void LiveFrameSource::Release(int64_t t_ns, SourceItem& out) {
   auto imu_end = std::find_if(imu_.begin(), imu_.end(), [&](const fusion::ImuSample& s) { return s.t_ns > t_ns; });
-  out.sensors.imu.assign(imu_.begin(), imu_end);
+  out.samples.imu.assign(imu_.begin(), imu_end);
   imu_.erase(imu_.begin(), imu_end);
   auto speed_end =
       std::find_if(speed_.begin(), speed_.end(), [&](const fusion::SpeedSample& s) { return s.t_ns > t_ns; });
-  out.sensors.speed.assign(speed_.begin(), speed_end);
+  out.samples.speed.assign(speed_.begin(), speed_end);
   speed_.erase(speed_.begin(), speed_end);
   while (!held_gps_.empty() && held_gps_.front().fix.t_ns <= t_ns) {
-    out.sensors.gps.push_back(held_gps_.front());
+    out.samples.gps.push_back(held_gps_.front());
     held_gps_.pop_front();
   }
-  out.sensors.receiver_has_fix = std::exchange(receiver_has_fix_, std::nullopt);
+  out.samples.receiver_has_fix = std::exchange(receiver_has_fix_, std::nullopt);
 }
 
 void LiveFrameSource::CloseInput() {
@@ -313,7 +313,7 @@ void LiveFrameSource::TakeOxts(const LiveItem& item) {
                                   " not after the previous record (" + std::to_string(*last_oxts_t_ns_) + ")");
     }
     last_oxts_t_ns_ = s.t_ns;
-    AppendOxts(s, reference_);
+    AppendOxts(s, truth_);
   } catch (const std::exception& e) {
     ++bad_lines_;
     last_error_ = e.what();
@@ -332,8 +332,8 @@ SourceItem LiveFrameSource::Frame(LiveItem item) {
   out.t_ns = item.t_ns;
   out.oxts_bad_lines = std::exchange(bad_lines_, 0);
   if (out.oxts_bad_lines > 0) out.error = last_error_;
-  // Hand over the reference samples up to the frame time; later ones wait.
-  reference_.MoveUpTo(item.t_ns, out.sensors);
+  // Hand over the truth samples up to the frame time; later ones wait.
+  truth_.MoveUpTo(item.t_ns, out.samples);
   if (item.t_ns > last_frame_ns_) sensor_time_ns_ = std::max(sensor_time_ns_, item.t_ns);
   Release(item.t_ns, out);
   if (item.t_ns <= last_frame_ns_) {

@@ -117,7 +117,7 @@ class LiveFrameSource : public FrameSource {
   std::function<void()> resume_;
   bool closed_ = false, cancelled_ = false, woken_ = false;
   // Consumer state.
-  SampleBatch reference_;  // pushed OXTS as reference samples, up to the next frame
+  SampleBatch truth_;  // pushed OXTS as truth samples, up to the next frame
   std::optional<int64_t> last_oxts_t_ns_;  // newest record accepted (ordering check)
   int bad_lines_ = 0;
   std::string last_error_;

@@ -12,20 +12,20 @@ fusion::ImuSample OxtsImu(int64_t t_ns, const kitti::OxtsRecord& r) {
   return imu;
 }
 
-fusion::ReferencePose OxtsReferencePose(int64_t t_ns, const kitti::OxtsRecord& r) {
+fusion::TruthSample OxtsTruthSample(int64_t t_ns, const kitti::OxtsRecord& r) {
   return {t_ns, r.lat_deg, r.lon_deg, r.alt_m, kitti::OxtsAttitude(r.roll_rad, r.pitch_rad, r.yaw_rad),
           Eigen::Vector3d(r.vf_mps, r.vl_mps, r.vu_mps)};
 }
 
 void AppendOxts(const kitti::OxtsSample& s, SampleBatch& batch) {
-  batch.reference_imu.push_back(OxtsImu(s.t_ns, s.record));
-  batch.reference_poses.push_back(OxtsReferencePose(s.t_ns, s.record));
+  batch.truth_imu.push_back(OxtsImu(s.t_ns, s.record));
+  batch.truth_poses.push_back(OxtsTruthSample(s.t_ns, s.record));
 }
 
-fusion::ReferencePose OxtsTruthAt(int64_t t_ns, const kitti::OxtsSample& a, const kitti::OxtsSample& b) {
+fusion::TruthSample OxtsTruthAt(int64_t t_ns, const kitti::OxtsSample& a, const kitti::OxtsSample& b) {
   const double w =
       b.t_ns > a.t_ns ? static_cast<double>(t_ns - a.t_ns) / static_cast<double>(b.t_ns - a.t_ns) : 0.0;
-  fusion::ReferencePose truth = OxtsReferencePose(t_ns, w < 0.5 ? a.record : b.record);
+  fusion::TruthSample truth = OxtsTruthSample(t_ns, w < 0.5 ? a.record : b.record);
   truth.lat_deg = a.record.lat_deg + w * (b.record.lat_deg - a.record.lat_deg);
   truth.lon_deg = a.record.lon_deg + w * (b.record.lon_deg - a.record.lon_deg);
   truth.alt_m = a.record.alt_m + w * (b.record.alt_m - a.record.alt_m);

@@ -1,7 +1,7 @@
-// The one place a recorded drive's OXTS becomes typed sensor data. OXTS (the
-// RT3003's GPS/IMU solution) is the drive's ground truth, so its samples go
-// into SampleBatch's reference lists, from which the scenario stage makes what
-// the filter sees; the frame's truth is the reference pose at its time.
+// The one place a recorded drive's OXTS becomes samples. OXTS (the RT3003's
+// GPS/IMU solution) is the drive's truth, so its samples go into
+// SampleBatch's truth lists, from which the scenario stage makes what the
+// filter sees; the frame's truth is the truth sample at its time.
 #pragma once
 
 #include "fusion/types.hpp"
@@ -15,11 +15,11 @@ namespace locaid::pipeline {
 // The IMU part of an OXTS record (body axes: accelerations and angular rates).
 fusion::ImuSample OxtsImu(int64_t t_ns, const kitti::OxtsRecord& record);
 // The position and attitude of an OXTS record.
-fusion::ReferencePose OxtsReferencePose(int64_t t_ns, const kitti::OxtsRecord& record);
-// Both, appended to the batch's reference lists.
+fusion::TruthSample OxtsTruthSample(int64_t t_ns, const kitti::OxtsRecord& record);
+// Both, appended to the batch's truth lists.
 void AppendOxts(const kitti::OxtsSample& sample, SampleBatch& batch);
 // Ground truth at t_ns between two records: position interpolated, attitude
 // of the nearer record (a before b; a alone when they are the same record).
-fusion::ReferencePose OxtsTruthAt(int64_t t_ns, const kitti::OxtsSample& a, const kitti::OxtsSample& b);
+fusion::TruthSample OxtsTruthAt(int64_t t_ns, const kitti::OxtsSample& a, const kitti::OxtsSample& b);
 
 }  // namespace locaid::pipeline

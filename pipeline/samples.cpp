@@ -21,8 +21,8 @@ void SampleBatch::MoveUpTo(int64_t t_ns, SampleBatch& out) {
   MoveWhile(imu, out.imu, t_ns, t);
   MoveWhile(gps, out.gps, t_ns, [](const ArrivedFix& f) { return f.fix.t_ns; });
   MoveWhile(speed, out.speed, t_ns, t);
-  MoveWhile(reference_imu, out.reference_imu, t_ns, t);
-  MoveWhile(reference_poses, out.reference_poses, t_ns, t);
+  MoveWhile(truth_imu, out.truth_imu, t_ns, t);
+  MoveWhile(truth_poses, out.truth_poses, t_ns, t);
   if (receiver_has_fix) out.receiver_has_fix = std::exchange(receiver_has_fix, std::nullopt);
 }
 

@@ -27,9 +27,9 @@ void ScenarioStage::RebuildDegradation(std::optional<int64_t> drive_start_ns) {
   gps_->SetForcedOutage(forced_);
 }
 
-void ScenarioStage::BeginFrame(int64_t t_ns, const SampleBatch& its_sensors) {
-  // Without reference samples the scenario's drive clock starts at the first frame.
-  if (!gps_->drive_start_ns() && its_sensors.reference_poses.empty()) gps_->SetDriveStart(t_ns);
+void ScenarioStage::BeginFrame(int64_t t_ns, const SampleBatch& its_samples) {
+  // Without truth samples the scenario's drive clock starts at the first frame.
+  if (!gps_->drive_start_ns() && its_samples.truth_poses.empty()) gps_->SetDriveStart(t_ns);
   last_frame_ns_ = t_ns;
   if (first_frame_ns_) return;
   first_frame_ns_ = t_ns;
@@ -39,17 +39,17 @@ void ScenarioStage::BeginFrame(int64_t t_ns, const SampleBatch& its_sensors) {
 Measurements ScenarioStage::Apply(const SampleBatch& batch) {
   if (batch.receiver_has_fix) receiver_has_fix_ = *batch.receiver_has_fix;
   Measurements out;
-  out.imu.reserve(batch.imu.size() + batch.reference_imu.size());
-  // One time line: each reference IMU sample before the fix of its time.
+  out.imu.reserve(batch.imu.size() + batch.truth_imu.size());
+  // One time line: each truth IMU sample before the fix of its time.
   size_t next_imu = 0;
-  for (const fusion::ReferencePose& p : batch.reference_poses) {
-    for (; next_imu < batch.reference_imu.size() && batch.reference_imu[next_imu].t_ns <= p.t_ns; ++next_imu)
-      out.imu.push_back(imu_->Apply(batch.reference_imu[next_imu]));
+  for (const fusion::TruthSample& p : batch.truth_poses) {
+    for (; next_imu < batch.truth_imu.size() && batch.truth_imu[next_imu].t_ns <= p.t_ns; ++next_imu)
+      out.imu.push_back(imu_->Apply(batch.truth_imu[next_imu]));
     if (auto fix = gps_->Apply(p.t_ns, p.lat_deg, p.lon_deg, p.alt_m, &p.R_enu_body)) out.gps.push_back(*fix);
     if (p.v_body_mps)
       for (const fusion::SpeedSample& v : speed_->Apply(p.t_ns, p.v_body_mps->x())) out.speed.push_back(v);
   }
-  for (; next_imu < batch.reference_imu.size(); ++next_imu) out.imu.push_back(imu_->Apply(batch.reference_imu[next_imu]));
+  for (; next_imu < batch.truth_imu.size(); ++next_imu) out.imu.push_back(imu_->Apply(batch.truth_imu[next_imu]));
   // Measured data: IMU as it is, fixes unless GPS is out at their time.
   out.imu.insert(out.imu.end(), batch.imu.begin(), batch.imu.end());
   for (const ArrivedFix& f : batch.gps) {

@@ -1,8 +1,8 @@
-// The scenario stage: between a source and the estimator, typed sensor data in,
-// typed measurements out. It owns everything about GPS availability: the
-// scenario's degradation of a reference unit (receiver fixes made from the
-// reference poses, the IMU degraded to the scenario's grade, a simulated speed
-// sensor reading the reference forward speed when the scenario has one), the scenario's
+// The scenario stage: between a source and the estimator, samples in, typed
+// measurements out. It owns everything about GPS availability: the
+// scenario's degradation of a reference unit's truth (receiver fixes made
+// from the truth poses, the IMU degraded to the scenario's grade, a simulated
+// speed sensor reading the true forward speed when the scenario has one), the scenario's
 // and run-time outage windows, a forced outage, and the receiver's own no-fix
 // state. Measured IMU samples pass unchanged; measured fixes pass unless GPS
 // is in an outage.
@@ -28,8 +28,8 @@ class ScenarioStage {
   explicit ScenarioStage(sim::Scenario scenario);
 
   // A frame at t_ns comes next: the first one starts the clock of run-time
-  // windows (and the scenario's, unless a reference sample came first).
-  void BeginFrame(int64_t t_ns, const SampleBatch& its_sensors);
+  // windows (and the scenario's, unless a truth sample came first).
+  void BeginFrame(int64_t t_ns, const SampleBatch& its_samples);
   // Everything a source delivered with one item, in its order.
   Measurements Apply(const SampleBatch& batch);
   // Whether GPS is out at t_ns: a scheduled, run-time or forced outage, or

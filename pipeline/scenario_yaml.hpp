@@ -20,7 +20,7 @@
 //     # {blur_sigma_px (0, 50], default 3}, frozen, drop, left_only,
 //     # right_only; a parameter of another fault is an unknown key
 //   speed: {rate_hz: 50, sigma_mps: 0.05, scale_error: 0.005}
-//     # a simulated vehicle speed sensor from the drive's reference forward
+//     # a simulated vehicle speed sensor from the drive's true forward
 //     # speed (reads 0.5 % high here, like a worn tyre); no key: none
 //   seed: 7
 #pragma once

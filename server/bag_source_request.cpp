@@ -106,7 +106,7 @@ std::string ForRequest(std::string what) {
 
 }  // namespace
 
-Status OpenBagSource(const v1::BagSource& b, EstimatorSetup* setup, std::unique_ptr<pipeline::FrameSource>* out,
+Status OpenBagSource(const v1::BagSource& b, pipeline::RunOptions* run, std::unique_ptr<pipeline::FrameSource>* out,
                      std::string* name) {
   if (Status s = RequireServerPath("bag.path", b.path(), "a .mcap file or a rosbag2 directory on the server"); !s.ok())
     return s;
@@ -121,13 +121,13 @@ Status OpenBagSource(const v1::BagSource& b, EstimatorSetup* setup, std::unique_
     return s;
   if (Status s = ParseTopics(b.topics(), &options.topics); !s.ok()) return s;
   // Outages placed on the drive's middle need its length: scan it all.
-  const auto& outages = setup->scenario.outages;
+  const auto& outages = run->scenario.outages;
   if (std::any_of(outages.begin(), outages.end(), [](const sim::OutageWindow& o) { return o.centered; }))
     options.preview_s = 0;
   try {
     auto bag = std::make_unique<pipeline::BagFrameSource>(b.path(), options);
-    setup->gps_antenna_body_m = bag->gps_lever_arm_body_m();
-    setup->use_imu = bag->has_imu();
+    run->localizer.ekf.gps.lever_arm_body_m = bag->gps_lever_arm_body_m();
+    run->localizer.ekf.imu.enabled = bag->has_imu();
     *out = std::make_unique<CountedBagSource>(std::move(bag));
   } catch (const std::exception& e) {  // bag::McapError, std::runtime_error: the bag's content
     return {StatusCode::FAILED_PRECONDITION, "cannot open bag: " + ForRequest(e.what())};

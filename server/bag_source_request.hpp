@@ -14,8 +14,9 @@
 
 namespace locaid::server {
 
-// OK with `out` the bag's frames, setup->gps_antenna_body_m the antenna lever
-// arm from /tf_static, and `name` "bag:PATH". INVALID_ARGUMENT naming the
+// OK with `out` the bag's frames, run->localizer.ekf the antenna lever arm
+// from /tf_static and the process model (the IMU one when the bag has an
+// IMU topic), and `name` "bag:PATH". INVALID_ARGUMENT naming the
 // field for a bad request: path missing, longer than PATH_MAX or not on the
 // server; a tolerance outside [0, 1000] ms or a window outside [0, 60000] ms;
 // a topic name that is neither empty, "none" (imu, gps, speed only) nor
@@ -23,9 +24,9 @@ namespace locaid::server {
 // cannot be read (not MCAP, no messages) or its topics do not fit (a named
 // topic missing or of another type, several candidates, no camera_info, no
 // /tf_static to the IMU). The whole bag is scanned first when
-// setup->scenario has outages placed on the drive's middle (they need its
+// run->scenario has outages placed on the drive's middle (they need its
 // length), else its first 5 s.
-grpc::Status OpenBagSource(const locaid::v1::BagSource& bag, EstimatorSetup* setup,
+grpc::Status OpenBagSource(const locaid::v1::BagSource& bag, pipeline::RunOptions* run,
                            std::unique_ptr<pipeline::FrameSource>* out, std::string* name);
 
 }  // namespace locaid::server

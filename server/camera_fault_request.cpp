@@ -83,7 +83,7 @@ grpc::Status CameraFaultCommandFromProto(const v1::InjectCameraFaultRequest& req
     case v1::InjectCameraFaultRequest::START_NOW: action = CameraFaultAction::kStartNow; break;
     case v1::InjectCameraFaultRequest::WINDOW: action = CameraFaultAction::kWindow; break;
     case v1::InjectCameraFaultRequest::STOP_NOW:
-      *out = [](pipeline::Pipeline& p) { p.InjectCameraFault(pipeline::CameraFaultAction::kStop, {}); };
+      *out = [](pipeline::RunLoop& p) { p.InjectCameraFault(pipeline::CameraFaultAction::kStop, {}); };
       return grpc::Status::OK;
     default: return Invalid("action: must be START_NOW, STOP_NOW or WINDOW");
   }
@@ -91,7 +91,7 @@ grpc::Status CameraFaultCommandFromProto(const v1::InjectCameraFaultRequest& req
   sim::CameraFaultWindow fault;
   if (grpc::Status s = CameraFaultFromProto(req.fault(), action == CameraFaultAction::kWindow, &fault); !s.ok())
     return s;
-  *out = [action, fault](pipeline::Pipeline& p) { p.InjectCameraFault(action, fault); };
+  *out = [action, fault](pipeline::RunLoop& p) { p.InjectCameraFault(action, fault); };
   return grpc::Status::OK;
 }
 

@@ -1,7 +1,7 @@
 // A live source as a client describes it (StartSessionRequest.live, the
 // `start` of a PushSensorData stream): camera, extrinsic, GPS delay bound,
 // antenna lever arm, speed sensor and an optional gpsd receiver, every field
-// checked here: the one place for it. Free of gRPC, so fuzz_push_sensors
+// checked here: the one place for it. Free of gRPC, so fuzz_push_requests
 // starts its streams from fuzzed sources.
 #pragma once
 

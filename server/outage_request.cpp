@@ -19,14 +19,14 @@ grpc::Status OutageCommandFromProto(const v1::InjectOutageRequest& req, Session:
   }
   switch (req.action()) {
     case v1::InjectOutageRequest::START_NOW:
-      *out = [duration_s](pipeline::Pipeline& p) { p.StartOutageNow(duration_s); };
+      *out = [duration_s](pipeline::RunLoop& p) { p.StartOutageNow(duration_s); };
       return grpc::Status::OK;
     case v1::InjectOutageRequest::STOP_NOW:
-      *out = [](pipeline::Pipeline& p) { p.StopOutage(); };
+      *out = [](pipeline::RunLoop& p) { p.StopOutage(); };
       return grpc::Status::OK;
     case v1::InjectOutageRequest::WINDOW:
       if (start_s < 0 || duration_s <= 0) return Invalid("WINDOW: start_s must be >= 0 and duration_s > 0");
-      *out = [start_s, duration_s](pipeline::Pipeline& p) { p.AddOutageWindow(start_s, duration_s); };
+      *out = [start_s, duration_s](pipeline::RunLoop& p) { p.AddOutageWindow(start_s, duration_s); };
       return grpc::Status::OK;
     default:
       return Invalid("action: must be START_NOW, STOP_NOW or WINDOW");

@@ -112,12 +112,12 @@ std::string GpsItemFromProto(const v1::GpsFix& in, pipeline::LiveItem* out) {
       if (!C.allFinite() || C.cwiseAbs().maxCoeff() > kMaxVariance)
         return "covariance_enu_m2: every value must be finite with |value| <= " + Number(kMaxVariance) + " m^2";
       // Entry by entry against the largest: isApprox's squared norms
-      // underflow to 0 for denormal entries (fuzz_push_sensors).
+      // underflow to 0 for denormal entries (fuzz_push_requests).
       if ((C - C.transpose()).cwiseAbs().maxCoeff() > 1e-9 * C.cwiseAbs().maxCoeff())
         return "covariance_enu_m2: not symmetric";
       // Cholesky, not the smallest eigenvalue: the eigensolver returned a
       // positive one for a zero U variance with a 1e-135 E-U term
-      // (fuzz_push_sensors), so a fix with a zero variance was accepted.
+      // (fuzz_push_requests), so a fix with a zero variance was accepted.
       if (Eigen::LLT<Eigen::Matrix3d>(C).info() != Eigen::Success) return "covariance_enu_m2: not positive definite";
       f.cov_enu_m2 = C;
     }

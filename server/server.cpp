@@ -95,10 +95,10 @@ std::string DescribeTcpBindFailure(const std::string& listen) {
 
 }  // namespace
 
-LocalizationServer::LocalizationServer(ServerConfig config, EstimatorFactory estimator_factory)
+LocalizationServer::LocalizationServer(ServerConfig config, pipeline::EstimatorMaker make_estimator)
     : config_(std::move(config)) {
   ValidateConfig(&config_);
-  service_ = std::make_unique<LocalizationService>(config_, std::move(estimator_factory));
+  service_ = std::make_unique<LocalizationService>(config_, std::move(make_estimator));
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;

@@ -31,7 +31,7 @@ class LocalizationServer {
   // Builds and starts the server; throws ConfigError / std::runtime_error
   // (e.g. "listen 127.0.0.1:80: cannot bind", "listen_unix '/run/x.sock':
   // exists and is a regular file, not a socket; not replacing it").
-  LocalizationServer(ServerConfig config, EstimatorFactory estimator_factory = pipeline::MakeLocalizer);
+  LocalizationServer(ServerConfig config, pipeline::EstimatorMaker make_estimator = pipeline::MakeLocalizer);
   ~LocalizationServer();
   int port() const { return port_; }
   // "unix:PATH" when config.listen_unix is set, else empty.

@@ -28,8 +28,8 @@ namespace v1 = locaid::v1;
 using grpc::Status;
 using grpc::StatusCode;
 
-LocalizationService::LocalizationService(ServerConfig config, EstimatorFactory estimator_factory)
-    : config_(std::move(config)), estimator_factory_(std::move(estimator_factory)) {
+LocalizationService::LocalizationService(ServerConfig config, pipeline::EstimatorMaker make_estimator)
+    : config_(std::move(config)), make_estimator_(std::move(make_estimator)) {
   reaper_.Start();
   if (const size_t stale = RemoveStaleSyntheticDrives(config_.work_dir); stale > 0 && config_.log_shutdown) {
     std::cout << "locaid-server: removed " << stale << " synthetic drive(s) left by an earlier server in "
@@ -219,7 +219,7 @@ grpc::ServerUnaryReactor* LocalizationService::SetScenario(grpc::CallbackServerC
   sim::Scenario scenario;
   std::string name;
   if (Status s = ResolveScenario(req->scenario(), &scenario, &name); !s.ok()) return Reply(ctx, s);
-  session->Post([scenario](pipeline::Pipeline& p) { p.SetScenario(scenario); });
+  session->Post([scenario](pipeline::RunLoop& p) { p.SetScenario(scenario); });
   session->set_scenario_name(name);
   *resp = session->ToProto();
   return Reply(ctx, Status::OK);

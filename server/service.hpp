@@ -27,28 +27,6 @@
 
 namespace locaid::server {
 
-// What a session's estimator is built from.
-struct EstimatorSetup {
-  sim::Scenario scenario;
-  std::string vo_method = "default";
-  Eigen::Vector3d gps_antenna_body_m = Eigen::Vector3d::Zero();  // lever arm (live sources)
-  // VehicleOptions: the car's motion constraints and the IMU mounting.
-  bool vehicle_constraints = true, vehicle_constraints_need_speed = true;
-  bool learn_vo_noise = true, learn_gps_noise = true;  // StartSessionRequest.noise
-  Eigen::Matrix3d R_vehicle_body = Eigen::Matrix3d::Identity();
-  // LiveSource.speed_sensor (0 = the filter's defaults).
-  double speed_sigma_mps = 0, speed_scale_sigma = 0;
-  // The filter's process model: IMU-driven, or odometry (VO + GPS + speed)
-  // for a source without IMU (LiveSource.no_imu, a bag without an IMU topic).
-  bool use_imu = true;
-};
-// Builds a session's estimator (pipeline/run_assembly.hpp); throws
-// std::invalid_argument (unknown VO method). Tests and benchmarks pass their
-// own; the production one is pipeline::MakeLocalizer.
-using EstimatorFactory = pipeline::EstimatorMaker;
-// The run a request asks for (pipeline::AssembleRun puts it together).
-pipeline::RunOptions RunOptionsOf(const EstimatorSetup& setup);
-
 // Something that streams to a client and can be woken by the hub or ended by
 // the server. Reached through a Waker so callbacks never touch a deleted
 // reactor.
@@ -97,7 +75,7 @@ class LocalizationService final
     : public locaid::v1::Localization::WithRawCallbackMethod_StreamPoses<locaid::v1::Localization::CallbackService>,
       private ReactorHost {
  public:
-  LocalizationService(ServerConfig config, EstimatorFactory estimator_factory);
+  LocalizationService(ServerConfig config, pipeline::EstimatorMaker make_estimator);
   ~LocalizationService() override;
 
   grpc::ServerUnaryReactor* StartSession(grpc::CallbackServerContext* ctx,
@@ -157,9 +135,9 @@ class LocalizationService final
   grpc::Status Authorize(const grpc::CallbackServerContext* ctx) const;
   grpc::Status DoStart(const locaid::v1::StartSessionRequest& req, std::string* id);
   grpc::Status SessionOptionsFromRequest(const locaid::v1::StartSessionRequest& req, SessionOptions* options,
-                                         EstimatorSetup* setup) const;
-  // Rendered on the session thread (a DeferredPipeline): checked here, started at once.
-  grpc::Status StartSynthetic(const locaid::v1::SyntheticSource& s, SessionOptions options, EstimatorSetup setup,
+                                         pipeline::RunOptions* run) const;
+  // Rendered on the session thread (a DeferredRunLoop): checked here, started at once.
+  grpc::Status StartSynthetic(const locaid::v1::SyntheticSource& s, SessionOptions options, pipeline::RunOptions run,
                               std::string* id);
   grpc::Status ResolveScenario(const locaid::v1::Scenario& s, sim::Scenario* out, std::string* name) const;
   // A control of a running session (InjectOutage, InjectCameraFault): the
@@ -172,7 +150,7 @@ class LocalizationService final
                                         locaid::v1::Session* resp);
 
   const ServerConfig config_;
-  const EstimatorFactory estimator_factory_;
+  const pipeline::EstimatorMaker make_estimator_;
   SessionReaper reaper_;  // before sessions_: outlives the registry
   SessionRegistry sessions_{config_, reaper_};
   std::mutex mu_;  // streams_

@@ -28,13 +28,13 @@ int64_t UnixNowNs() {
       .count();
 }
 
-Session::Session(SessionOptions options, std::unique_ptr<pipeline::Pipeline> pipeline)
+Session::Session(SessionOptions options, std::unique_ptr<pipeline::RunLoop> loop)
     : options_(std::move(options)),
-      pipeline_(std::move(pipeline)),
+      loop_(std::move(loop)),
       hub_(options_.history_size),
       lagged_(options_.id, options_.history_size),
       created_unix_ns_(UnixNowNs()),
-      total_frames_(pipeline_->total_frames()),
+      total_frames_(loop_->total_frames()),
       pacer_(options_.playback_rate),
       monitor_(options_.playback_rate, options_.behind_threshold_s),
       created_steady_(Clock::now()) {}
@@ -47,7 +47,7 @@ Session::~Session() {
 }
 
 void Session::Start() {
-  state_ = pipeline_->ready() ? locaid::v1::SESSION_STATE_RUNNING : locaid::v1::SESSION_STATE_STARTING;
+  state_ = loop_->ready() ? locaid::v1::SESSION_STATE_RUNNING : locaid::v1::SESSION_STATE_STARTING;
   // Subscriber wakes (which start gRPC writes) run on the hub's fan-out
   // thread, so 1000 subscribers do not slow the pipeline; joined in Join().
   hub_.StartFanoutThread();
@@ -63,7 +63,7 @@ void Session::Stop() {
     std::lock_guard lock(wait_mu_);
   }
   wait_cv_.notify_all();
-  pipeline_->Cancel();
+  loop_->Cancel();
 }
 
 void Session::Join() {
@@ -79,7 +79,7 @@ void Session::Join() {
 void Session::Post(Command command) {
   std::lock_guard lock(commands_mu_);
   commands_.push_back(std::move(command));
-  pipeline_->Wake();
+  loop_->Wake();
 }
 
 void Session::set_scenario_name(const std::string& name) {
@@ -95,7 +95,7 @@ void Session::RunCommands() {
   }
   for (Command& c : todo) {
     try {
-      c(*pipeline_);
+      c(*loop_);
     } catch (const std::exception& e) {
       std::lock_guard lock(stats_mu_);
       error_ = std::string("command failed: ") + e.what();
@@ -115,7 +115,7 @@ bool Session::Pace(int64_t t_ns, std::optional<Clock::time_point>* due) {
 
 void Session::NoteOrigin() {
   std::lock_guard lock(stats_mu_);
-  if (!has_origin_) has_origin_ = pipeline_->origin(&origin_[0], &origin_[1], &origin_[2]);
+  if (!has_origin_) has_origin_ = loop_->origin(&origin_[0], &origin_[1], &origin_[2]);
 }
 
 void Session::Publish(const pipeline::StepResult& r, double latency_ms, std::optional<Clock::time_point> due) {
@@ -138,12 +138,12 @@ bool Session::StepOnce() {
   RunCommands();
   lagged_.BeforeStep(options_.estimator.get());
   const auto t0 = Clock::now();
-  pipeline::StepResult r = pipeline_->Step();
+  pipeline::StepResult r = loop_->Step();
   const auto t1 = Clock::now();
   const double step_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
   monitor_.NoteCpu(t1, helper_ ? helper_->cpu_seconds() : 0.0);
   auto starting = locaid::v1::SESSION_STATE_STARTING;
-  if (pipeline_->ready()) state_.compare_exchange_strong(starting, locaid::v1::SESSION_STATE_RUNNING);
+  if (loop_->ready()) state_.compare_exchange_strong(starting, locaid::v1::SESSION_STATE_RUNNING);
   switch (r.kind) {
     case pipeline::StepResult::Kind::kEnd: {
       auto running = locaid::v1::SESSION_STATE_RUNNING;  // a Stop() meanwhile made it STOPPED
@@ -185,7 +185,7 @@ void Session::Run() {
   std::optional<PairHelper> helper;
   try {
     helper.emplace(nice);
-    pipeline_->SetPairRunner(&*helper);
+    loop_->SetPairRunner(&*helper);
     helper_ = &*helper;
   } catch (const std::system_error&) {  // no thread to be had: this thread decodes both
   }
@@ -206,8 +206,8 @@ void Session::Run() {
   // before the estimator the log is attached to goes).
   lagged_.Finish();
   try {
-    pipeline_->SetPairRunner(nullptr);
-    pipeline_->Release();
+    loop_->SetPairRunner(nullptr);
+    loop_->Release();
   } catch (const std::exception&) {  // freeing must not turn a finished session into a crash
   }
   helper_ = nullptr;
@@ -227,7 +227,7 @@ Session::MetricsSnapshot Session::Metrics() const {
 locaid::v1::SessionStats Session::Stats() const {
   locaid::v1::SessionStats s = counters_.Stats();
   monitor_.Fill(&s, Clock::now());
-  const pipeline::LiveInputStats in = pipeline_->input_stats();
+  const pipeline::LiveInputStats in = loop_->input_stats();
   s.set_imu_samples(in.imu_samples);
   s.set_speed_samples(in.speed_samples);
   s.set_gps_fixes_in(in.gps_fixes_in);

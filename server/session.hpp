@@ -1,4 +1,4 @@
-// One localization session: a pipeline::Pipeline (pipeline/frame_loop.hpp) run by one thread, started by
+// One localization session: a pipeline::RunLoop (pipeline/frame_loop.hpp) run by one thread, started by
 // Start() and joined once by Join() (the server's SessionReaper, or shutdown), publishing into a PoseHub.
 // Stop() never blocks and may be called by any number of threads at once.
 #pragma once
@@ -48,9 +48,9 @@ inline constexpr int kBatchNice = 10;
 
 class Session {
  public:
-  using Command = std::function<void(pipeline::Pipeline&)>;
+  using Command = std::function<void(pipeline::RunLoop&)>;
 
-  Session(SessionOptions options, std::unique_ptr<pipeline::Pipeline> pipeline);
+  Session(SessionOptions options, std::unique_ptr<pipeline::RunLoop> loop);
   ~Session();  // Stop() + Join()
   Session(const Session&) = delete;
   Session& operator=(const Session&) = delete;
@@ -69,7 +69,7 @@ class Session {
   bool MarkRetired() { return !retired_.exchange(true); }
 
   // Runs `command` on the session thread before the next frame (so the
-  // pipeline is never touched by two threads).
+  // run loop is never touched by two threads).
   void Post(Command command);
   void set_scenario_name(const std::string& name);
 
@@ -96,14 +96,14 @@ class Session {
   locaid::v1::SessionState state() const { return state_.load(); }
   // Still preparing its input (rendering) on its thread, even if already
   // STOPPED: what max_concurrent_renders counts.
-  bool preparing() const { return !pipeline_->ready() && ended_unix_ns_.load() == 0; }
+  bool preparing() const { return !loop_->ready() && ended_unix_ns_.load() == 0; }
   // Wall clock (ns) when the session's thread ended; 0 while it runs.
   int64_t ended_unix_ns() const { return ended_unix_ns_.load(); }
 
  private:
   void Run();
   void RunCommands();
-  // One step of the pipeline: false when the session is done.
+  // One step of the run loop: false when the session is done.
   bool StepOnce();
   // Sleeps until the wall time at which sensor time t_ns is due (set in
   // *due; nullopt: not paced); false if stopped meanwhile.
@@ -113,7 +113,7 @@ class Session {
   void NoteOrigin();
 
   SessionOptions options_;
-  std::unique_ptr<pipeline::Pipeline> pipeline_;
+  std::unique_ptr<pipeline::RunLoop> loop_;
   Hub hub_;
   LaggedStreams lagged_;
   std::thread thread_;

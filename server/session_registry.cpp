@@ -14,7 +14,7 @@ namespace v1 = locaid::v1;
 using grpc::Status;
 using grpc::StatusCode;
 
-Status SessionRegistry::Add(SessionOptions options, std::unique_ptr<pipeline::Pipeline> pipeline,
+Status SessionRegistry::Add(SessionOptions options, std::unique_ptr<pipeline::RunLoop> pipeline,
                             pipeline::LiveFrameSource* live, std::string* id) {
   std::lock_guard lock(mu_);
   PruneEndedLocked();

@@ -31,7 +31,7 @@ class SessionRegistry {
   // first. RESOURCE_EXHAUSTED beyond max_sessions running (or
   // max_concurrent_renders preparing, or, with max_cpu_cores, beyond the
   // measured CPU of the real-time sessions), UNAVAILABLE once closed.
-  grpc::Status Add(SessionOptions options, std::unique_ptr<pipeline::Pipeline> pipeline,
+  grpc::Status Add(SessionOptions options, std::unique_ptr<pipeline::RunLoop> pipeline,
                    pipeline::LiveFrameSource* live, std::string* id);
   // INVALID_ARGUMENT for an empty id, NOT_FOUND for an unknown one.
   grpc::Status Find(const std::string& id, std::shared_ptr<Session>* out,

@@ -13,7 +13,7 @@
 #include "server/live_source_request.hpp"
 #include "server/status.hpp"
 #include "server/synthetic_drive.hpp"
-#include "server/deferred_pipeline.hpp"
+#include "server/deferred_run_loop.hpp"
 #include "pipeline/frame_source.hpp"
 #include "pipeline/run_assembly.hpp"
 #include "pipeline/scenario_yaml.hpp"
@@ -38,9 +38,10 @@ using grpc::StatusCode;
 bool Finite(double x) { return std::isfinite(x); }
 
 // VehicleOptions: constraints on or off, and the IMU's mounting in the car.
-Status ParseVehicleOptions(const v1::VehicleOptions& v, EstimatorSetup* setup) {
-  setup->vehicle_constraints = !v.constraints_off();
-  setup->vehicle_constraints_need_speed = !v.constraints_without_speed();
+Status ParseVehicleOptions(const v1::VehicleOptions& v, pipeline::RunOptions* run) {
+  fusion::EkfConfig::Vehicle& vehicle = run->localizer.ekf.vehicle;
+  vehicle.constraints = !v.constraints_off();
+  vehicle.constraints_need_speed = !v.constraints_without_speed();
   if (v.r_vehicle_body_size() == 0) return Status::OK;
   if (v.r_vehicle_body_size() != 9)
     return Invalid("vehicle.R_vehicle_body: expected 0 or 9 values (row-major 3x3), got " +
@@ -52,16 +53,16 @@ Status ParseVehicleOptions(const v1::VehicleOptions& v, EstimatorSetup* setup) {
   }
   if (!(R.transpose() * R).isApprox(Eigen::Matrix3d::Identity(), 1e-6) || R.determinant() < 0)
     return Invalid("vehicle.R_vehicle_body: not a rotation (R^T R must be I to 1e-6, det +1)");
-  setup->R_vehicle_body = R;
+  vehicle.R_vehicle_body = R;
   return Status::OK;
 }
 
 // The frame loop of a session reading `source`, assembled as locaid-replay
 // assembles its runs: an outage that leaves the filter nothing to start from
 // is said with the first pose (Session.error). Throws what the factory throws.
-std::unique_ptr<pipeline::FrameLoop> MakeFrameLoop(const EstimatorFactory& make, const EstimatorSetup& setup,
+std::unique_ptr<pipeline::FrameLoop> MakeFrameLoop(const pipeline::EstimatorMaker& make, const pipeline::RunOptions& run,
                                                    std::unique_ptr<pipeline::FrameSource> source) {
-  return pipeline::AssembleRun(std::move(source), RunOptionsOf(setup), make).loop;
+  return pipeline::AssembleRun(std::move(source), run, make).loop;
 }
 
 // A KITTI drive on the server: opened and checked (frames in range, at least
@@ -108,16 +109,18 @@ Status OpenKittiSource(const v1::KittiSource& k, std::unique_ptr<pipeline::Frame
 
 // A live source: camera, antenna lever arm, speed sensor and an optional gpsd
 // receiver (live_source_request.cpp checks them).
-Status OpenLiveSource(const v1::LiveSource& l, EstimatorSetup* setup, std::unique_ptr<pipeline::LiveFrameSource>* out,
+Status OpenLiveSource(const v1::LiveSource& l, pipeline::RunOptions* run, std::unique_ptr<pipeline::LiveFrameSource>* out,
                       std::optional<GpsdEndpoint>* gpsd, std::optional<CameraSetup>* cameras, std::string* name) {
   LiveSourceSetup live;
   if (const std::string error = LiveSourceFromProto(l, KittiRigTcam0Imu(), &live); !error.empty()) {
     return Invalid(error);
   }
-  setup->gps_antenna_body_m = live.gps_antenna_body_m;
-  setup->speed_sigma_mps = live.speed_sigma_mps;
-  setup->speed_scale_sigma = live.speed_scale_sigma;
-  setup->use_imu = live.camera.expects_imu;
+  fusion::EkfConfig& ekf = run->localizer.ekf;
+  ekf.gps.lever_arm_body_m = live.gps_antenna_body_m;
+  // LiveSource.speed_sensor: 0 keeps the filter's defaults.
+  if (live.speed_sigma_mps > 0) ekf.vehicle.speed_sigma_mps = live.speed_sigma_mps;
+  if (live.speed_scale_sigma > 0) ekf.vehicle.speed_scale_sigma = live.speed_scale_sigma;
+  ekf.imu.enabled = live.camera.expects_imu;
   *gpsd = live.gpsd;
   *cameras = live.cameras;
   *out = std::make_unique<pipeline::LiveFrameSource>(live.camera);
@@ -127,23 +130,6 @@ Status OpenLiveSource(const v1::LiveSource& l, EstimatorSetup* setup, std::uniqu
 }
 
 }  // namespace
-
-pipeline::RunOptions RunOptionsOf(const EstimatorSetup& setup) {
-  pipeline::RunOptions run;
-  run.scenario = setup.scenario;
-  pipeline::LocalizerOptions& options = run.localizer;
-  options.vo_method = setup.vo_method;
-  options.ekf.gps.lever_arm_body_m = setup.gps_antenna_body_m;
-  options.ekf.imu.enabled = setup.use_imu;
-  options.ekf.vehicle.constraints = setup.vehicle_constraints;
-  options.ekf.vehicle.constraints_need_speed = setup.vehicle_constraints_need_speed;
-  options.ekf.vehicle.R_vehicle_body = setup.R_vehicle_body;
-  options.ekf.vo.learn_noise = setup.learn_vo_noise;
-  options.ekf.gps.learn_noise = setup.learn_gps_noise;
-  if (setup.speed_sigma_mps > 0) options.ekf.vehicle.speed_sigma_mps = setup.speed_sigma_mps;
-  if (setup.speed_scale_sigma > 0) options.ekf.vehicle.speed_scale_sigma = setup.speed_scale_sigma;
-  return run;
-}
 
 Status LocalizationService::ResolveScenario(const v1::Scenario& s, sim::Scenario* out, std::string* name) const {
   try {
@@ -171,7 +157,7 @@ Status LocalizationService::ResolveScenario(const v1::Scenario& s, sim::Scenario
 
 // The options every source shares: pacing, VO method, history, scenario.
 Status LocalizationService::SessionOptionsFromRequest(const v1::StartSessionRequest& req, SessionOptions* options,
-                                                      EstimatorSetup* setup) const {
+                                                      pipeline::RunOptions* run) const {
   // Pacing divides the sensor time by the rate: outside [1e-3, 1e3] it
   // overflows or is meaningless (1e-300 played at full speed).
   const double rate = req.playback_rate();
@@ -184,17 +170,17 @@ Status LocalizationService::SessionOptionsFromRequest(const v1::StartSessionRequ
   options->vo_method = req.vo_method().empty() ? config_.default_vo_method : req.vo_method();
   options->history_size = req.history_size() == 0 ? config_.history_size
                                                    : std::min<size_t>(req.history_size(), config_.max_history_size);
-  setup->vo_method = options->vo_method;
-  if (Status s = ParseVehicleOptions(req.vehicle(), setup); !s.ok()) return s;
-  setup->learn_vo_noise = !req.noise().fixed_vo_noise();
-  setup->learn_gps_noise = !req.noise().fixed_gps_noise();
-  return ResolveScenario(req.scenario(), &setup->scenario, &options->scenario);
+  run->localizer.vo_method = options->vo_method;
+  if (Status s = ParseVehicleOptions(req.vehicle(), run); !s.ok()) return s;
+  run->localizer.ekf.vo.learn_noise = !req.noise().fixed_vo_noise();
+  run->localizer.ekf.gps.learn_noise = !req.noise().fixed_gps_noise();
+  return ResolveScenario(req.scenario(), &run->scenario, &options->scenario);
 }
 
 Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::string* id) {
   SessionOptions options;
-  EstimatorSetup setup;
-  if (Status s = SessionOptionsFromRequest(req, &options, &setup); !s.ok()) return s;
+  pipeline::RunOptions run;
+  if (Status s = SessionOptionsFromRequest(req, &options, &run); !s.ok()) return s;
   std::unique_ptr<pipeline::FrameSource> source;
   pipeline::LiveFrameSource* live = nullptr;
   std::optional<GpsdEndpoint> gpsd;
@@ -205,13 +191,13 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
         if (Status s = OpenKittiSource(req.kitti(), &source, &options.source); !s.ok()) return s;
         break;
       case v1::StartSessionRequest::kBag:
-        if (Status s = OpenBagSource(req.bag(), &setup, &source, &options.source); !s.ok()) return s;
+        if (Status s = OpenBagSource(req.bag(), &run, &source, &options.source); !s.ok()) return s;
         break;
       case v1::StartSessionRequest::kSynthetic:
-        return StartSynthetic(req.synthetic(), std::move(options), std::move(setup), id);
+        return StartSynthetic(req.synthetic(), std::move(options), std::move(run), id);
       case v1::StartSessionRequest::kLive: {
         std::unique_ptr<pipeline::LiveFrameSource> src;
-        if (Status s = OpenLiveSource(req.live(), &setup, &src, &gpsd, &cameras, &options.source); !s.ok()) return s;
+        if (Status s = OpenLiveSource(req.live(), &run, &src, &gpsd, &cameras, &options.source); !s.ok()) return s;
         live = src.get();
         source = std::move(src);
         break;
@@ -229,7 +215,7 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
   std::unique_ptr<pipeline::FrameLoop> loop;
   options.estimator = std::make_shared<EstimatorHandle>();
   try {
-    loop = MakeFrameLoop(RecordEstimator(estimator_factory_, options.estimator), setup, std::move(source));
+    loop = MakeFrameLoop(RecordEstimator(make_estimator_, options.estimator), run, std::move(source));
   } catch (const std::exception& e) {
     return Invalid(std::string("vo_method/scenario: ") + e.what());
   }
@@ -247,7 +233,7 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
 }
 
 Status LocalizationService::StartSynthetic(const v1::SyntheticSource& s, SessionOptions options,
-                                          EstimatorSetup setup, std::string* id) {
+                                          pipeline::RunOptions run, std::string* id) {
   const size_t frames = s.frames() == 0 ? config_.synthetic_default_frames : s.frames();
   if (frames < 2 || frames > config_.max_synthetic_frames) {
     return Invalid("synthetic.frames: must be in [2, max_synthetic_frames=" +
@@ -262,7 +248,7 @@ Status LocalizationService::StartSynthetic(const v1::SyntheticSource& s, Session
   // The estimator is built after the render; building one now with the
   // drive's rig checks vo_method and the scenario before the RPC answers.
   try {
-    estimator_factory_(pipeline::EstimatorInputsFor(rig.camera, rig.T_cam0_imu, RunOptionsOf(setup)));
+    make_estimator_(pipeline::EstimatorInputsFor(rig.camera, rig.T_cam0_imu, run));
   } catch (const std::exception& e) {
     return Invalid(std::string("vo_method/scenario: ") + e.what());
   }
@@ -272,19 +258,19 @@ Status LocalizationService::StartSynthetic(const v1::SyntheticSource& s, Session
   // pipeline ends, so rendered drives never outlive their sessions.
   const std::filesystem::path drive_dir = SyntheticRoot(config_.work_dir) / RandomSessionId();
   options.estimator = std::make_shared<EstimatorHandle>();  // set on the session thread, after the render
-  auto factory = [drive_dir, seed = s.seed(), frames, yaml = s.options_yaml(), setup,
-                  make = RecordEstimator(estimator_factory_, options.estimator)](
-                     const std::atomic<bool>& cancel) mutable -> std::unique_ptr<pipeline::Pipeline> {
+  auto factory = [drive_dir, seed = s.seed(), frames, yaml = s.options_yaml(), run,
+                  make = RecordEstimator(make_estimator_, options.estimator)](
+                     const std::atomic<bool>& cancel) mutable -> std::unique_ptr<pipeline::RunLoop> {
     auto src = std::make_unique<pipeline::DatasetFrameSource>(
         MakeSyntheticDrive(drive_dir, seed, frames, yaml, &cancel), 0, -1);
-    return MakeFrameLoop(make, setup, std::move(src));
+    return MakeFrameLoop(make, run, std::move(src));
   };
   auto remove_drive = [drive_dir] {
     std::error_code ec;
     std::filesystem::remove_all(drive_dir, ec);
   };
   return sessions_.Add(std::move(options),
-                       std::make_unique<DeferredPipeline>(std::move(factory), static_cast<int64_t>(frames),
+                       std::make_unique<DeferredRunLoop>(std::move(factory), static_cast<int64_t>(frames),
                                                           std::move(remove_drive)),
                        nullptr, id);
 }

@@ -1,7 +1,7 @@
 // Sensor simulators: a scenario (GPS receiver, outages, IMU grade, speed
 // sensor, camera faults) and the simulators that make, from the untouched
 // reference unit (KITTI's OXTS RT3003), what the filter sees: a receiver's
-// fixes, a MEMS IMU, a speed sensor. The reference is ground truth and never
+// fixes, a MEMS IMU, a speed sensor. Its samples are the truth and never
 // reaches the filter as is. The filter (fusion/) does not include this.
 #pragma once
 
@@ -177,20 +177,20 @@ class GpsReceiverSim {
 
 // A simulated vehicle speed sensor (Scenario::speed) made from a reference
 // unit's forward speed: readings on a rate_hz grid, the speed interpolated
-// between reference samples (never across a gap of more than 1 s), read
+// between truth samples (never across a gap of more than 1 s), read
 // (1 + scale_error) x high, plus white noise of sigma_mps. Seeded, repeatable.
 class SpeedSimulator {
  public:
   // Nothing comes out when the scenario has no speed sensor.
   explicit SpeedSimulator(const Scenario& scenario);
-  // Feed each reference forward speed in time order; returns the readings
+  // Feed each true forward speed in time order; returns the readings
   // due in (previous sample, t_ns].
   std::vector<SpeedSample> Apply(int64_t t_ns, double forward_speed_mps);
 
  private:
   std::optional<SpeedSensorSim> sensor_;
   std::mt19937_64 rng_;
-  std::optional<std::pair<int64_t, double>> last_;  // previous reference sample
+  std::optional<std::pair<int64_t, double>> last_;  // previous truth sample
   int64_t next_ns_ = 0;                              // next reading on the grid
 };
 

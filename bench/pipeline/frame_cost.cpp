@@ -103,8 +103,8 @@ Samples RunPass(const std::string& drive_dir, size_t max_frames) {
     locaid::vo::StereoFrame frame{item.t_ns, drive.Rectify(0, left_raw), drive.Rectify(1, right_raw)};
     const double rectify_ms = MsSince(t);
     t = Clock::now();
-    stage.BeginFrame(item.t_ns, item.sensors);
-    if (!item.sensors.empty()) localizer.Fuse(stage.Apply(item.sensors));
+    stage.BeginFrame(item.t_ns, item.samples);
+    if (!item.samples.empty()) localizer.Fuse(stage.Apply(item.samples));
     const double fuse_ms = MsSince(t);
     lp::StepResult r;
     r.kind = lp::StepResult::Kind::kPose;

@@ -35,7 +35,7 @@ int main(int argc, char** argv) {
   plan_cmd->add_flag("!--no-measure", plan_options.measure, "counts only, no measured run");
   plan_cmd->add_option("--jobs", plan_options.jobs, "for the wall time on this machine (default: its cores)");
 
-  RunOptions run;
+  RunCommandOptions run;
   auto* run_cmd = app.add_subcommand("run", "run what is not done yet, then report");
   run_cmd->add_option("manifest", run.manifest, "sweep manifest (YAML)")->required();
   run_cmd->add_option("--out", run.out, "the sweep's folder (results, VO caches, plan, logs)")->required();

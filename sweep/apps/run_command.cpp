@@ -60,7 +60,7 @@ void MarkPending(Plan& plan) {
 // How many runs each array task of a Slurm array or Indexed Job carries
 // (sweep/batching.hpp); false with `error` set when the arrays would be too
 // large for the cluster.
-bool ChooseBatching(Plan& plan, const RunOptions& o, std::string& error) {
+bool ChooseBatching(Plan& plan, const RunCommandOptions& o, std::string& error) {
   std::optional<long> max_array_size;
   if (o.engine == "slurm") max_array_size = SlurmMaxArraySize();
   const size_t cap = ArrayTaskCap(max_array_size);
@@ -105,7 +105,7 @@ Plan PlanFor(const std::string& manifest_path, const std::string& dir) {
   return BuildPlan(manifest, fs::absolute(dir), replay, LOCAID_VERSION);
 }
 
-int RunSweep(const RunOptions& o) {
+int RunSweep(const RunCommandOptions& o) {
   Plan plan;
   try {
     plan = PlanFor(o.manifest, o.out);

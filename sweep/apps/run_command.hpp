@@ -8,7 +8,9 @@
 
 namespace locaid::sweep {
 
-struct RunOptions {
+// What `locaid-sweep run` is given on its command line (PlanCommandOptions:
+// what `plan` is given).
+struct RunCommandOptions {
   std::string manifest, out;
   std::string engine = "local";  // local | slurm | k8s (plan only)
   int jobs = 0;                  // local: 0 = the number of cores
@@ -24,6 +26,6 @@ Plan PlanFor(const std::string& manifest, const std::string& dir);
 
 // Exit status: 0 every run done (or submitted, for slurm without --wait), 1
 // some failed, 2 a bad manifest or a refused DIR, 130 interrupted.
-int RunSweep(const RunOptions& options);
+int RunSweep(const RunCommandOptions& options);
 
 }  // namespace locaid::sweep

@@ -80,7 +80,7 @@ TEST(FuzzRegression, ScenarioRatesAndDurationsThatOverflowInt64AreRefused) {
   EXPECT_NO_THROW(sim::ValidateScenario(s));
 }
 
-// Found by fuzz_push_sensors (fuzz/corpus/push_sensors/crash-zero-variance-
+// Found by fuzz_push_requests (fuzz/corpus/push_requests/crash-zero-variance-
 // covariance): a GpsFix covariance with a zero U variance and a 1e-135 E-U
 // term passed the symmetry check, and Eigen's eigensolver gave its smallest
 // eigenvalue as +3e-267, so a matrix that is not positive definite was
@@ -105,10 +105,10 @@ TEST(FuzzRegression, GpsCovarianceWithAZeroVarianceIsRefused) {
   EXPECT_DOUBLE_EQ((*good.gps.cov_enu_m2)(2, 2), 0.09);
 }
 
-// fuzz/corpus/push_sensors/start-overflowing-extrinsic: a LiveSource whose
+// fuzz/corpus/push_requests/start-overflowing-extrinsic: a LiveSource whose
 // T_cam0_imu is finite but whose R R^T overflows (inf - inf = NaN, the
 // determinant +inf) passed `norm > 1e-6 || det < 0`, both false with NaN.
-// The check is `!(norm <= 1e-6)` now; fuzz_push_sensors' contract catches it.
+// The check is `!(norm <= 1e-6)` now; fuzz_push_requests' contract catches it.
 TEST(FuzzRegression, ExtrinsicWhoseRotationCheckOverflowsIsRefused) {
   v1::LiveSource live;
   live.set_fx(20);
@@ -130,7 +130,7 @@ TEST(FuzzRegression, ExtrinsicWhoseRotationCheckOverflowsIsRefused) {
   EXPECT_DOUBLE_EQ(setup.camera.max_gps_delay_s, server::kDefaultGpsDelayS);
 }
 
-// Found by fuzz_push_sensors (crash-denormal-asymmetric-covariance): with
+// Found by fuzz_push_requests (crash-denormal-asymmetric-covariance): with
 // denormal entries (1e-316) isApprox's squared norms underflow to 0, so an
 // asymmetric covariance passed as symmetric. Compared entry by entry now.
 TEST(FuzzRegression, DenormalAsymmetricGpsCovarianceIsRefused) {
@@ -147,7 +147,7 @@ TEST(FuzzRegression, DenormalAsymmetricGpsCovarianceIsRefused) {
   EXPECT_EQ(server::GpsItemFromProto(fix, &item), "covariance_enu_m2: not symmetric");
 }
 
-// Found by fuzz_push_sensors (frame-at-int64-min-then-fix): after a frame at
+// Found by fuzz_push_requests (frame-at-int64-min-then-fix): after a frame at
 // t_ns = INT64_MIN + 1, the staleness check of the next fix computed
 // frame time - max_gps_delay_s, a signed overflow (UBSan); wrapped, it called
 // a fix at t = 0, after the frame, stale. Saturated now.

@@ -122,7 +122,7 @@ constexpr int64_t kT0 = 1'000'000'000'000;  // first frame, ns
 constexpr int64_t kPeriod = 100'000'000;    // 10 Hz
 
 // The loop with the real scenario stage: `scenario` with no noise worth
-// speaking of, so the fixes it makes are where the reference was.
+// speaking of, so the fixes it makes are where the truth was.
 FrameLoop MakeLoop(std::deque<SourceItem> items, std::shared_ptr<RecordingEstimator::Log> log,
                    sim::Scenario scenario = {}) {
   return FrameLoop(std::make_unique<ScriptedSource>(std::move(items)), ScenarioStage(std::move(scenario)),
@@ -134,7 +134,7 @@ std::deque<SourceItem> FramesWithFixes(int n) {
   std::deque<SourceItem> items;
   for (int i = 0; i < n; ++i) {
     SourceItem f = Frame(i, kT0 + i * kPeriod);
-    f.sensors.gps = {Fix(kT0 + i * kPeriod)};
+    f.samples.gps = {Fix(kT0 + i * kPeriod)};
     items.push_back(std::move(f));
   }
   return items;
@@ -217,17 +217,17 @@ TEST(FrameLoop, CameraFaultsOfTheScenarioInjectedAndReplacedReachTheEstimator) {
 
 TEST(FrameLoop, SensorDataReachesTheFilterBeforeItsFrameAndFixesComeWithThePose) {
   auto log = std::make_shared<RecordingEstimator::Log>();
-  SourceItem between;  // sensor data between frames: fused, no pose
+  SourceItem between;  // samples between frames: fused, no pose
   between.kind = SourceItem::Kind::kSamples;
   between.t_ns = kT0 + 50'000'000;
-  between.sensors.gps = {Fix(kT0 + 40'000'000)};
+  between.samples.gps = {Fix(kT0 + 40'000'000)};
   SourceItem frame = Frame(1, kT0 + kPeriod);
-  frame.sensors.gps = {Fix(kT0 + 90'000'000), Fix(kT0 + 95'000'000)};
+  frame.samples.gps = {Fix(kT0 + 90'000'000), Fix(kT0 + 95'000'000)};
   kitti::OxtsSample oxts;  // a recorded drive's reference unit at the frame time
   oxts.t_ns = kT0 + kPeriod;
   oxts.record.lat_deg = 49.0;
   oxts.record.lon_deg = 8.4;
-  AppendOxts(oxts, frame.sensors);
+  AppendOxts(oxts, frame.samples);
   FrameLoop loop = MakeLoop({Frame(0, kT0), between, frame}, log);
   EXPECT_EQ(loop.Step().kind, StepResult::Kind::kPose);
   const StepResult fused = loop.Step();
@@ -235,12 +235,12 @@ TEST(FrameLoop, SensorDataReachesTheFilterBeforeItsFrameAndFixesComeWithThePose)
   EXPECT_TRUE(fused.frame.gps_feeds.empty());  // reported with the next pose
   const StepResult pose = loop.Step();
   ASSERT_EQ(pose.kind, StepResult::Kind::kPose);
-  // The reference pose became the scenario's fix (10 Hz: one due at 0.1 s),
+  // The truth pose became the scenario's fix (10 Hz: one due at 0.1 s),
   // its IMU one IMU sample; in time order, after the fix fused between frames.
   ASSERT_EQ(pose.frame.gps_feeds.size(), 4u);
   const std::vector<int64_t> order = {kT0 + 40'000'000, kT0 + 90'000'000, kT0 + 95'000'000, kT0 + kPeriod};
   for (size_t i = 0; i < order.size(); ++i) EXPECT_EQ(pose.frame.gps_feeds[i].fix.t_ns, order[i]) << i;
-  EXPECT_NEAR(pose.frame.gps_feeds[3].fix.lat_deg, 49.0, 1e-3);  // degraded, not the reference itself
+  EXPECT_NEAR(pose.frame.gps_feeds[3].fix.lat_deg, 49.0, 1e-3);  // degraded, not the truth itself
   const std::vector<std::string> calls = {"process " + std::to_string(kT0), "fuse 0 1", "fuse 1 3",
                                           "process " + std::to_string(kT0 + kPeriod)};
   EXPECT_EQ(log->calls, calls);
@@ -249,7 +249,7 @@ TEST(FrameLoop, SensorDataReachesTheFilterBeforeItsFrameAndFixesComeWithThePose)
 TEST(FrameLoop, TruthIsInTheFiltersEnuFrameOnceItHasOne) {
   auto log = std::make_shared<RecordingEstimator::Log>();
   SourceItem a = Frame(0, kT0), b = Frame(1, kT0 + kPeriod);
-  fusion::ReferencePose truth;
+  fusion::TruthSample truth;
   truth.lat_deg = 49.0;
   truth.lon_deg = 8.4;
   truth.alt_m = 100.0;
@@ -331,8 +331,8 @@ TEST(DatasetFrameSource, CountsTheOxtsFilesTheReaderSkipped) {
   for (SourceItem item = source.Next(); item.kind != SourceItem::Kind::kEnd; item = source.Next()) {
     if (frames++ == 0) first_error = item.error;
     bad += item.oxts_bad_lines;
-    oxts += item.sensors.reference_poses.size();
-    EXPECT_EQ(item.sensors.reference_imu.size(), item.sensors.reference_poses.size());
+    oxts += item.samples.truth_poses.size();
+    EXPECT_EQ(item.samples.truth_imu.size(), item.samples.truth_poses.size());
   }
   EXPECT_EQ(frames, 12);
   EXPECT_EQ(bad, 2);

@@ -165,7 +165,7 @@ TEST(BagFaults, EachFaultIsSkippedAndCountedAndTheRunGoesOn) {
     frames += item.kind == pipeline::SourceItem::Kind::kFrame;
     corrupt += item.kind == pipeline::SourceItem::Kind::kCorrupt;
     if (!item.error.empty()) errors += item.error + "\n";
-    for (const auto& f : item.sensors.gps) EXPECT_TRUE(std::isfinite(f.fix.lat_deg));  // never a NaN fix
+    for (const auto& f : item.samples.gps) EXPECT_TRUE(std::isfinite(f.fix.lat_deg));  // never a NaN fix
   }
   const auto& s = source.stats();
   EXPECT_EQ(frames, 29);

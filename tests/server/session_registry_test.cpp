@@ -2,7 +2,7 @@
 // threads themselves: a session taken out (StopSession with remove) while its
 // input is still being prepared keeps counting until its preparation ends,
 // because a render stops only at its next cancellation point.
-#include "server/deferred_pipeline.hpp"
+#include "server/deferred_run_loop.hpp"
 #include "server/session_reaper.hpp"
 #include "server/session_registry.hpp"
 
@@ -41,9 +41,9 @@ class Gate {
   bool open_ = false;
 };
 
-std::unique_ptr<pipeline::Pipeline> PreparingPipeline(Gate& gate) {
-  return std::make_unique<DeferredPipeline>(
-      [&gate](const std::atomic<bool>& cancel) -> std::unique_ptr<pipeline::Pipeline> {
+std::unique_ptr<pipeline::RunLoop> PreparingRunLoop(Gate& gate) {
+  return std::make_unique<DeferredRunLoop>(
+      [&gate](const std::atomic<bool>& cancel) -> std::unique_ptr<pipeline::RunLoop> {
         gate.Wait();
         if (cancel) throw std::runtime_error("cancelled");  // its first cancellation point
         throw std::runtime_error("the test never lets a preparation finish");
@@ -65,7 +65,7 @@ class SessionRegistryTest : public ::testing::Test {
   grpc::Status Add(Gate& gate, std::string* id) {
     SessionOptions options;
     options.source = "synthetic:seed=1";
-    return registry_.Add(options, PreparingPipeline(gate), nullptr, id);
+    return registry_.Add(options, PreparingRunLoop(gate), nullptr, id);
   }
 
   Gate first_, second_;  // first: outlive the sessions waiting on them

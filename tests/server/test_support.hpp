@@ -71,7 +71,7 @@ using locaid::test_support::ScopedTempDir;
 // last second of sensor time, else VO_ONLY (the scenario stage, not the
 // estimator, decides whether GPS is out). Counts the fixes it was given as
 // "GPS used" (a recorded drive's OXTS reaches it as the scenario's fixes), so
-// tests can see that sensor data reached it; each fix rides on the next pose.
+// tests can see that samples reached it; each fix rides on the next pose.
 class FakeEstimator : public pipeline::Estimator {
  public:
   // fail_at >= 0: Process() throws on that frame (0-based), so the session fails.
@@ -116,7 +116,7 @@ class FakeEstimator : public pipeline::Estimator {
 };
 
 // VO method "fake-fail-at-3" gives an estimator that throws on frame 3.
-inline EstimatorFactory FakeFactory() {
+inline pipeline::EstimatorMaker FakeFactory() {
   return [](const pipeline::EstimatorInputs& in) -> std::unique_ptr<pipeline::Estimator> {
     const std::string& vo_method = in.localizer.vo_method;
     if (vo_method == "fake-fail-at-3") return std::make_unique<FakeEstimator>(3);

@@ -1,4 +1,4 @@
-// A session's pipeline built on the session thread (see DeferredPipeline).
+// A session's run loop built on the session thread (see DeferredRunLoop).
 #pragma once
 
 #include "pipeline/frame_loop.hpp"
@@ -12,20 +12,20 @@
 
 namespace locaid::server {
 
-// Builds its pipeline on the session thread at the first Step (slow inputs
+// Builds its run loop on the session thread at the first Step (slow inputs
 // such as rendering a synthetic drive do not block the RPC); controls given
 // before that are replayed onto it. A throwing factory fails the session.
-class DeferredPipeline : public pipeline::Pipeline {
+class DeferredRunLoop : public pipeline::RunLoop {
  public:
   // The factory gets the cancel flag Cancel() sets (e.g. to stop a render).
-  using Factory = std::function<std::unique_ptr<pipeline::Pipeline>(const std::atomic<bool>& cancel)>;
-  // on_release runs once the session's pipeline has ended (Release), e.g. to
+  using Factory = std::function<std::unique_ptr<pipeline::RunLoop>(const std::atomic<bool>& cancel)>;
+  // on_release runs once the session's run loop has ended (Release), e.g. to
   // delete the drive it rendered.
-  DeferredPipeline(Factory factory, int64_t total_frames, std::function<void()> on_release = {})
+  DeferredRunLoop(Factory factory, int64_t total_frames, std::function<void()> on_release = {})
       : factory_(std::move(factory)), total_(total_frames), on_release_(std::move(on_release)) {}
-  ~DeferredPipeline() override { Release(); }
+  ~DeferredRunLoop() override { Release(); }
   void Release() override {
-    std::unique_ptr<pipeline::Pipeline> done;
+    std::unique_ptr<pipeline::RunLoop> done;
     {
       std::lock_guard lock(inner_mu_);
       done = std::move(inner_);
@@ -37,7 +37,7 @@ class DeferredPipeline : public pipeline::Pipeline {
   // Step and Release run on the session thread; Cancel on any thread.
   pipeline::StepResult Step() override {
     if (!ready_) {
-      std::unique_ptr<pipeline::Pipeline> made = factory_(cancel_);
+      std::unique_ptr<pipeline::RunLoop> made = factory_(cancel_);
       for (auto& op : pending_) op(*made);
       pending_.clear();
       std::lock_guard lock(inner_mu_);
@@ -53,14 +53,14 @@ class DeferredPipeline : public pipeline::Pipeline {
   }
   bool ready() const override { return ready_; }
   int64_t total_frames() const override { return total_; }
-  void StartOutageNow(double d) override { Do([d](pipeline::Pipeline& p) { p.StartOutageNow(d); }); }
-  void StopOutage() override { Do([](pipeline::Pipeline& p) { p.StopOutage(); }); }
-  void AddOutageWindow(double s, double d) override { Do([s, d](pipeline::Pipeline& p) { p.AddOutageWindow(s, d); }); }
+  void StartOutageNow(double d) override { Do([d](pipeline::RunLoop& p) { p.StartOutageNow(d); }); }
+  void StopOutage() override { Do([](pipeline::RunLoop& p) { p.StopOutage(); }); }
+  void AddOutageWindow(double s, double d) override { Do([s, d](pipeline::RunLoop& p) { p.AddOutageWindow(s, d); }); }
   void InjectCameraFault(pipeline::CameraFaultAction a, const sim::CameraFaultWindow& f) override {
-    Do([a, f](pipeline::Pipeline& p) { p.InjectCameraFault(a, f); });
+    Do([a, f](pipeline::RunLoop& p) { p.InjectCameraFault(a, f); });
   }
-  void SetPairRunner(const PairRunner* r) override { Do([r](pipeline::Pipeline& p) { p.SetPairRunner(r); }); }
-  void SetScenario(const sim::Scenario& sc) override { Do([sc](pipeline::Pipeline& p) { p.SetScenario(sc); }); }
+  void SetPairRunner(const PairRunner* r) override { Do([r](pipeline::RunLoop& p) { p.SetPairRunner(r); }); }
+  void SetScenario(const sim::Scenario& sc) override { Do([sc](pipeline::RunLoop& p) { p.SetScenario(sc); }); }
   bool origin(double* a, double* b, double* c) const override {
     std::lock_guard lock(inner_mu_);
     return inner_ && inner_->origin(a, b, c);
@@ -71,7 +71,7 @@ class DeferredPipeline : public pipeline::Pipeline {
   }
 
  private:
-  void Do(std::function<void(pipeline::Pipeline&)> op) {
+  void Do(std::function<void(pipeline::RunLoop&)> op) {
     if (inner_) op(*inner_);
     else pending_.push_back(std::move(op));
   }
@@ -80,8 +80,8 @@ class DeferredPipeline : public pipeline::Pipeline {
   std::function<void()> on_release_;
   std::atomic<bool> cancel_{false}, ready_{false};
   mutable std::mutex inner_mu_;  // inner_ between Cancel (any thread) and Step / Release
-  std::unique_ptr<pipeline::Pipeline> inner_;
-  std::vector<std::function<void(pipeline::Pipeline&)>> pending_;
+  std::unique_ptr<pipeline::RunLoop> inner_;
+  std::vector<std::function<void(pipeline::RunLoop&)>> pending_;
 };
 
 }  // namespace locaid::server

@@ -223,22 +223,22 @@ void DrainAndCheck(pipeline::LiveFrameSource& source, uint64_t imu_pushed, uint6
                           "frame image of the wrong type or size");
       }
     }
-    for (const locaid::fusion::ReferencePose& s : out.sensors.reference_poses) {
+    for (const locaid::fusion::TruthSample& s : out.samples.truth_poses) {
       LOCAID_FUZZ_CHECK(!last_oxts_ns || s.t_ns > *last_oxts_ns, "OXTS sample not after the previous one");
       LOCAID_FUZZ_CHECK(s.t_ns <= out.t_ns, "OXTS sample after its frame");
       last_oxts_ns = s.t_ns;
       LOCAID_FUZZ_CHECK(std::isfinite(s.lat_deg) && std::isfinite(s.lon_deg) && std::isfinite(s.alt_m),
                         "non-finite OXTS position handed on");
     }
-    LOCAID_FUZZ_CHECK(out.sensors.reference_imu.size() == out.sensors.reference_poses.size(),
+    LOCAID_FUZZ_CHECK(out.samples.truth_imu.size() == out.samples.truth_poses.size(),
                       "an OXTS record handed on without its IMU part");
-    for (const locaid::fusion::ImuSample& s : out.sensors.imu) {
+    for (const locaid::fusion::ImuSample& s : out.samples.imu) {
       LOCAID_FUZZ_CHECK(!last_imu_ns || s.t_ns > *last_imu_ns, "IMU sample not after the previous one");
       LOCAID_FUZZ_CHECK(s.t_ns <= out.t_ns, "IMU sample after the item's time");
       LOCAID_FUZZ_CHECK(Finite3(s.accel_mps2) && Finite3(s.gyro_radps), "non-finite IMU sample handed on");
       last_imu_ns = s.t_ns;
     }
-    for (const pipeline::ArrivedFix& a : out.sensors.gps) {
+    for (const pipeline::ArrivedFix& a : out.samples.gps) {
       LOCAID_FUZZ_CHECK(!last_gps_ns || a.fix.t_ns > *last_gps_ns, "fix not after the previous one");
       LOCAID_FUZZ_CHECK(a.fix.t_ns <= out.t_ns, "fix after the item's time");
       LOCAID_FUZZ_CHECK(std::isfinite(a.fix.lat_deg) && std::isfinite(a.fix.lon_deg) && std::isfinite(a.fix.alt_m),
