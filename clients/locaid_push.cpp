@@ -13,6 +13,7 @@
 #include "kitti/dataset.hpp"
 #include "kitti/oxts.hpp"
 #include "locaid/v1/localization.grpc.pb.h"
+#include "output/live_source.hpp"
 #include "sensors/gpsd_client.hpp"
 #include "sensors/nmea.hpp"
 
@@ -44,17 +45,7 @@ struct Options {
 };
 
 v1::LiveSource LiveSourceFor(const locaid::kitti::StereoDataset& d, const Options& o) {
-  v1::LiveSource l;
-  const auto& c = d.camera();
-  l.set_fx(c.fx);
-  l.set_fy(c.fy);
-  l.set_cx(c.cx);
-  l.set_cy(c.cy);
-  l.set_baseline_m(c.baseline_m);
-  l.set_width(c.width);
-  l.set_height(c.height);
-  const Eigen::Matrix<double, 3, 4> T = d.T_cam0_imu().matrix().topRows<3>();
-  for (int i = 0; i < 12; ++i) l.add_t_cam0_imu(T(i / 4, i % 4));
+  v1::LiveSource l = locaid::output::LiveSourceOf(d.camera(), d.T_cam0_imu());
   for (double v : o.lever_arm) l.add_gps_antenna_body_m(v);
   l.set_max_gps_delay_s(o.max_gps_delay_s);
   if (o.gps == "gpsd") {

@@ -124,18 +124,20 @@ Node::~Node() {
 
 std::unique_ptr<Writer> Node::CreatePublisher(const std::string& topic, const std::string& type, const Qos& qos) {
   auto writer = participant_->CreateWriter(topic, type, qos);
-  std::lock_guard lock(mu_);
-  entities_.nodes.front().writers.push_back(writer->guid());
-  Announce();
+  Add(&NodeEntities::writers, writer->guid());
   return writer;
 }
 
 std::unique_ptr<Reader> Node::CreateSubscription(const std::string& topic, const std::string& type, const Qos& qos) {
   auto reader = participant_->CreateReader(topic, type, qos);
-  std::lock_guard lock(mu_);
-  entities_.nodes.front().readers.push_back(reader->guid());
-  Announce();
+  Add(&NodeEntities::readers, reader->guid());
   return reader;
+}
+
+void Node::Add(std::vector<Guid> NodeEntities::*list, const Guid& gid) {
+  std::lock_guard lock(mu_);
+  (entities_.nodes.front().*list).push_back(gid);
+  Announce();
 }
 
 void Node::Announce() { graph_->Write(EncodeParticipantEntitiesInfo(entities_, options_.distro)); }

@@ -70,6 +70,7 @@ class Node {
   const NodeOptions& options() const { return options_; }
 
  private:
+  void Add(std::vector<Guid> NodeEntities::*list, const Guid& gid);  // a reader or writer, announced
   void Announce();  // mu_ held
 
   NodeOptions options_;

@@ -1,5 +1,6 @@
 #include "ros2/input_setup.hpp"
 
+#include "output/live_source.hpp"
 #include "ros/cdr.hpp"
 #include "ros/sensor_setup.hpp"
 
@@ -30,17 +31,7 @@ bool Given(const std::string& topic) { return !topic.empty(); }
 const char* InputRoleKey(InputRole role) { return kRoleKeys[Index(role)]; }
 
 v1::LiveSource InputRig::live() const {
-  v1::LiveSource l;
-  const StereoCamera& c = rectified->camera;
-  l.set_fx(c.fx);
-  l.set_fy(c.fy);
-  l.set_cx(c.cx);
-  l.set_cy(c.cy);
-  l.set_baseline_m(c.baseline_m);
-  l.set_width(c.width);
-  l.set_height(c.height);
-  for (int r = 0; r < 3; ++r)
-    for (int k = 0; k < 4; ++k) l.add_t_cam0_imu(T_cam0_imu.matrix()(r, k));
+  v1::LiveSource l = output::LiveSourceOf(rectified->camera, T_cam0_imu);
   for (int i = 0; i < 3; ++i) l.add_gps_antenna_body_m(lever_arm_body_m[i]);
   l.set_no_imu(!has_imu);
   return l;

@@ -20,6 +20,7 @@
 //
 // One JSON object on stdout. The clocks are this host's (Unix time).
 #include "fast_peer.hpp"
+#include "process.hpp"  // tests/sweep: a child process of its own
 
 #include "bag/ros_bag.hpp"
 #include "locaid/v1/localization.grpc.pb.h"
@@ -30,10 +31,7 @@
 #include <grpcpp/grpcpp.h>
 #include <nlohmann/json.hpp>
 
-#include <fcntl.h>
 #include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -46,7 +44,6 @@
 #include <sstream>
 #include <thread>
 
-extern char** environ;
 
 namespace {
 
@@ -55,32 +52,22 @@ namespace rt = locaid::ros2::testing;
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-// A child process, stdout and stderr into `log`; SIGTERM and reaped when it goes.
+// A child process (stdout and stderr into its log), stopped with SIGTERM.
 class Process {
  public:
-  Process(const std::vector<std::string>& argv, const fs::path& log) {
-    posix_spawn_file_actions_t fa;
-    posix_spawn_file_actions_init(&fa);
-    posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_adddup2(&fa, 1, 2);
-    std::vector<char*> args;
-    for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-    args.push_back(nullptr);
-    if (posix_spawn(&pid_, args[0], &fa, nullptr, args.data(), environ) != 0)
-      throw std::runtime_error("cannot start " + argv[0]);
-    posix_spawn_file_actions_destroy(&fa);
+  Process(const std::vector<std::string>& argv, const fs::path& log) : child_(argv, log.string()) {
+    if (!child_.started()) throw std::runtime_error("cannot start " + argv[0]);
   }
   ~Process() { Stop(); }
   void Stop() {
-    if (pid_ <= 0) return;
-    kill(pid_, SIGTERM);
-    int status = 0;
-    waitpid(pid_, &status, 0);
-    pid_ = -1;
+    if (stopped_) return;
+    child_.Signal(SIGTERM);
+    child_.Wait();
+    stopped_ = true;
   }
-  // CPU seconds (user + system) so far, from /proc.
+  // CPU seconds (user + system) so far, from /proc/PID/stat.
   double CpuS() const {
-    std::ifstream in("/proc/" + std::to_string(pid_) + "/stat");
+    std::ifstream in("/proc/" + std::to_string(child_.pid()) + "/stat");
     std::string stat((std::istreambuf_iterator<char>(in)), {});
     std::istringstream fields(stat.substr(stat.rfind(')') + 2));
     std::string f;
@@ -91,7 +78,8 @@ class Process {
   }
 
  private:
-  pid_t pid_ = -1;
+  locaid::sweep_test::Background child_;
+  bool stopped_ = false;
 };
 
 double Percentile(std::vector<double> v, double p) {

@@ -6,6 +6,7 @@
 
 #include "free_port.hpp"
 #include "needs_tool.hpp"
+#include "server/logged_process.hpp"
 #include "server/test_support.hpp"
 
 #include <nlohmann/json.hpp>
@@ -24,45 +25,19 @@ inline bool HaveNode() { return test_support::HaveCommand("node"); }
 using test_support::FreeLoopbackPort;
 
 // locaid-foxglove against a server port; its stderr log in `dir`/bridge.err.
-class BridgeProcess {
+class BridgeProcess : public st::LoggedProcess {
  public:
   BridgeProcess(const std::filesystem::path& dir, int server_port, int ws_port,
                 const std::vector<std::string>& extra_args = {})
-      : err_(dir / "bridge.err") {
-    std::filesystem::create_directories(dir);
-    std::vector<std::string> argv = {std::string(LOCAID_BIN_DIR) + "/locaid-foxglove", "--server",
-                                     "127.0.0.1:" + std::to_string(server_port), "--listen",
-                                     "127.0.0.1:" + std::to_string(ws_port)};
-    argv.insert(argv.end(), extra_args.begin(), extra_args.end());
-    child_ = std::make_unique<st::ChildProcess>(argv, st::ChildProcess::Options{dir / "bridge.out", err_, 0});
-  }
-  st::ChildProcess& process() { return *child_; }
-  std::string log() const { return st::Slurp(err_); }
-  // Waits (bounded) until the log holds `text`.
-  bool WaitForLog(const std::string& text, double timeout_s) {
-    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-    while (log().find(text) == std::string::npos) {
-      if (std::chrono::steady_clock::now() >= until || child_->Wait(0)) return false;
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-    return true;
-  }
-  // Waits (bounded) until the log holds `text` at least `count` times.
-  bool WaitForLogCount(const std::string& text, int count, double timeout_s) {
-    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-    for (;;) {
-      const std::string l = log();
-      int seen = 0;
-      for (size_t at = l.find(text); at != std::string::npos; at = l.find(text, at + text.size())) ++seen;
-      if (seen >= count) return true;
-      if (std::chrono::steady_clock::now() >= until || child_->Wait(0)) return false;
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-  }
+      : st::LoggedProcess("locaid-foxglove", Args(server_port, ws_port, extra_args), dir, "bridge") {}
 
  private:
-  std::filesystem::path err_;
-  std::unique_ptr<st::ChildProcess> child_;
+  static std::vector<std::string> Args(int server_port, int ws_port, const std::vector<std::string>& extra) {
+    std::vector<std::string> args = {"--server", "127.0.0.1:" + std::to_string(server_port), "--listen",
+                                     "127.0.0.1:" + std::to_string(ws_port)};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return args;
+  }
 };
 
 struct NodeRun {

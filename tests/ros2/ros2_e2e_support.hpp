@@ -5,6 +5,7 @@
 #pragma once
 
 #include "fast_peer.hpp"
+#include "server/logged_process.hpp"
 #include "server/test_support.hpp"
 
 #include <nlohmann/json.hpp>
@@ -23,37 +24,28 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 // locaid-ros2 against the server; its log and --stats-json in `dir`.
-class Ros2Process {
+class Ros2Process : public st::LoggedProcess {
  public:
   Ros2Process(const fs::path& dir, int server_port, uint32_t domain, const std::vector<std::string>& extra)
-      : log_(dir / "ros2.err"), stats_(dir / "ros2_stats.json") {
-    std::vector<std::string> argv = {std::string(LOCAID_BIN_DIR) + "/locaid-ros2", "--server",
-                                     "127.0.0.1:" + std::to_string(server_port), "--domain", std::to_string(domain),
-                                     "--stats-json", stats_.string()};
-    argv.insert(argv.end(), extra.begin(), extra.end());
-    child_ = std::make_unique<st::ChildProcess>(argv, st::ChildProcess::Options{dir / "ros2.out", log_, 0});
-  }
-  st::ChildProcess& process() { return *child_; }
-  std::string log() const { return st::Slurp(log_); }
-  bool WaitForLog(const std::string& text, double timeout_s) {
-    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-    while (log().find(text) == std::string::npos) {
-      if (std::chrono::steady_clock::now() >= until || child_->Wait(0)) return false;
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    }
-    return true;
-  }
+      : st::LoggedProcess("locaid-ros2", Args(dir, server_port, domain, extra), dir, "ros2"),
+        stats_(dir / "ros2_stats.json") {}
   // The --stats-json file as last written (null before the first write).
   json Stats() const { return json::parse(st::Slurp(stats_), nullptr, false); }
   // SIGTERM, then the exit code (-1: it did not end within the time).
   int Stop(double timeout_s = 30) {
-    child_->Signal(SIGTERM);
-    return child_->Wait(timeout_s) ? child_->exit_code() : -1;
+    process().Signal(SIGTERM);
+    return process().Wait(timeout_s) ? process().exit_code() : -1;
   }
 
  private:
-  fs::path log_, stats_;
-  std::unique_ptr<st::ChildProcess> child_;
+  static std::vector<std::string> Args(const fs::path& dir, int server_port, uint32_t domain,
+                                       const std::vector<std::string>& extra) {
+    std::vector<std::string> args = {"--server", "127.0.0.1:" + std::to_string(server_port), "--domain",
+                                     std::to_string(domain), "--stats-json", (dir / "ros2_stats.json").string()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return args;
+  }
+  fs::path stats_;
 };
 
 class Ros2Car : public ::testing::Test {

@@ -1,5 +1,6 @@
 // A program started in the background by a test, to be signalled while it
-// runs (locaid-sweep's Ctrl-C), its output in a file.
+// runs (locaid-sweep's Ctrl-C), its output in a file. The locaid-ros2
+// benchmark starts its server and adapter with it too.
 #pragma once
 
 #include <signal.h>
@@ -38,6 +39,7 @@ class Background {
   Background& operator=(const Background&) = delete;
 
   bool started() const { return pid_ > 0; }
+  pid_t pid() const { return pid_; }
   void Signal(int sig) const { ::kill(pid_, sig); }
   // Exit code, or 128 + signal.
   int Wait() {
