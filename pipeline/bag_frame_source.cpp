@@ -30,7 +30,7 @@ bool Finite(const Eigen::Vector3d& v) { return v.allFinite(); }
 }  // namespace
 
 BagFrameSource::BagFrameSource(const std::filesystem::path& path, BagSourceOptions options)
-    : options_(std::move(options)) {
+    : options_(std::move(options)), pairer_(static_cast<int64_t>(options_.stereo_tolerance_s * 1e9), 1) {
   if (!(options_.stereo_tolerance_s >= 0) || !(options_.reorder_window_s >= 0) || options_.max_buffered_messages < 2)
     throw std::invalid_argument("bag source: tolerances must be >= 0 and the buffer at least 2 messages");
   {
@@ -153,17 +153,9 @@ SourceItem BagFrameSource::Next() {
   while (ready_.empty()) {
     if (!Fill()) {
       // The end: images without a partner, then the last samples.
-      for (auto* side : {&left_, &right_}) {
-        if (!*side) continue;
-        SourceItem s;
-        s.kind = SourceItem::Kind::kSkipped;
-        s.index = next_index_++;
-        s.t_ns = (*side)->stamp_ns;
-        s.error = (*side)->where + ": the bag ends before its stereo partner";
-        ++stats_.unpaired_images;
-        side->reset();
-        ready_.push_back(std::move(s));
-      }
+      pairer_.Drain([this](StereoSide, const Pending& image) {
+        Unpaired(image, "the bag ends before its stereo partner");
+      });
       if (!samples_.empty()) {
         SourceItem s;
         s.kind = SourceItem::Kind::kSamples;
@@ -196,39 +188,27 @@ void BagFrameSource::Handle(Pending p) {
     AddSample(p);
     return;
   }
-  auto& mine = p.role == Role::kLeft ? left_ : right_;
-  if (mine) {  // the previous image of this side never found a partner
-    SourceItem s;
-    s.kind = SourceItem::Kind::kSkipped;
-    s.index = next_index_++;
-    s.t_ns = mine->stamp_ns;
-    s.error = mine->where + ": no " + (p.role == Role::kLeft ? "right" : "left") + " image within " + Millis(options_.stereo_tolerance_s);
-    ++stats_.unpaired_images;
-    ready_.push_back(std::move(s));
+  const StereoSide side = p.role == Role::kLeft ? StereoSide::kLeft : StereoSide::kRight;
+  const int64_t stamp_ns = p.stamp_ns;
+  if (const std::optional<Pending> before = pairer_.Add(side, stamp_ns, std::move(p))) {
+    // the previous image of this side never found a partner
+    Unpaired(*before, std::string("no ") + (side == StereoSide::kLeft ? "right" : "left") + " image within " +
+                          Millis(options_.stereo_tolerance_s));
   }
-  mine = std::move(p);
-  TryPair();
+  pairer_.Pair([this](Pending left, Pending right) { ready_.push_back(MakeFrame(std::move(left), std::move(right))); },
+               [this](StereoSide, const Pending& older) {
+                 // The older one has no partner any more (messages come in stamp order).
+                 Unpaired(older, "no stereo partner within " + Millis(options_.stereo_tolerance_s));
+               });
 }
 
-void BagFrameSource::TryPair() {
-  if (!left_ || !right_) return;
-  const auto tol_ns = static_cast<int64_t>(options_.stereo_tolerance_s * 1e9);
-  if (std::llabs(left_->stamp_ns - right_->stamp_ns) <= tol_ns) {
-    Pending l = std::move(*left_), r = std::move(*right_);
-    left_.reset();
-    right_.reset();
-    ready_.push_back(MakeFrame(std::move(l), std::move(r)));
-    return;
-  }
-  // The older one has no partner any more (messages come in stamp order).
-  auto& older = left_->stamp_ns < right_->stamp_ns ? left_ : right_;
+void BagFrameSource::Unpaired(const Pending& image, const std::string& why) {
   SourceItem s;
   s.kind = SourceItem::Kind::kSkipped;
   s.index = next_index_++;
-  s.t_ns = older->stamp_ns;
-  s.error = older->where + ": no stereo partner within " + Millis(options_.stereo_tolerance_s);
+  s.t_ns = image.stamp_ns;
+  s.error = image.where + ": " + why;
   ++stats_.unpaired_images;
-  older.reset();
   ready_.push_back(std::move(s));
 }
 

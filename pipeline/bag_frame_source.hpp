@@ -23,6 +23,7 @@
 #include "bag/bag_topics.hpp"
 #include "bag/ros_bag.hpp"
 #include "pipeline/frame_source.hpp"
+#include "pipeline/stereo_pairer.hpp"
 #include "ros/camera_model.hpp"
 
 #include <Eigen/Geometry>
@@ -100,7 +101,8 @@ class BagFrameSource : public FrameSource {
   bool Fill();
   void Handle(Pending p);
   void AddSample(const Pending& p);
-  void TryPair();
+  // A skipped frame for an image without a partner.
+  void Unpaired(const Pending& image, const std::string& why);
   SourceItem MakeFrame(Pending left, Pending right);
   cv::Mat Decode(const Pending& image, const ros::Rectifier& rectifier) const;
 
@@ -119,7 +121,9 @@ class BagFrameSource : public FrameSource {
   uint64_t order_ = 0;
   int64_t newest_stamp_ns_ = INT64_MIN, released_stamp_ns_ = INT64_MIN;
   bool bag_done_ = false;
-  std::optional<Pending> left_, right_;
+  // Left and right images by stamp; one waits per side (messages come in
+  // stamp order: a second of its side means the first has no partner).
+  StereoPairer<Pending> pairer_;
   SampleBatch samples_;
   int64_t last_imu_ns_ = INT64_MIN, last_gps_ns_ = INT64_MIN, last_speed_ns_ = INT64_MIN;
   int64_t last_frame_ns_ = INT64_MIN;

@@ -15,16 +15,24 @@ EstimatorInputs EstimatorInputsFor(const StereoCamera& camera, const Eigen::Isom
   return inputs;
 }
 
+PlacedRun PlaceRun(const FrameSource& source, const RunOptions& options) {
+  RunOptions placed = options;
+  const double duration_s = source.duration_s();
+  if (duration_s > 0) placed.scenario = sim::PlaceOutagesForDrive(placed.scenario, duration_s);
+  PlacedRun run;
+  run.estimator = EstimatorInputsFor(source.camera(), source.T_cam0_imu(), placed);
+  run.scenario = run.estimator.scenario;
+  run.notice = sim::OutageCoverageWarning(run.scenario, duration_s);
+  return run;
+}
+
 AssembledRun AssembleRun(std::unique_ptr<FrameSource> source, const RunOptions& options,
                          const EstimatorMaker& make) {
-  RunOptions placed = options;
-  const double duration_s = source->duration_s();
-  if (duration_s > 0) placed.scenario = sim::PlaceOutagesForDrive(placed.scenario, duration_s);
-  const EstimatorInputs inputs = EstimatorInputsFor(source->camera(), source->T_cam0_imu(), placed);
+  PlacedRun placed = PlaceRun(*source, options);
   AssembledRun run;
-  run.scenario = inputs.scenario;
-  run.notice = sim::OutageCoverageWarning(run.scenario, duration_s);
-  run.loop = std::make_unique<FrameLoop>(std::move(source), ScenarioStage(run.scenario), make(inputs));
+  run.scenario = std::move(placed.scenario);
+  run.notice = std::move(placed.notice);
+  run.loop = std::make_unique<FrameLoop>(std::move(source), ScenarioStage(run.scenario), make(placed.estimator));
   run.loop->set_notice(run.notice);
   return run;
 }

@@ -45,15 +45,27 @@ std::unique_ptr<Estimator> MakeLocalizer(const EstimatorInputs& inputs);
 EstimatorInputs EstimatorInputsFor(const StereoCamera& camera, const Eigen::Isometry3d& T_cam0_imu,
                                    const RunOptions& options);
 
+// A run's parts before its frame loop: the scenario with its outages placed
+// on the source's drive (on its duration_s() when it knows one, > 0; else
+// as given), what they leave the filter without ("" if nothing), and the
+// estimator's inputs. AssembleRun puts a frame loop together from them; a
+// program that drives the stages itself (bench/pipeline/frame_cost.cpp,
+// locaid-nmea) takes them from here too, so it runs what a run runs.
+struct PlacedRun {
+  sim::Scenario scenario;
+  std::string notice;
+  EstimatorInputs estimator;
+};
+PlacedRun PlaceRun(const FrameSource& source, const RunOptions& options);
+
 struct AssembledRun {
   sim::Scenario scenario;  // with its outages placed on the source's drive
   std::string notice;      // what the outages leave the filter without ("" if nothing); also the loop's notice
   std::unique_ptr<FrameLoop> loop;
 };
 
-// source -> the scenario's stage -> the estimator `make` builds. The
-// scenario's outages are placed on the source's duration when it knows one
-// (duration_s() > 0; else they stay as given). Throws what `make` throws.
+// source -> the scenario's stage -> the estimator `make` builds, as
+// PlaceRun places them. Throws what `make` throws.
 AssembledRun AssembleRun(std::unique_ptr<FrameSource> source, const RunOptions& options,
                          const EstimatorMaker& make = MakeLocalizer);
 

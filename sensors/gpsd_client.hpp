@@ -1,7 +1,7 @@
 // A client of a gpsd daemon (https://gpsd.io) through Debian's libgps: it
 // watches the JSON stream and turns TPV reports into fixes the filter takes.
 // No threads of its own: the caller polls Read() (the server runs it on the
-// session's receiver thread, server/gps_receiver.cpp).
+// session's feeder thread, server/gpsd_feeder.cpp).
 #pragma once
 
 #include "fusion/types.hpp"

@@ -23,17 +23,20 @@ std::string SizeText(int w, int h) { return std::to_string(w) + "x" + std::to_st
 }  // namespace
 
 CameraFeeder::CameraFeeder(const CameraSetup& setup, pipeline::LiveFrameSource* sink)
-    : setup_(setup), sink_(sink), rectified_(ros::MakeRectifiedStereo(setup.left_info, setup.right_info)) {
+    : setup_(setup),
+      sink_(sink),
+      rectified_(ros::MakeRectifiedStereo(setup.left_info, setup.right_info)),
+      pairer_(ToNs(setup.pair_tolerance_s), kMaxWaiting) {
   if (!setup_.stereo_pipeline.empty()) {
     captures_.push_back(
         std::make_unique<sensors::GstCapture>("stereo camera", setup_.stereo_pipeline, std::vector<std::string>{"left", "right"}));
-    left_ = {captures_[0].get(), 0, {}, 0};
-    right_ = {captures_[0].get(), 1, {}, 0};
+    left_ = {captures_[0].get(), 0, pipeline::StereoSide::kLeft, 0};
+    right_ = {captures_[0].get(), 1, pipeline::StereoSide::kRight, 0};
   } else {
     captures_.push_back(std::make_unique<sensors::GstCapture>("left camera", setup_.left_pipeline));
     captures_.push_back(std::make_unique<sensors::GstCapture>("right camera", setup_.right_pipeline));
-    left_ = {captures_[0].get(), 0, {}, 0};
-    right_ = {captures_[1].get(), 0, {}, 0};
+    left_ = {captures_[0].get(), 0, pipeline::StereoSide::kLeft, 0};
+    right_ = {captures_[1].get(), 0, pipeline::StereoSide::kRight, 0};
   }
 }
 
@@ -68,7 +71,7 @@ std::unique_ptr<CameraFeeder> CameraFeeder::Open(const CameraSetup& setup, pipel
       return nullptr;
     }
     side->last_frame_clock_ns = frame.clock_ns;
-    side->waiting.push_back(std::move(frame));
+    f->pairer_.Add(side->side, frame.clock_ns, std::move(frame));
   }
   f->clock_to_session_ns_ = UnixNowNs() - sensors::ClockNowNs();
   f->thread_ = std::thread([p = f.get()] { p->Run(); });
@@ -116,7 +119,7 @@ bool CameraFeeder::WaitFor(double seconds) {
 }
 
 void CameraFeeder::Run() {
-  double backoff_s = kFirstBackoffS;
+  RestartBackoff backoff;
   int64_t next_tick = 0, next_restart = 0;
   for (;;) {
     {
@@ -126,10 +129,10 @@ void CameraFeeder::Run() {
     if (!down_) {
       const uint64_t pairs_before = pairs_;
       if (PullSide(left_) && PullSide(right_)) PairAndPush();
-      if (pairs_ > pairs_before) backoff_s = kFirstBackoffS;  // back to the first wait once frames flow
+      if (pairs_ > pairs_before) backoff.Delivered();  // back to the first wait once frames flow
       if (down_) {
         next_tick = sensors::ClockNowNs();
-        next_restart = next_tick + ToNs(backoff_s);
+        next_restart = next_tick + ToNs(backoff.wait_s());
       }
       continue;
     }
@@ -144,14 +147,13 @@ void CameraFeeder::Run() {
       ++restarts_;
       if (why.empty()) {
         down_ = false;
-        left_.waiting.clear();
-        right_.waiting.clear();
+        pairer_.Clear();
         left_.last_frame_clock_ns = right_.last_frame_clock_ns = sensors::ClockNowNs();
         continue;
       }
       error_ = std::move(why);
-      backoff_s = std::min(backoff_s * 2, kMaxBackoffS);
-      next_restart = now + ToNs(backoff_s);
+      backoff.Failed();
+      next_restart = now + ToNs(backoff.wait_s());
     }
     if (!WaitFor(static_cast<double>(std::min(next_tick, next_restart) - sensors::ClockNowNs()) * 1e-9)) return;
   }
@@ -164,9 +166,7 @@ bool CameraFeeder::PullSide(Side& side) {
   switch (side.capture->Pull(side.sink, kPullTimeoutNs, frame, why)) {
     case sensors::PullResult::kFrame:
       side.last_frame_clock_ns = frame.clock_ns;
-      side.waiting.push_back(std::move(frame));
-      if (side.waiting.size() > kMaxWaiting) {
-        side.waiting.pop_front();
+      if (pairer_.Add(side.side, frame.clock_ns, std::move(frame))) {  // its oldest frame pushed out
         std::lock_guard lock(mu_);
         ++unpaired_;
       }
@@ -188,19 +188,11 @@ bool CameraFeeder::PullSide(Side& side) {
 }
 
 void CameraFeeder::PairAndPush() {
-  const int64_t tolerance = ToNs(setup_.pair_tolerance_s);
-  while (!left_.waiting.empty() && !right_.waiting.empty()) {
-    const int64_t d = left_.waiting.front().clock_ns - right_.waiting.front().clock_ns;
-    if (std::llabs(d) <= tolerance) {
-      Push(left_.waiting.front(), right_.waiting.front());
-      left_.waiting.pop_front();
-      right_.waiting.pop_front();
-      continue;
-    }
-    (d < 0 ? left_ : right_).waiting.pop_front();  // the older frame has no partner
-    std::lock_guard lock(mu_);
-    ++unpaired_;
-  }
+  pairer_.Pair([this](const sensors::CameraFrame& left, const sensors::CameraFrame& right) { Push(left, right); },
+               [this](pipeline::StereoSide, const sensors::CameraFrame&) {
+                 std::lock_guard lock(mu_);
+                 ++unpaired_;  // the older frame has no partner
+               });
 }
 
 void CameraFeeder::Push(const sensors::CameraFrame& left, const sensors::CameraFrame& right) {

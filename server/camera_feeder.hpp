@@ -14,13 +14,14 @@
 #pragma once
 
 #include "pipeline/live_frame_source.hpp"
+#include "pipeline/stereo_pairer.hpp"
 #include "ros/camera_model.hpp"
 #include "sensors/gst_camera.hpp"
 #include "server/live_source_request.hpp"
+#include "server/restart_backoff.hpp"
 
 #include <condition_variable>
 #include <cstdint>
-#include <deque>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -32,7 +33,6 @@ namespace locaid::server {
 
 class CameraFeeder final : public pipeline::InputFeeder {
  public:
-  static constexpr double kFirstBackoffS = 0.5, kMaxBackoffS = 5.0;
   static constexpr double kFirstFrameTimeoutS = 10.0;
   static constexpr size_t kMaxWaiting = 8;  // frames a side keeps while waiting for its partner
 
@@ -55,7 +55,7 @@ class CameraFeeder final : public pipeline::InputFeeder {
   struct Side {
     sensors::GstCapture* capture = nullptr;
     size_t sink = 0;
-    std::deque<sensors::CameraFrame> waiting;
+    pipeline::StereoSide side = pipeline::StereoSide::kLeft;
     int64_t last_frame_clock_ns = 0;  // when its newest frame came (GStreamer clock)
   };
   CameraFeeder(const CameraSetup& setup, pipeline::LiveFrameSource* sink);
@@ -73,6 +73,7 @@ class CameraFeeder final : public pipeline::InputFeeder {
   ros::RectifiedStereo rectified_;
   std::vector<std::unique_ptr<sensors::GstCapture>> captures_;
   Side left_, right_;
+  pipeline::StereoPairer<sensors::CameraFrame> pairer_;  // frames by their GStreamer clock stamps
   int64_t clock_to_session_ns_ = 0;  // session time = GStreamer clock + this
   int64_t last_pushed_ns_ = INT64_MIN;
   int64_t frame_period_ns_ = 100'000'000;  // of the no-image ticks: the cameras' own, once seen

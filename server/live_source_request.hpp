@@ -8,7 +8,7 @@
 #include "locaid/v1/localization.pb.h"
 #include "pipeline/live_frame_source.hpp"
 #include "ros/messages.hpp"
-#include "server/gps_receiver.hpp"
+#include "server/gpsd_feeder.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>

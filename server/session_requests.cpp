@@ -9,7 +9,7 @@
 #include "pipeline/live_frame_source.hpp"
 #include "server/bag_source_request.hpp"
 #include "server/camera_feeder.hpp"
-#include "server/gps_receiver.hpp"
+#include "server/gpsd_feeder.hpp"
 #include "server/live_source_request.hpp"
 #include "server/status.hpp"
 #include "server/synthetic_drive.hpp"
@@ -228,7 +228,7 @@ Status LocalizationService::DoStart(const v1::StartSessionRequest& req, std::str
     }
     live->AttachFeeder(std::move(feeder));
   }
-  if (gpsd) live->AttachFeeder(std::make_unique<GpsdReceiver>(*gpsd, live));
+  if (gpsd) live->AttachFeeder(std::make_unique<GpsdFeeder>(*gpsd, live));
   return sessions_.Add(std::move(options), std::move(loop), live, id);
 }
 

@@ -17,7 +17,7 @@
 #include "kitti/raw_drive.hpp"
 #include "output/pose_message.hpp"
 #include "pipeline/frame_source.hpp"
-#include "pipeline/localizer.hpp"
+#include "pipeline/run_assembly.hpp"
 #include "pipeline/scenario_stage.hpp"
 #include "pipeline/scenario_yaml.hpp"
 
@@ -33,6 +33,7 @@
 #include <iostream>
 #include <iterator>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -74,16 +75,19 @@ Samples RunPass(const std::string& drive_dir, size_t max_frames) {
   auto dataset = locaid::kitti::OpenDataset(drive_dir);
   const auto* raw = dynamic_cast<const locaid::kitti::RawDrive*>(dataset.get());
   if (!raw) throw std::runtime_error(drive_dir + ": not a KITTI raw drive (the profile splits decode and rectify)");
-  const locaid::StereoCamera camera = raw->camera();
-  const Eigen::Isometry3d T_cam0_imu = raw->T_cam0_imu();
   const size_t n = max_frames > 0 ? std::min(max_frames, raw->size()) : raw->size();
   std::vector<std::pair<std::string, std::string>> paths;
   for (size_t i = 0; i < n; ++i) paths.emplace_back(raw->left_path(i).string(), raw->right_path(i).string());
   const locaid::kitti::RawDrive& drive = *raw;
   // Times and OXTS from the frame loop's own source, images loaded here stage by stage.
   lp::DatasetFrameSource source(std::move(dataset), 0, static_cast<int64_t>(n) - 1, /*load_images=*/false);
-  lp::ScenarioStage stage(lp::LoadScenario("open-sky"));
-  lp::Localizer localizer(camera, T_cam0_imu);
+  // The run every session and replay assembles (pipeline/run_assembly.hpp),
+  // its stages driven here one by one.
+  lp::RunOptions options;
+  options.scenario = lp::LoadScenario("open-sky");
+  const lp::PlacedRun run = lp::PlaceRun(source, options);
+  lp::ScenarioStage stage(run.scenario);
+  const std::unique_ptr<lp::Estimator> localizer = lp::MakeLocalizer(run.estimator);
   Samples s;
   for (const auto& name : kStages) s.ms[name];
   for (uint64_t sequence = 0;; ++sequence) {
@@ -104,13 +108,13 @@ Samples RunPass(const std::string& drive_dir, size_t max_frames) {
     const double rectify_ms = MsSince(t);
     t = Clock::now();
     stage.BeginFrame(item.t_ns, item.samples);
-    if (!item.samples.empty()) localizer.Fuse(stage.Apply(item.samples));
+    if (!item.samples.empty()) localizer->Fuse(stage.Apply(item.samples));
     const double fuse_ms = MsSince(t);
     lp::StepResult r;
     r.kind = lp::StepResult::Kind::kPose;
     r.frame_index = item.index;
     r.t_ns = item.t_ns;
-    r.frame = localizer.Process(frame);
+    r.frame = localizer->Process(frame);
     t = Clock::now();
     locaid::v1::PoseUpdate msg;
     locaid::output::FillPoseUpdate(r, r.frame.vo_ms + r.frame.fusion_ms, &msg);

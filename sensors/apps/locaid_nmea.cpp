@@ -9,6 +9,8 @@
 #include "kitti/dataset.hpp"
 #include "kitti/oxts_pose.hpp"
 #include "sensors/nmea.hpp"
+#include "pipeline/frame_source.hpp"
+#include "pipeline/run_assembly.hpp"
 #include "pipeline/scenario_yaml.hpp"
 
 #include <CLI/CLI.hpp>
@@ -33,16 +35,16 @@ int main(int argc, char** argv) {
   app.add_option("--out", out_path, "NMEA file to write")->required();
   CLI11_PARSE(app, argc, argv);
   try {
-    const auto dataset = kitti::OpenDataset(drive_dir);
-    const auto& oxts = dataset->oxts();
+    // The drive as a run reads it, frames without their images.
+    const pipeline::DatasetFrameSource drive(kitti::OpenDataset(drive_dir), 0, -1, /*load_images=*/false);
+    const auto& oxts = drive.dataset().oxts();
     if (oxts.empty()) throw std::runtime_error(drive_dir + ": no OXTS records");
-    sim::Scenario scenario = pipeline::LoadScenario(scenario_arg);
-    if (seed >= 0) scenario.seed = static_cast<uint64_t>(seed);
-    // Outages placed on the drive (centered) span its frames, as
-    // locaid-replay places them: a recording's OXTS may run on past them.
-    const int64_t span_ns = dataset->size() >= 2 ? dataset->time_ns(dataset->size() - 1) - dataset->time_ns(0)
-                                                 : oxts.back().t_ns - oxts.front().t_ns;
-    scenario = sim::PlaceOutagesForDrive(scenario, static_cast<double>(span_ns) * 1e-9);
+    pipeline::RunOptions options;
+    options.scenario = pipeline::LoadScenario(scenario_arg);
+    if (seed >= 0) options.scenario.seed = static_cast<uint64_t>(seed);
+    // Outages placed on the drive (centered) span its frames, as every run
+    // places them (pipeline::PlaceRun): a recording's OXTS may run on past them.
+    const sim::Scenario scenario = pipeline::PlaceRun(drive, options).scenario;
     const int64_t t0 = oxts.front().t_ns;
     const int64_t utc0 = start_utc.empty() ? t0 : sensors::ParseIso8601Utc(start_utc);
     sim::GpsReceiverSim gps(scenario);

@@ -1,10 +1,11 @@
 // A live session's GPS receiver read by the server itself: a gpsd daemon
-// watched on one thread of its own (owned by the live source it feeds). Fixes go
-// to the session's LiveFrameSource without blocking; a lost connection is
-// counted and retried with backoff.
+// watched on one thread of its own (owned by the live source it feeds, as
+// the CameraFeeder is). Fixes go to the session's LiveFrameSource without
+// blocking; a lost connection is counted and retried with RestartBackoff.
 #pragma once
 
 #include "pipeline/live_frame_source.hpp"
+#include "server/restart_backoff.hpp"
 
 #include <atomic>
 #include <condition_variable>
@@ -20,18 +21,17 @@ struct GpsdEndpoint {
   uint16_t port = 2947;
 };
 
-class GpsdReceiver final : public pipeline::InputFeeder {
+class GpsdFeeder final : public pipeline::InputFeeder {
  public:
-  // Backoff between connection attempts: 0.5 s, doubling up to 5 s after
-  // every failure (refused, or a connection that ended before its first
-  // report, e.g. a gpsd sending garbage); back to 0.5 s only after a
-  // connection that delivered reports.
-  static constexpr double kFirstBackoffS = 0.5, kMaxBackoffS = 5.0;
-  // `sink` must outlive the receiver.
-  GpsdReceiver(GpsdEndpoint endpoint, pipeline::LiveFrameSource* sink);
-  ~GpsdReceiver() override;  // stops and joins the thread
-  GpsdReceiver(const GpsdReceiver&) = delete;
-  GpsdReceiver& operator=(const GpsdReceiver&) = delete;
+  // Between connection attempts a RestartBackoff: a failure is a refused
+  // connection or one that ended before its first report (e.g. a gpsd
+  // sending garbage); only a connection that delivered reports brings the
+  // wait back to its first.
+  // `sink` must outlive the feeder.
+  GpsdFeeder(GpsdEndpoint endpoint, pipeline::LiveFrameSource* sink);
+  ~GpsdFeeder() override;  // stops and joins the thread
+  GpsdFeeder(const GpsdFeeder&) = delete;
+  GpsdFeeder& operator=(const GpsdFeeder&) = delete;
 
   // Connection figures, merged into the session's input stats. Any thread.
   void AddStats(pipeline::LiveInputStats& stats) const override;

@@ -1,8 +1,7 @@
-#include "server/gps_receiver.hpp"
+#include "server/gpsd_feeder.hpp"
 
 #include "sensors/gpsd_client.hpp"
 
-#include <algorithm>
 #include <chrono>
 #include <exception>
 #include <memory>
@@ -17,10 +16,10 @@ int64_t SteadyNowNs() {
 
 }  // namespace
 
-GpsdReceiver::GpsdReceiver(GpsdEndpoint endpoint, pipeline::LiveFrameSource* sink)
+GpsdFeeder::GpsdFeeder(GpsdEndpoint endpoint, pipeline::LiveFrameSource* sink)
     : endpoint_(std::move(endpoint)), sink_(sink), thread_([this] { Run(); }) {}
 
-GpsdReceiver::~GpsdReceiver() {
+GpsdFeeder::~GpsdFeeder() {
   {
     std::lock_guard lock(mu_);
     stop_ = true;
@@ -29,7 +28,7 @@ GpsdReceiver::~GpsdReceiver() {
   thread_.join();
 }
 
-void GpsdReceiver::AddStats(pipeline::LiveInputStats& stats) const {
+void GpsdFeeder::AddStats(pipeline::LiveInputStats& stats) const {
   std::lock_guard lock(mu_);
   stats.has_gpsd = true;
   stats.gpsd_connected = connected_;
@@ -38,13 +37,13 @@ void GpsdReceiver::AddStats(pipeline::LiveInputStats& stats) const {
   stats.gpsd_error = error_;
 }
 
-bool GpsdReceiver::SleepFor(double seconds) {
+bool GpsdFeeder::SleepFor(double seconds) {
   std::unique_lock lock(mu_);
   return !cv_.wait_for(lock, std::chrono::duration<double>(seconds), [this] { return stop_; });
 }
 
-void GpsdReceiver::Run() {
-  double backoff_s = kFirstBackoffS;
+void GpsdFeeder::Run() {
+  RestartBackoff backoff;
   int64_t last_t_ns = 0;
   for (;;) {
     {
@@ -59,8 +58,8 @@ void GpsdReceiver::Run() {
         std::lock_guard lock(mu_);
         error_ = e.what();
       }
-      if (!SleepFor(backoff_s)) return;
-      backoff_s = std::min(kMaxBackoffS, 2 * backoff_s);
+      if (!SleepFor(backoff.wait_s())) return;
+      backoff.Failed();
       continue;
     }
     {
@@ -105,9 +104,9 @@ void GpsdReceiver::Run() {
     // Only a connection that delivered reports earns a fast retry; one that
     // failed before its first report (refused, garbage, closed at once) is a
     // failure like a refused connect, so the wait keeps doubling.
-    if (delivered) backoff_s = kFirstBackoffS;
-    if (!SleepFor(backoff_s)) return;
-    if (!delivered) backoff_s = std::min(kMaxBackoffS, 2 * backoff_s);
+    if (delivered) backoff.Delivered();
+    if (!SleepFor(backoff.wait_s())) return;
+    if (!delivered) backoff.Failed();
   }
 }
 
