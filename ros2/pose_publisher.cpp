@@ -140,6 +140,11 @@ void PosePublisher::PublishDiagnostics(int64_t t_ns) {
   Write(PoseTopic::kDiagnostics);
 }
 
+int PosePublisher::matched(PoseTopic t) const {
+  const auto& writer = writers_[Index(t)];
+  return writer ? writer->matched() : 0;
+}
+
 PosePublisher::Stats PosePublisher::stats() const {
   std::lock_guard lock(mu_);
   return stats_;

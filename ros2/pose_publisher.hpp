@@ -81,6 +81,8 @@ class PosePublisher {
   };
   Stats stats() const;
   const std::string& topic(PoseTopic t) const { return options_.topics[static_cast<size_t>(t)]; }
+  // Subscribers matched with the topic's writer now (0 when not published).
+  int matched(PoseTopic t) const;
 
  private:
   void Write(PoseTopic t);  // mu_ held; cdr_ holds the message

@@ -133,17 +133,6 @@ struct Rig {
   }
 };
 
-template <class Reader>
-void WaitMatched(Reader& r) {
-  rt::fdds::SubscriptionMatchedStatus m;
-  for (int i = 0; i < 500; ++i) {
-    r.reader->get_subscription_matched_status(m);
-    if (m.current_count > 0) return;
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  throw std::runtime_error("no DDS match with locaid-ros2 in 10 s");
-}
-
 json Delay(const std::string& bin, double rate_hz, double seconds) {
   Rig rig(bin, locaid::ros2::testing::TestDomain());
   auto odom = rig.fast->Subscribe<nav_msgs::msg::dds_::Odometry_PubSubType>("rt/locaid/odometry", {true, false, 100});
@@ -182,7 +171,7 @@ json Delay(const std::string& bin, double rate_hz, double seconds) {
   });
   // locaid-ros2 follows this session from the start (not polling for the newest).
   auto ros2 = rig.Ros2({"--session", first.session().id()});
-  WaitMatched(*odom);
+  if (!odom->WaitMatched(10)) throw std::runtime_error("no DDS match with locaid-ros2 in 10 s");
   std::this_thread::sleep_for(std::chrono::milliseconds(1000));  // every stream attached
   const auto period = std::chrono::duration<double>(1.0 / rate_hz);
   const int frames = static_cast<int>(rate_hz * seconds);
@@ -265,7 +254,8 @@ json Inputs(const std::string& bin, const fs::path& bag_path) {
     for (const auto& [topic, t] : firsts) writers.at(topic)->WriteCdr(t->cdr);
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
   }
-  WaitMatched(*odom);  // its publishers exist once its inputs are set up
+  // Its publishers exist once its inputs are set up.
+  if (!odom->WaitMatched(10)) throw std::runtime_error("no DDS match with locaid-ros2 in 10 s");
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
   const std::string left = "/camera/left/image_raw";
   const auto t0 = std::chrono::steady_clock::now();

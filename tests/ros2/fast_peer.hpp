@@ -164,6 +164,17 @@ class FastReader : public fdds::DataReaderListener {
   bool WaitCount(size_t n, double timeout_s) {
     return WaitFor([n](const auto& s) { return s.size() >= n; }, timeout_s);
   }
+  // Waits (bounded) until the reader matched a writer.
+  bool WaitMatched(double timeout_s) {
+    const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+    fdds::SubscriptionMatchedStatus m;
+    for (;;) {
+      reader->get_subscription_matched_status(m);
+      if (m.current_count > 0) return true;
+      if (std::chrono::steady_clock::now() >= until) return false;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+  }
   // Runs on the DDS thread for every sample, under the reader's lock.
   void OnSample(std::function<void(const Received<T>&)> f) {
     std::lock_guard lock(mu_);

@@ -8,7 +8,10 @@
 #include "temp_dir.hpp"
 
 #include "output/ros2_messages.hpp"
+#include "ros/images.hpp"
 #include "ros/messages.hpp"
+
+#include <opencv2/imgcodecs.hpp>
 #include "ros2/graph.hpp"
 #include "ros2/pose_publisher.hpp"
 
@@ -75,15 +78,17 @@ TEST_F(TwoVendors, PosesFromCycloneAsFastDdsDecodesThem) {
   o.T_body_cam0 = Eigen::Isometry3d(Eigen::Translation3d(1.0, 0.2, 1.5));
   o.diagnostics_period_s = 0;
   PosePublisher publisher(*node_, o);
-  // Discovery before publishing (volatile topics keep nothing for late readers).
+  // Discovery before publishing (volatile topics keep nothing for late
+  // readers), both ways: a writer sends only to readers it has matched.
   const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-  fdds::SubscriptionMatchedStatus m;
-  do {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    diag->reader->get_subscription_matched_status(m);
-  } while (m.current_count < 1 && std::chrono::steady_clock::now() < until);
-  ASSERT_EQ(m.current_count, 1) << "no match in 10 s";
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the other topics' matches
+  for (const PoseTopic t : {PoseTopic::kOdometry, PoseTopic::kFix, PoseTopic::kGps, PoseTopic::kTf,
+                            PoseTopic::kDiagnostics}) {
+    while (publisher.matched(t) < 1 && std::chrono::steady_clock::now() < until)
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    ASSERT_EQ(publisher.matched(t), 1) << PoseTopicKey(t);
+  }
+  ASSERT_TRUE(odom->WaitMatched(10) && fix->WaitMatched(10) && gps->WaitMatched(10) && tf->WaitMatched(10) &&
+              diag->WaitMatched(10));
   for (uint64_t s = 0; s < 5; ++s) publisher.Publish(SomePose(s));
   ASSERT_TRUE(odom->WaitCount(5, 10));
   ASSERT_TRUE(diag->WaitCount(5, 10));
@@ -148,6 +153,7 @@ TEST_F(TwoVendors, InputsFromFastDdsAsLocaidDecodesThem) {
   p.WatchPublications();
   const std::vector<std::tuple<std::string, std::string>> topics = {
       {"/cam/image_raw", "sensor_msgs/msg/Image"},         {"/cam/camera_info", "sensor_msgs/msg/CameraInfo"},
+      {"/cam/image_raw/compressed", "sensor_msgs/msg/CompressedImage"},
       {"/imu", "sensor_msgs/msg/Imu"},                     {"/fix", "sensor_msgs/msg/NavSatFix"},
       {"/speed", "geometry_msgs/msg/TwistStamped"},        {"/tf_static", "tf2_msgs/msg/TFMessage"}};
   std::map<std::string, std::unique_ptr<Reader>> readers;
@@ -163,6 +169,14 @@ TEST_F(TwoVendors, InputsFromFastDdsAsLocaidDecodesThem) {
   auto wrong = other.Advertise<sm::NavSatFix_PubSubType>("rt/imu");
   for (auto& [topic, w] : writers) ASSERT_TRUE(w->WaitMatched(1, 10)) << topic;
   auto image = MakeImage(kT0, "camera_left", 3);
+  sm::CompressedImage_ png;  // a 2x1 gray PNG
+  png.header(RosHeader(kT0, "camera_left"));
+  png.format("mono8; png compressed");
+  {
+    std::vector<uint8_t> bytes;
+    cv::imencode(".png", cv::Mat(1, 2, CV_8UC1, cv::Scalar(200)), bytes);
+    png.data(bytes);
+  }
   auto info = MakeCameraInfo(kT0, "camera_left", 0);
   auto imu = MakeImu(kT0 + 1, 0.25, -0.5);
   auto nav = MakeFix(kT0 + 2);
@@ -173,6 +187,7 @@ TEST_F(TwoVendors, InputsFromFastDdsAsLocaidDecodesThem) {
   // each message is sent again until it arrived.
   const auto send = [&] {
     writers["/cam/image_raw"]->Write(&image);
+    writers["/cam/image_raw/compressed"]->Write(&png);
     writers["/cam/camera_info"]->Write(&info);
     writers["/imu"]->Write(&imu);
     writers["/fix"]->Write(&nav);
@@ -208,6 +223,9 @@ TEST_F(TwoVendors, InputsFromFastDdsAsLocaidDecodesThem) {
   EXPECT_EQ(im.encoding, "mono8");
   ASSERT_EQ(im.data.size(), image.data().size());
   EXPECT_EQ(std::memcmp(im.data.data(), image.data().data(), im.data.size()), 0);
+  const cv::Mat gray = ros::ToGray(ros::DecodeCompressedImage(got["/cam/image_raw/compressed"][0].data));
+  EXPECT_EQ(gray.cols, 2);
+  EXPECT_EQ(gray.at<uint8_t>(0, 1), 200);
   const ros::CameraInfo ci = ros::DecodeCameraInfo(got["/cam/camera_info"][0].data);
   EXPECT_EQ(ci.p[0], kCamF);
   EXPECT_EQ(ci.d.size(), 5u);

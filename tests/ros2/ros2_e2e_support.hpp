@@ -88,17 +88,4 @@ class Ros2Car : public ::testing::Test {
   std::unique_ptr<Ros2Process> ros2_;
 };
 
-// Waits (bounded) until the reader matched a writer.
-template <class Reader>
-bool WaitMatched(Reader& reader, double timeout_s) {
-  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
-  fdds::SubscriptionMatchedStatus m;
-  for (;;) {
-    reader.reader->get_subscription_matched_status(m);
-    if (m.current_count > 0) return true;
-    if (std::chrono::steady_clock::now() >= until) return false;
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-}
-
 }  // namespace locaid::ros2::testing

@@ -39,8 +39,8 @@ TEST_F(Ros2Car, EveryPublishedFieldIsTheGrpcStreams) {
   auto graph = fast_->Subscribe<rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_PubSubType>(
       "ros_discovery_info", {true, true, 1});
   StartRos2({"--diagnostics-period-s", "0", "--frame", "map=world"});
-  ASSERT_TRUE(WaitMatched(*odom, 20)) << ros2_->log();
-  ASSERT_TRUE(WaitMatched(*diag, 5)) << ros2_->log();
+  ASSERT_TRUE(odom->WaitMatched(20)) << ros2_->log();
+  ASSERT_TRUE(diag->WaitMatched(5)) << ros2_->log();
 
   v1::StartSessionRequest req;
   req.mutable_synthetic()->set_seed(3);
