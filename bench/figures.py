@@ -128,6 +128,14 @@ class Context:
                            run_name)
 
 
+def percentiles(values):
+    """median / p90 / max of a list as locaid-sweep's summary gives them (numpy's default interpolation)."""
+    s = sorted(values)
+    k = (len(s) - 1) * 0.9
+    lo, hi = int(k), min(int(k) + 1, len(s) - 1)
+    return {"median": statistics.median(s), "p90": s[lo] + (s[hi] - s[lo]) * (k - lo), "max": s[-1]}
+
+
 # --- the runs: each returns {key: value} ---------------------------------
 
 def devkit(ctx):
@@ -213,65 +221,85 @@ def vo_motorway(ctx):
     return out
 
 
-def sweep_values(out, prefix, c, seeds):
-    def put(name, s):
+def sweep_values(out, prefix, g):
+    """A sweep group's figures (locaid-sweep's summary.json): every outage's end error, RMSE while GPS is
+    used, reconvergence, NEES, vertical error, the GPS gates, VO gated."""
+    def put(name, d):
         for q in ("median", "p90", "max"):
-            out[f"{prefix}.{name}_{q}"] = s[q] if s else math.nan
-    put("end", c["end_error_pct"])
-    put("rmse", c["rmse_gps_m"])
-    put("reconverge", c["reconverge_s"])
-    out[f"{prefix}.reconverge_never"] = c.get("reconverge_never", math.nan)
-    out[f"{prefix}.runs"] = seeds
-    out[f"{prefix}.nees_over"] = len(c["nees_over_bound_runs"])
-    out[f"{prefix}.vertical_max"] = c["max_vertical_error_m"]["max"]
-    out[f"{prefix}.fixes"] = c["gps_fixes"]
-    out[f"{prefix}.rejected_h"] = c["gps_rejected"]
-    out[f"{prefix}.rejected_v"] = c["gps_rejected_vertical"]
-    out[f"{prefix}.nominal"] = c["gps_expected_false_alarms"]
-    out[f"{prefix}.longest_run"] = c["gps_longest_rejection_run"]
-    out[f"{prefix}.resets"] = c["gps_resets"]
-    out[f"{prefix}.vo_gated"] = c["vo_rejected_per_run"]
+            out[f"{prefix}.{name}_{q}"] = d[q] if d else math.nan
+    put("end", g["end_error_pct_every"])
+    put("rmse", g["rmse_gps_m"])
+    put("reconverge", g["reconverge_s"])
+    out[f"{prefix}.reconverge_never"] = g["reconverge_never"]
+    out[f"{prefix}.runs"] = g["runs"]
+    out[f"{prefix}.nees_over"] = len(g["nees_over_bound_seeds"])
+    out[f"{prefix}.vertical_max"] = g["max_vertical_error_m"]["max"]
+    out[f"{prefix}.fixes"] = g["gps_fixes"]
+    out[f"{prefix}.rejected_h"] = g["gps_rejected"]
+    out[f"{prefix}.rejected_v"] = g["gps_rejected_vertical"]
+    out[f"{prefix}.nominal"] = g["gps_expected_false_alarms"]
+    out[f"{prefix}.longest_run"] = g["gps_longest_rejection_run"]
+    out[f"{prefix}.resets"] = g["gps_resets"]
+    out[f"{prefix}.vo_gated"] = g["vo_rejected_per_run"]
 
 
-def outage_sweep(ctx, run_name, drive, scenarios, seeds, no_imu_too, ekf=(), options=()):
-    cmd = ["/usr/bin/python3", os.path.join(HERE, "fusion", "outage_sweep.py"), "--drive", drive]
-    for s in scenarios:
-        cmd += ["--scenario", s]
-    cmd += ["--seeds", str(seeds)] + (["--no-imu-too"] if no_imu_too else [])
-    for e in ekf:
-        cmd += ["--ekf", e]
-    cmd += list(options)
-    cmd += ["--sweep", ctx.exe("locaid-sweep"), "--out", os.path.join(ctx.work, f"sweep-{run_name}"),
-            "--jobs", str(ctx.jobs), "--json"]
-    return ctx.json(cmd, run_name)
+def sweep(ctx, run_name, drive, scenarios, seeds, no_imu_too, ekf=(), options=()):
+    """The scenarios over GPS-noise seeds 1..SEEDS (IMU on, and off with no_imu_too) as a locaid-sweep
+    (docs/sweeps.md; one VO run per drive, resumable in WORK/sweep-RUN): its summary.json groups, one per
+    scenario x IMU in that order."""
+    out = os.path.join(ctx.work, f"sweep-{run_name}")
+    os.makedirs(out, exist_ok=True)
+    scenarios = [os.path.realpath(os.path.join(ROOT, s)) if os.path.isfile(os.path.join(ROOT, s)) else s
+                 for s in scenarios]
+    imus = [True, False] if no_imu_too else [True]
+    replay_args = [a for e in ekf for a in ("--ekf", e)] + list(options)
+    manifest = os.path.join(out, "manifest.yaml")
+    with open(manifest, "w") as f:
+        f.write("recordings:\n  - path: %s\n" % json.dumps(os.path.realpath(drive)))
+        f.write("scenarios: %s\n" % json.dumps(scenarios))
+        f.write("seeds: {from: 1, to: %d}\n" % seeds)
+        f.write("imu: %s\n" % json.dumps(["on" if i else "off" for i in imus]))
+        f.write("replay_args: %s\n" % json.dumps(replay_args))
+    folder = os.path.join(out, "sweep")
+    ctx.run([ctx.exe("locaid-sweep"), "run", manifest, "--out", folder, "--jobs", str(ctx.jobs)], run_name)
+    with open(os.path.join(folder, "summary.json")) as f:
+        groups = json.load(f)
+    expected = [(s, imu) for s in scenarios for imu in imus]
+    if len(groups) != len(expected) or any(g["imu"] != imu for g, (_, imu) in zip(groups, expected)):
+        raise RunFailed(f"{folder}/summary.json: {len(groups)} groups, expected {len(expected)} (scenario x IMU)")
+    for g, (s, _) in zip(groups, expected):
+        if g["done"] != seeds:
+            raise RunFailed(f"{s} ({'IMU' if g['imu'] else 'no IMU'}): {g['done']} of {seeds} runs done")
+    return {"seeds": seeds, "groups": groups}
 
 
 SCENARIO_KEY = {"scenarios/outage-10s-middle.yaml": "outage", "urban-canyon": "urban", "tunnel-30s": "tunnel"}
 
 
 def sweep_real(ctx):
-    r = outage_sweep(ctx, "sweep_real", ctx.real(), ["scenarios/outage-10s-middle.yaml"], 50, True)
+    r = sweep(ctx, "sweep_real", ctx.real(), ["scenarios/outage-10s-middle.yaml"], 50, True)
     out = {}
-    for c in r["cases"]:
-        sweep_values(out, "imu" if c["use_imu"] else "noimu", c, r["seeds"])
+    for g in r["groups"]:
+        sweep_values(out, "imu" if g["imu"] else "noimu", g)
     return out
 
 
 def sweep_synth(ctx):
     scenarios = ["scenarios/outage-10s-middle.yaml", "urban-canyon", "tunnel-30s"]
-    r = outage_sweep(ctx, "sweep_synth", ctx.synth(2200, 3, "sweep_synth"), scenarios, 50, True)
+    r = sweep(ctx, "sweep_synth", ctx.synth(2200, 3, "sweep_synth"), scenarios, 50, True)
     out = {}
-    for c in r["cases"]:
-        sweep_values(out, f"{SCENARIO_KEY[c['scenario']]}.{'imu' if c['use_imu'] else 'noimu'}", c, r["seeds"])
+    cases = [(s, imu) for s in scenarios for imu in (True, False)]
+    for g, (scenario, imu) in zip(r["groups"], cases):
+        sweep_values(out, f"{SCENARIO_KEY[scenario]}.{'imu' if imu else 'noimu'}", g)
     return out
 
 
-def tunnel_values(out, prefix, c):
-    """The Tunnel table's columns: end and added error (median / p90 / max), speed scale error."""
-    for name, key in (("end", "end_error_pct"), ("added", "added_error_pct")):
+def tunnel_values(out, prefix, g):
+    """The Tunnel table's columns: end and added error of every outage (median / p90 / max), speed scale error."""
+    for name, key in (("end", "end_error_pct_every"), ("added", "added_error_pct")):
         for q in ("median", "p90", "max"):
-            out[f"{prefix}.{name}_{q}"] = c[key][q] if c[key] else math.nan
-    speed = c.get("speed_scale_error")
+            out[f"{prefix}.{name}_{q}"] = g[key][q] if g[key] else math.nan
+    speed = g.get("speed_scale_error")
     out[f"{prefix}.speed_median"] = speed["median"] if speed else math.nan
     out[f"{prefix}.speed_max"] = speed["max"] if speed else math.nan
     out[f"{prefix}.speed_p90"] = speed["p90"] if speed else math.nan
@@ -287,9 +315,9 @@ def tunnel_real(ctx):
     for scenarios, options in ((["frozen-speed", "blind-mems-speed"], ()),
                                (["frozen", "blind-mems"], ("--vehicle-constraints", "on"))):
         paths = [f"scenarios/tunnel-10s-late-{s}.yaml" for s in scenarios]
-        r = outage_sweep(ctx, "tunnel_real", ctx.real(), paths, 20, False, options=options)
-        for c, name in zip(r["cases"], scenarios):
-            tunnel_values(out, TUNNEL_KEY[name], c)
+        r = sweep(ctx, "tunnel_real", ctx.real(), paths, 20, False, options=options)
+        for g, name in zip(r["groups"], scenarios):
+            tunnel_values(out, TUNNEL_KEY[name], g)
         out["runs"] = r["seeds"]
     return out
 
@@ -297,8 +325,6 @@ def tunnel_real(ctx):
 def tunnel_bound(ctx):
     """Perfect dead reckoning on the same 20 GPS draws as the frozen + speed row: the causal least-squares
     fit of the true track to the fixes before the outage (bench/fusion/causal_bound.py), carried to its end."""
-    sys.path.insert(0, os.path.join(HERE, "fusion"))
-    from outage_sweep import summary
     bound, filt = [], []
     for seed in range(1, 21):
         csv_path = os.path.join(ctx.work, f"tunnel-bound-s{seed}.csv")
@@ -312,9 +338,8 @@ def tunnel_bound(ctx):
     out = {"runs": 20, "over_1": sum(v > 1.0 for v in bound), "over_2": sum(v > 2.0 for v in bound),
            "over_3": sum(v > 3.0 for v in bound)}
     for name, values in (("bound", bound), ("filter", filt)):
-        for q, v in summary(values).items():
-            if q != "values":
-                out[f"{name}.{q}"] = v
+        for q, v in percentiles(values).items():
+            out[f"{name}.{q}"] = v
     return out
 
 
@@ -327,16 +352,16 @@ def tunnel_gps(ctx):
         path = os.path.join(ctx.work, f"tunnel-gps-{sigma}.yaml")
         with open(path, "w") as f:
             f.write(base.replace("base: open-sky\n", f"base: open-sky\ngps: {{sigma_h_m: {sigma}}}\n", 1))
-        r = outage_sweep(ctx, "tunnel_gps", ctx.real(), [path], 20, False)
-        tunnel_values(out, name, r["cases"][0])
+        r = sweep(ctx, "tunnel_gps", ctx.real(), [path], 20, False)
+        tunnel_values(out, name, r["groups"][0])
     return out
 
 
 def tunnel_synth(ctx):
-    r = outage_sweep(ctx, "tunnel_synth", ctx.synth(2000, 3, "tunnel_synth"),
-                     ["scenarios/tunnel-30s-blind-mems-speed.yaml"], 20, False)
+    r = sweep(ctx, "tunnel_synth", ctx.synth(2000, 3, "tunnel_synth"),
+              ["scenarios/tunnel-30s-blind-mems-speed.yaml"], 20, False)
     out = {"runs": r["seeds"]}
-    tunnel_values(out, "dark_speed", r["cases"][0])
+    tunnel_values(out, "dark_speed", r["groups"][0])
     return out
 
 
@@ -366,9 +391,9 @@ def lever_arm(ctx):
     drive = ctx.synth(2200, 3, "lever_arm")
     out = {}
     for name, ekf in (("off", ()), ("on", ("gps_lever_arm_x_m=1.2", "gps_lever_arm_y_m=0.9"))):
-        r = outage_sweep(ctx, "lever_arm", drive, ["scenarios/open-sky-antenna-1.5m.yaml"], 10, False, ekf)
-        sweep_values(out, name, r["cases"][0], r["seeds"])
-        nees = r["cases"][0]["nees_mean_over_bound"]
+        r = sweep(ctx, "lever_arm", drive, ["scenarios/open-sky-antenna-1.5m.yaml"], 10, False, ekf)
+        sweep_values(out, name, r["groups"][0])
+        nees = r["groups"][0]["nees_mean_over_bound"]
         out[f"{name}.nees_ratio_max"] = nees["max"]
     out["ratio"] = out["on.rmse_median"] / out["off.rmse_median"]
     return out
@@ -393,11 +418,10 @@ def urban_bound(ctx):
 
 
 def urban_2drms(ctx):
-    r = outage_sweep(ctx, "urban_2drms", ctx.synth(2200, 3, "urban_2drms"), ["scenarios/urban-canyon-2drms.yaml"],
-                     10, True)
+    r = sweep(ctx, "urban_2drms", ctx.synth(2200, 3, "urban_2drms"), ["scenarios/urban-canyon-2drms.yaml"], 10, True)
     out = {}
-    for c in r["cases"]:
-        sweep_values(out, "imu" if c["use_imu"] else "noimu", c, r["seeds"])
+    for g in r["groups"]:
+        sweep_values(out, "imu" if g["imu"] else "noimu", g)
     return out
 
 

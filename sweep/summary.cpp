@@ -1,5 +1,7 @@
 #include "sweep/summary.hpp"
 
+#include "fusion/ekf_config.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <iterator>
@@ -90,6 +92,37 @@ struct MetricValues {
   }
 };
 
+// Every finite number of `key` in each object of the array `j[array]`.
+std::vector<double> EachNumber(const nlohmann::json& j, const char* array, const char* key) {
+  std::vector<double> out;
+  if (!j.contains(array) || !j[array].is_array()) return out;
+  for (const auto& o : j[array])
+    if (const auto v = Number(o, key)) out.push_back(*v);
+  return out;
+}
+
+std::map<std::string, int64_t> Counts(const nlohmann::json& j, const char* key) {
+  std::map<std::string, int64_t> out;
+  if (!j.contains(key) || !j[key].is_object()) return out;
+  for (const auto& [name, n] : j[key].items())
+    if (n.is_number_integer()) out[name] = n.get<int64_t>();
+  return out;
+}
+
+void AddCounts(std::map<std::string, int64_t>& sum, const std::map<std::string, int64_t>& counts) {
+  for (const auto& [name, n] : counts) sum[name] += n;
+}
+
+// "name n, name n" ("-" for none).
+std::string CountsText(const std::map<std::string, int64_t>& counts) {
+  std::string out;
+  for (const auto& [name, n] : counts) {
+    if (!out.empty()) out += ", ";
+    out += name + " " + std::to_string(n);
+  }
+  return out.empty() ? "-" : out;
+}
+
 std::string CsvTriple(const Distribution& d) {
   if (d.n == 0) return ",,";
   return Fmt(d.median) + "," + Fmt(d.p90) + "," + Fmt(d.max);
@@ -134,6 +167,43 @@ RunMetrics ReadRunMetrics(const nlohmann::json& m) {
   return r;
 }
 
+RunFigures ReadRunFigures(const nlohmann::json& m) {
+  RunFigures f;
+  f.end_error_pct = EachNumber(m, "outages", "end_error_pct");
+  f.added_error_pct = EachNumber(m, "outages", "added_error_pct");
+  f.reconverge_s = EachNumber(m, "outages", "reconverge_s");
+  f.max_vertical_error_m = Number(m, "max_vertical_error_m");
+  if (m.contains("vehicle") && Integer(m["vehicle"], "speed_used").value_or(0) > 0)
+    f.speed_scale_error = Number(m["vehicle"], "speed_scale_error");
+  f.modes = Counts(m, "modes");
+  f.vo_health = Counts(m, "vo_health");
+  f.gps_used = Integer(m, "gps_used").value_or(0);
+  f.gps_rejected_vertical = Integer(m, "gps_rejected_vertical").value_or(0);
+  f.vo_rejected_by_gate = Integer(m, "vo_rejected_by_gate").value_or(0);
+  f.longest_rejection_run = std::max(Integer(m, "max_gps_rejection_run").value_or(0),
+                                     Integer(m, "max_gps_rejection_run_vertical").value_or(0));
+  return f;
+}
+
+double GpsGateProbability(const std::vector<std::string>& args) {
+  fusion::EkfConfig config;
+  for (size_t i = 0; i < args.size(); ++i) {
+    std::string setting;
+    if (args[i] == "--ekf" && i + 1 < args.size()) setting = args[++i];
+    else if (args[i].rfind("--ekf=", 0) == 0) setting = args[i].substr(6);
+    const size_t eq = setting.find('=');
+    if (eq == std::string::npos) continue;
+    double* field = fusion::FindEkfSetting(config, setting.substr(0, eq));
+    if (field != &config.gps.gate_probability) continue;
+    try {
+      *field = std::stod(setting.substr(eq + 1));
+    } catch (const std::exception&) {
+      // locaid-replay refuses the run; no figure of it is summed
+    }
+  }
+  return config.gps.gate_probability;
+}
+
 std::vector<ResultRow> CollectRows(const Plan& plan) {
   std::vector<ResultRow> rows;
   for (const auto& t : plan.filter) {
@@ -143,6 +213,7 @@ std::vector<ResultRow> CollectRows(const Plan& plan) {
     r.scenario = t.scenario;
     r.seed = t.seed;
     r.imu = t.imu;
+    r.gps_gate_probability = GpsGateProbability(t.args);
     const StoredResult stored = ReadResult(plan.dir, t.id, t.key);
     r.state = stored.state == RunState::kStale ? RunState::kPending : stored.state;
     r.cpu_s = Number(stored.json, "cpu_s");
@@ -154,6 +225,7 @@ std::vector<ResultRow> CollectRows(const Plan& plan) {
       r.gps_rejected = Integer(m, "gps_rejected");
       r.gps_resets = Integer(m, "gps_resets");
       r.frames = Integer(m, "frames");
+      r.figures = ReadRunFigures(m);
     }
     rows.push_back(r);
   }
@@ -176,12 +248,68 @@ Distribution Distribute(std::vector<double> v) {
   return d;
 }
 
+namespace {
+
+// What a group's figures gather from its done runs, before the distributions.
+struct GroupValues {
+  MetricValues forward, smoothed;
+  size_t nees_n = 0, nees_over = 0;
+  std::vector<double> end_every, added, reconverge, nees_ratio, vertical, speed_scale;
+  int64_t vo_rejected = 0;
+
+  void Add(const ResultRow& r, GroupSummary& s) {
+    forward.Add(r.forward);
+    if (r.smoothed) smoothed.Add(*r.smoothed);
+    if (r.forward.nees_mean && r.forward.nees_bound_99) {
+      ++nees_n;
+      if (*r.forward.nees_mean > *r.forward.nees_bound_99) {
+        ++nees_over;
+        s.nees_over_bound_seeds.push_back(r.seed);
+      }
+      nees_ratio.push_back(*r.forward.nees_mean / *r.forward.nees_bound_99);
+    }
+    s.gps_resets += r.gps_resets.value_or(0);
+    s.gps_rejected += r.gps_rejected.value_or(0);
+    const RunFigures& f = r.figures;
+    end_every.insert(end_every.end(), f.end_error_pct.begin(), f.end_error_pct.end());
+    added.insert(added.end(), f.added_error_pct.begin(), f.added_error_pct.end());
+    for (const double t : f.reconverge_s) {
+      if (t >= 0) reconverge.push_back(t);
+      else ++s.reconverge_never;
+    }
+    if (f.max_vertical_error_m) vertical.push_back(*f.max_vertical_error_m);
+    if (f.speed_scale_error) speed_scale.push_back(*f.speed_scale_error);
+    AddCounts(s.modes, f.modes);
+    AddCounts(s.vo_health, f.vo_health);
+    const int64_t fixes = f.gps_used + r.gps_rejected.value_or(0);
+    s.gps_fixes += fixes;
+    s.gps_expected_false_alarms += static_cast<double>(fixes) * (1 - r.gps_gate_probability);
+    s.gps_rejected_vertical += f.gps_rejected_vertical;
+    s.gps_longest_rejection_run = std::max(s.gps_longest_rejection_run, f.longest_rejection_run);
+    vo_rejected += f.vo_rejected_by_gate;
+  }
+
+  void Finish(GroupSummary& s) const {
+    s.forward = forward.Distributions();
+    s.smoothed = smoothed.Distributions();
+    s.nees_over_bound_share = nees_n ? static_cast<double>(nees_over) / nees_n : 0;
+    s.end_error_pct_every = Distribute(end_every);
+    s.added_error_pct = Distribute(added);
+    s.reconverge_s = Distribute(reconverge);
+    s.nees_mean_over_bound = Distribute(nees_ratio);
+    s.max_vertical_error_m = Distribute(vertical);
+    s.speed_scale_error = Distribute(speed_scale);
+    s.vo_rejected_per_run = s.done ? static_cast<double>(vo_rejected) / s.done : 0;
+  }
+};
+
+}  // namespace
+
 std::vector<GroupSummary> Summarize(const std::vector<ResultRow>& rows) {
   // Groups in the order their first run appears (plan order: recording, scenario, imu).
   std::vector<GroupSummary> groups;
   std::map<std::tuple<std::string, std::string, bool>, size_t> index;
-  std::vector<MetricValues> forward, smoothed;
-  std::vector<size_t> nees_over, nees_n;
+  std::vector<GroupValues> values;
   for (const auto& r : rows) {
     const auto k = std::make_tuple(r.recording, r.scenario, r.imu);
     auto it = index.find(k);
@@ -192,10 +320,7 @@ std::vector<GroupSummary> Summarize(const std::vector<ResultRow>& rows) {
       fresh.scenario = r.scenario;
       fresh.imu = r.imu;
       groups.push_back(fresh);
-      forward.emplace_back();
-      smoothed.emplace_back();
-      nees_over.push_back(0);
-      nees_n.push_back(0);
+      values.emplace_back();
     }
     const size_t g = it->second;
     GroupSummary& s = groups[g];
@@ -204,20 +329,9 @@ std::vector<GroupSummary> Summarize(const std::vector<ResultRow>& rows) {
     if (r.state == RunState::kPending) ++s.pending;
     if (r.state != RunState::kDone) continue;
     ++s.done;
-    forward[g].Add(r.forward);
-    if (r.smoothed) smoothed[g].Add(*r.smoothed);
-    if (r.forward.nees_mean && r.forward.nees_bound_99) {
-      ++nees_n[g];
-      if (*r.forward.nees_mean > *r.forward.nees_bound_99) ++nees_over[g];
-    }
-    s.gps_resets += r.gps_resets.value_or(0);
-    s.gps_rejected += r.gps_rejected.value_or(0);
+    values[g].Add(r, s);
   }
-  for (size_t g = 0; g < groups.size(); ++g) {
-    groups[g].forward = forward[g].Distributions();
-    groups[g].smoothed = smoothed[g].Distributions();
-    groups[g].nees_over_bound_share = nees_n[g] ? static_cast<double>(nees_over[g]) / nees_n[g] : 0;
-  }
+  for (size_t g = 0; g < groups.size(); ++g) values[g].Finish(groups[g]);
   return groups;
 }
 
@@ -229,7 +343,7 @@ void WriteResultsCsv(const std::vector<ResultRow>& rows, bool smoothed, const fs
   for (const auto& f : kForwardAdded) out << ',' << f.name;
   if (smoothed)
     for (const auto& f : kMetricFields) out << ',' << f.name << "_smoothed";
-  out << '\n';
+  out << ",max_vertical_error_m,gps_rejected_vertical,end_error_pct_every_outage\n";
   auto I = [](std::optional<int64_t> v) { return v ? std::to_string(*v) : std::string(); };
   for (const auto& r : rows) {
     const RunMetrics& m = r.forward;
@@ -240,7 +354,15 @@ void WriteResultsCsv(const std::vector<ResultRow>& rows, bool smoothed, const fs
     for (const auto& f : kForwardAdded) out << ',' << Fmt(m.*f.value);
     if (smoothed)
       for (const auto& f : kMetricFields) out << ',' << (r.smoothed ? Fmt((*r.smoothed).*f.value) : std::string());
-    out << '\n';
+    // A done run's figures beyond the first outage (every outage's end error, space-separated).
+    const bool done = r.state == RunState::kDone;
+    std::string every;
+    for (const double v : r.figures.end_error_pct) {
+      if (!every.empty()) every += ' ';
+      every += Fmt(v);
+    }
+    out << ',' << Fmt(r.figures.max_vertical_error_m) << ','
+        << (done ? std::to_string(r.figures.gps_rejected_vertical) : std::string()) << ',' << every << '\n';
   }
 }
 
@@ -252,7 +374,10 @@ void WriteSummaryCsv(const std::vector<GroupSummary>& groups, bool smoothed, con
   for (const auto& f : kForwardAdded) out << ',' << TripleHeader(f.name);
   if (smoothed)
     for (const auto& f : kMetricFields) out << ',' << TripleHeader(std::string(f.name) + "_smoothed");
-  out << '\n';
+  out << ',' << TripleHeader("end_error_pct_every") << ',' << TripleHeader("added_error_pct") << ','
+      << TripleHeader("reconverge_s") << ",reconverge_never,nees_over_bound_runs," << TripleHeader("nees_mean_over_bound")
+      << ',' << TripleHeader("max_vertical_error_m") << ',' << TripleHeader("speed_scale_error")
+      << ",gps_fixes,gps_rejected_vertical,gps_expected_false_alarms,gps_longest_rejection_run,vo_rejected_per_run\n";
   for (const auto& g : groups) {
     const MetricDistributions& d = g.forward;
     out << Csv(g.recording) << ',' << Csv(g.scenario) << ',' << (g.imu ? "on" : "off") << ',' << g.runs << ','
@@ -262,7 +387,12 @@ void WriteSummaryCsv(const std::vector<GroupSummary>& groups, bool smoothed, con
     for (const auto& f : kForwardAdded) out << ',' << CsvTriple(d.*f.distribution);
     if (smoothed)
       for (const auto& f : kMetricFields) out << ',' << CsvTriple(g.smoothed.*f.distribution);
-    out << '\n';
+    out << ',' << CsvTriple(g.end_error_pct_every) << ',' << CsvTriple(g.added_error_pct) << ','
+        << CsvTriple(g.reconverge_s) << ',' << g.reconverge_never << ',' << g.nees_over_bound_seeds.size() << ','
+        << CsvTriple(g.nees_mean_over_bound) << ',' << CsvTriple(g.max_vertical_error_m) << ','
+        << CsvTriple(g.speed_scale_error) << ',' << g.gps_fixes << ',' << g.gps_rejected_vertical << ','
+        << Fmt(g.gps_expected_false_alarms) << ',' << g.gps_longest_rejection_run << ',' << Fmt(g.vo_rejected_per_run)
+        << '\n';
   }
 }
 
@@ -280,6 +410,21 @@ void WriteSummaryJson(const std::vector<GroupSummary>& groups, bool smoothed, co
                         {"gps_resets", g.gps_resets},
                         {"gps_rejected", g.gps_rejected}};
     for (const auto& f : kMetricFields) o[f.name] = ToJson(g.forward.*f.distribution);
+    o["end_error_pct_every"] = ToJson(g.end_error_pct_every);
+    o["added_error_pct"] = ToJson(g.added_error_pct);
+    o["reconverge_s"] = ToJson(g.reconverge_s);
+    o["reconverge_never"] = g.reconverge_never;
+    o["nees_mean_over_bound"] = ToJson(g.nees_mean_over_bound);
+    o["nees_over_bound_seeds"] = g.nees_over_bound_seeds;
+    o["max_vertical_error_m"] = ToJson(g.max_vertical_error_m);
+    o["speed_scale_error"] = ToJson(g.speed_scale_error);
+    o["modes"] = g.modes;
+    o["vo_health"] = g.vo_health;
+    o["gps_fixes"] = g.gps_fixes;
+    o["gps_rejected_vertical"] = g.gps_rejected_vertical;
+    o["gps_expected_false_alarms"] = g.gps_expected_false_alarms;
+    o["gps_longest_rejection_run"] = g.gps_longest_rejection_run;
+    o["vo_rejected_per_run"] = g.vo_rejected_per_run;
     if (smoothed) {
       o["smoothed"] = nlohmann::json::object();
       for (const auto& f : kMetricFields) o["smoothed"][f.name] = ToJson(g.smoothed.*f.distribution);
@@ -321,6 +466,33 @@ void WriteReportMd(const Plan& plan, const std::vector<ResultRow>& rows, const s
         << MdTriple(d.end_error_pct, 2) << " | "
         << (d.rmse_gps_m.n ? Fmt(Round(d.rmse_gps_m.median, 3)) : std::string("-")) << " | "
         << Fmt(Round(g.nees_over_bound_share * 100, 1)) << " % |\n";
+  }
+  out << "\n## Every outage, consistency and the gates\n\n"
+      << "Median / p90 / max over the done runs. End and added error: every outage (% of the distance driven in "
+         "it; added: beyond the error it started with); reconvergence: from an outage's end to the first pose "
+         "within 2 sigma_h of the truth (never: not before the drive ended); NEES: each run's mean over its 99 % "
+         "bound; GPS: fixes refused by the horizontal / vertical gate against what each refuses at its nominal "
+         "rate, the longest run of refusals, position resets; VO gated: VO updates the filter's gate refused, "
+         "per run.\n\n"
+      << "| recording | scenario | IMU | end error % | added error % | reconverge s (never) | NEES / bound "
+         "(runs over) | max vertical error m | GPS rejected H / V of fixes (nominal each) | longest run | resets | "
+         "VO gated |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const auto& g : groups) {
+    out << "| " << fs::path(g.recording).filename().string() << " | " << g.scenario << " | "
+        << (g.imu ? "on" : "off") << " | " << MdTriple(g.end_error_pct_every, 2) << " | "
+        << MdTriple(g.added_error_pct, 2) << " | " << MdTriple(g.reconverge_s, 2) << " ("
+        << g.reconverge_never << ") | " << MdTriple(g.nees_mean_over_bound, 2) << " ("
+        << g.nees_over_bound_seeds.size() << ") | " << MdTriple(g.max_vertical_error_m, 2) << " | "
+        << g.gps_rejected << " / " << g.gps_rejected_vertical << " of " << g.gps_fixes << " ("
+        << Fmt(Round(g.gps_expected_false_alarms, 1)) << ") | " << g.gps_longest_rejection_run << " | "
+        << g.gps_resets << " | " << Fmt(Round(g.vo_rejected_per_run, 1)) << " |\n";
+  }
+  out << "\nPoses per mode and per VO health, summed over the done runs; the speed sensor's scale error "
+         "(median / p90 / max, runs that fused speed readings):\n\n";
+  for (const auto& g : groups) {
+    out << "- " << fs::path(g.recording).filename().string() << ", " << g.scenario << ", IMU "
+        << (g.imu ? "on" : "off") << ": modes " << CountsText(g.modes) << "; VO health " << CountsText(g.vo_health)
+        << "; speed scale error " << MdTriple(g.speed_scale_error, 4) << "\n";
   }
   if (plan.smooth) {
     // The same runs' errors, forward filter against the smoothed trajectory.

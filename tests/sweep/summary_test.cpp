@@ -1,6 +1,7 @@
 // The tables' arithmetic: percentiles as numpy's default, NEES share,
 // failures counted per group, a run without an outage has an empty
-// end_error_pct, a smoothed sweep's columns next to the forward ones.
+// end_error_pct, a smoothed sweep's columns next to the forward ones, every
+// outage's figures, consistency and the gates.
 #include "sweep/summary.hpp"
 #include "temp_dir.hpp"
 
@@ -116,10 +117,11 @@ TEST(SweepSummary, SmoothedColumnsAndDistributionsNextToTheForwardOnes) {
   std::getline(in, last);
   EXPECT_EQ(header.rfind("recording,scenario,seed,imu,status,end_error_pct,rmse_gps_m,nees_mean,", 0), 0u) << header;
   const std::string added = ",run_id,error,max_error_m,outage_rmse_m,end_error_pct_smoothed,end_error_m_smoothed,"
-                            "max_error_m_smoothed,outage_rmse_m_smoothed,rmse_gps_m_smoothed";
+                            "max_error_m_smoothed,outage_rmse_m_smoothed,rmse_gps_m_smoothed,max_vertical_error_m,"
+                            "gps_rejected_vertical,end_error_pct_every_outage";
   EXPECT_TRUE(EndsWith(header, added)) << header;
-  EXPECT_TRUE(EndsWith(first, ",3,1.25,4,0.8,1,,0.5")) << first;
-  EXPECT_TRUE(EndsWith(last, ",failed" + std::string(18, ','))) << last;  // 11 columns to error, 7 added: empty
+  EXPECT_TRUE(EndsWith(first, ",3,1.25,4,0.8,1,,0.5,,0,")) << first;  // no figures read into this row
+  EXPECT_TRUE(EndsWith(last, ",failed" + std::string(21, ','))) << last;  // 11 columns to error, 10 added: empty
 
   WriteSummaryCsv(groups, true, dir / "summary.csv");
   std::ifstream summary(dir / "summary.csv");
@@ -130,6 +132,89 @@ TEST(SweepSummary, SmoothedColumnsAndDistributionsNextToTheForwardOnes) {
   std::ifstream plain(dir / "summary.csv");
   std::getline(plain, header);
   EXPECT_EQ(header.find("_smoothed"), std::string::npos) << header;
+}
+
+// The figures of every outage, consistency and the gates from the runs'
+// locaid-replay --json, summed and distributed per group.
+TEST(SweepSummary, EveryOutageConsistencyAndTheGates) {
+  const nlohmann::json a = nlohmann::json::parse(R"({
+    "rmse_gps_m": 0.5, "nees_mean": 2, "nees_bound_99": 4, "max_vertical_error_m": 1.5,
+    "gps_used": 990, "gps_rejected": 10, "gps_rejected_vertical": 3, "gps_resets": 1, "vo_rejected_by_gate": 4,
+    "max_gps_rejection_run": 2, "max_gps_rejection_run_vertical": 3,
+    "modes": {"GPS_FUSED": 80, "VO_ONLY": 20}, "vo_health": {"tracking": 100},
+    "vehicle": {"speed_used": 50, "speed_scale_error": 0.004},
+    "outages": [{"end_error_pct": 1, "added_error_pct": 0.5, "reconverge_s": 0.2},
+                {"end_error_pct": 3, "added_error_pct": null, "reconverge_s": -1}]})");
+  const nlohmann::json b = nlohmann::json::parse(R"({
+    "rmse_gps_m": 0.7, "nees_mean": 6, "nees_bound_99": 4, "max_vertical_error_m": 2.5,
+    "gps_used": 1995, "gps_rejected": 5, "gps_rejected_vertical": 1, "gps_resets": 0, "vo_rejected_by_gate": 2,
+    "max_gps_rejection_run": 1, "max_gps_rejection_run_vertical": 1,
+    "modes": {"GPS_FUSED": 90, "DEAD_RECKONING": 10}, "vo_health": {"tracking": 90, "dark": 10},
+    "vehicle": {"speed_used": 0, "speed_scale_error": 0},
+    "outages": [{"end_error_pct": 2, "added_error_pct": 1.5, "reconverge_s": 0.4}]})");
+  auto done = [](const nlohmann::json& m, int64_t seed, double gate) {
+    ResultRow r;
+    r.recording = "a";
+    r.scenario = "tunnel";
+    r.seed = seed;
+    r.state = RunState::kDone;
+    r.forward = ReadRunMetrics(m);
+    r.figures = ReadRunFigures(m);
+    r.gps_rejected = m["gps_rejected"].get<int64_t>();
+    r.gps_resets = m["gps_resets"].get<int64_t>();
+    r.gps_gate_probability = gate;
+    return r;
+  };
+  ResultRow failed = done(a, 3, 0.999);
+  failed.state = RunState::kFailed;
+  const auto groups = Summarize({done(a, 1, 0.999), done(b, 2, 0.99), failed});
+  ASSERT_EQ(groups.size(), 1u);
+  const GroupSummary& g = groups[0];
+  EXPECT_EQ(g.forward.end_error_pct.n, 2u);  // the first outage's, as before
+  EXPECT_EQ(g.end_error_pct_every.n, 3u);
+  EXPECT_DOUBLE_EQ(g.end_error_pct_every.median, 2);
+  EXPECT_DOUBLE_EQ(g.end_error_pct_every.max, 3);
+  EXPECT_EQ(g.added_error_pct.n, 2u);  // null: not given
+  EXPECT_DOUBLE_EQ(g.added_error_pct.max, 1.5);
+  EXPECT_EQ(g.reconverge_s.n, 2u);
+  EXPECT_DOUBLE_EQ(g.reconverge_s.max, 0.4);
+  EXPECT_EQ(g.reconverge_never, 1u);
+  EXPECT_EQ(g.nees_over_bound_seeds, std::vector<int64_t>{2});
+  EXPECT_DOUBLE_EQ(g.nees_mean_over_bound.max, 1.5);
+  EXPECT_DOUBLE_EQ(g.max_vertical_error_m.max, 2.5);
+  EXPECT_EQ(g.speed_scale_error.n, 1u);  // only the run that fused speed readings
+  EXPECT_DOUBLE_EQ(g.speed_scale_error.median, 0.004);
+  EXPECT_EQ(g.modes.at("GPS_FUSED"), 170);
+  EXPECT_EQ(g.modes.at("DEAD_RECKONING"), 10);
+  EXPECT_EQ(g.vo_health.at("dark"), 10);
+  EXPECT_EQ(g.gps_fixes, 3000);
+  EXPECT_EQ(g.gps_rejected, 15);
+  EXPECT_EQ(g.gps_rejected_vertical, 4);
+  EXPECT_NEAR(g.gps_expected_false_alarms, 1000 * 0.001 + 2000 * 0.01, 1e-9);  // each run at its own gate
+  EXPECT_EQ(g.gps_longest_rejection_run, 3);
+  EXPECT_EQ(g.gps_resets, 1);
+  EXPECT_DOUBLE_EQ(g.vo_rejected_per_run, 3);
+
+  locaid::test_support::ScopedTempDir dir("sweep_summary");
+  WriteSummaryJson(groups, false, dir / "summary.json");
+  std::ifstream in(dir / "summary.json");
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_EQ(j[0]["end_error_pct_every"]["n"], 3);
+  EXPECT_EQ(j[0]["reconverge_never"], 1);
+  EXPECT_EQ(j[0]["nees_over_bound_seeds"], nlohmann::json::array({2}));
+  EXPECT_EQ(j[0]["gps_longest_rejection_run"], 3);
+  EXPECT_EQ(j[0]["modes"]["VO_ONLY"], 20);
+}
+
+// A run's GPS gate: EkfConfig's unless its --ekf sets it (by either name).
+TEST(SweepSummary, GpsGateProbabilityFollowsTheRunsEkfSettings) {
+  const double nominal = GpsGateProbability({"--drive", "d", "--json"});
+  EXPECT_GT(nominal, 0.99);
+  EXPECT_LT(nominal, 1.0);
+  EXPECT_DOUBLE_EQ(GpsGateProbability({"--ekf", "gps.gate_probability=0.99", "--json"}), 0.99);
+  EXPECT_DOUBLE_EQ(GpsGateProbability({"--ekf=gps.gate_probability=0.95"}), 0.95);
+  EXPECT_DOUBLE_EQ(GpsGateProbability({"--ekf", "gps_gate_probability=0.9"}), 0.9);  // the flat name
+  EXPECT_DOUBLE_EQ(GpsGateProbability({"--ekf", "vo.cov_scale=12"}), nominal);
 }
 
 }  // namespace
