@@ -1,6 +1,7 @@
 // Left and right images paired by their stamps, for every stereo input whose
-// two cameras arrive apart: a bag's two image topics (BagFrameSource) and
-// the cameras the server reads itself (server/camera_feeder). Images of each
+// two cameras arrive apart: a bag's two image topics (BagFrameSource), the
+// cameras the server reads itself (server/camera_feeder) and a car's image
+// topics over DDS (ros2/input_assembler). Images of each
 // side come in stamp order; the oldest image of each side is compared with
 // the other side's oldest: within the tolerance they are a pair, otherwise
 // the older one has no partner (the other side has already moved past it).
@@ -70,6 +71,12 @@ class StereoPairer {
   void Clear() {
     left_.clear();
     right_.clear();
+  }
+
+  // The stamp of the oldest image of `side` still waiting for a partner.
+  std::optional<int64_t> OldestWaiting(StereoSide side) const {
+    const std::deque<Waiting>& q = side == StereoSide::kLeft ? left_ : right_;
+    return q.empty() ? std::nullopt : std::optional<int64_t>(q.front().stamp_ns);
   }
 
  private:

@@ -90,7 +90,11 @@ std::string Bytes(const cv::Mat& image) {
 
 InputAssembler::InputAssembler(InputTopics topics, InputRig rig, AssemblerOptions options,
                                std::function<void(const std::string&)> log)
-    : topics_(std::move(topics)), rig_(std::move(rig)), options_(options), log_(std::move(log)) {
+    : topics_(std::move(topics)),
+      rig_(std::move(rig)),
+      options_(options),
+      log_(std::move(log)),
+      pairer_(static_cast<int64_t>(options_.stereo_tolerance_s * 1e9), kMaxWaitingImages) {
   last_stamp_.fill(INT64_MIN);
   newest_.fill(INT64_MIN);
   for (size_t i = 0; i < kInputRoleCount; ++i) {
@@ -210,42 +214,26 @@ void InputAssembler::Hold(int64_t stamp_ns, Held held) {
 }
 
 void InputAssembler::AddImage(InputRole side, int64_t stamp_ns, std::string_view cdr) {
-  const auto tol_ns = static_cast<int64_t>(options_.stereo_tolerance_s * 1e9);
-  const bool left = side == InputRole::kLeftImage;
-  std::deque<Image>& mine = left ? left_ : right_;
-  std::deque<Image>& other = left ? right_ : left_;
-  const InputRole other_role = left ? InputRole::kRightImage : InputRole::kLeftImage;
-  // The partner: the other side's image nearest in time, within the tolerance.
-  auto best = other.end();
-  for (auto it = other.begin(); it != other.end(); ++it) {
-    if (std::llabs(it->stamp_ns - stamp_ns) <= tol_ns &&
-        (best == other.end() || std::llabs(it->stamp_ns - stamp_ns) < std::llabs(best->stamp_ns - stamp_ns)))
-      best = it;
-  }
-  if (best != other.end()) {
-    Held frame;
-    frame.frame = true;
-    frame.left = left ? std::string(cdr) : std::move(best->cdr);
-    frame.right = left ? std::move(best->cdr) : std::string(cdr);
-    const int64_t frame_ns = left ? stamp_ns : best->stamp_ns;
-    other.erase(best);
-    Hold(frame_ns, std::move(frame));
-  } else {
-    mine.push_back({stamp_ns, std::string(cdr)});
-  }
-  // Images the other side has passed by more than the tolerance never pair;
-  // at most 16 wait (a side that fell silent).
-  const auto prune = [&](std::deque<Image>& images, InputRole role, int64_t other_newest) {
-    const bool passed = other_newest != INT64_MIN;  // the other side has spoken
-    while (!images.empty() && ((passed && images.front().stamp_ns < other_newest - tol_ns) || images.size() > 16)) {
-      Problem(role, &TopicStats::unpaired,
-              "image at " + Seconds(images.front().stamp_ns) + " s has no stereo partner within " +
-                  Fixed(options_.stereo_tolerance_s * 1e3, 1) + " ms: dropped");
-      images.pop_front();
-    }
+  const auto role_of = [](pipeline::StereoSide s) {
+    return s == pipeline::StereoSide::kLeft ? InputRole::kLeftImage : InputRole::kRightImage;
   };
-  prune(mine, side, newest_[Index(other_role)]);
-  prune(other, other_role, newest_[Index(side)]);
+  const auto unpaired = [&](pipeline::StereoSide s, const Image& image) {
+    Problem(role_of(s), &TopicStats::unpaired,
+            "image at " + Seconds(image.stamp_ns) + " s has no stereo partner within " +
+                Fixed(options_.stereo_tolerance_s * 1e3, 1) + " ms: dropped");
+  };
+  const pipeline::StereoSide s = side == InputRole::kLeftImage ? pipeline::StereoSide::kLeft
+                                                                : pipeline::StereoSide::kRight;
+  if (auto dropped = pairer_.Add(s, stamp_ns, Image{stamp_ns, std::string(cdr)})) unpaired(s, *dropped);
+  pairer_.Pair(
+      [&](Image left, Image right) {
+        Held frame;
+        frame.frame = true;
+        frame.left = std::move(left.cdr);
+        frame.right = std::move(right.cdr);
+        Hold(left.stamp_ns, std::move(frame));  // a frame's time is its left image's
+      },
+      unpaired);
 }
 
 void InputAssembler::Tick(InputClock::time_point now, Out& out) { Release(now, out, false); }
@@ -276,7 +264,8 @@ void InputAssembler::Release(InputClock::time_point now, Out& out, bool all) {
     limit = std::min(limit, newest_[Index(r)]);
     holding = true;
   }
-  if (!left_.empty() && !S(InputRole::kLeftImage).silent) limit = std::min(limit, left_.front().stamp_ns - 1);
+  const auto waiting_left = pairer_.OldestWaiting(pipeline::StereoSide::kLeft);
+  if (waiting_left && !S(InputRole::kLeftImage).silent) limit = std::min(limit, *waiting_left - 1);
   if (!holding) limit = newest_ns_;
   const auto window_ns = static_cast<int64_t>(options_.reorder_window_s * 1e9);
   if (newest_ns_ != INT64_MIN) limit = std::max(limit, newest_ns_ - window_ns);

@@ -5,6 +5,7 @@
 // the error through and at the end of an outage.
 #pragma once
 
+#include "fusion/geodesy.hpp"
 #include "kitti/dataset.hpp"
 
 #include <algorithm>
@@ -93,8 +94,11 @@ inline size_t NearestFrame(const kitti::StereoDataset& d, int64_t t_ns) {
 
 // locaid-replay's horizontal error at each frame it initialised on, with
 // whether the frame was in an outage: its --out-csv (t_s from the drive time
-// t_first_ns, est_e/est_n in the ENU frame of its first fix, the first row of
-// its --out-fixes) against the truth. Frame of the drive -> (error, in outage).
+// t_first_ns, est_e/est_n/est_u in the ENU frame of its first fix, the first
+// row of its --out-fixes) put back on the globe by the filter's own ENU frame
+// and measured against the truth as a session's lat/lon are (HorizontalM), so
+// the two tracks' errors compare like for like. Frame of the drive ->
+// (error, in outage).
 inline std::map<size_t, std::pair<double, bool>> ReplayErrors(const kitti::StereoDataset& drive,
                                                                const std::filesystem::path& replay_csv,
                                                                const std::filesystem::path& fixes_csv,
@@ -103,15 +107,16 @@ inline std::map<size_t, std::pair<double, bool>> ReplayErrors(const kitti::Stere
   auto rows = ReadCsv(replay_csv);
   std::map<size_t, std::pair<double, bool>> errors;
   if (fixes["lat_deg"].empty()) return errors;
-  const double lat0 = std::stod(fixes["lat_deg"][0]), lon0 = std::stod(fixes["lon_deg"][0]);
+  fusion::EnuFrame enu;
+  enu.SetOrigin(std::stod(fixes["lat_deg"][0]), std::stod(fixes["lon_deg"][0]), std::stod(fixes["alt_m"][0]));
   for (size_t i = 0; i < rows["t_s"].size(); ++i) {
     if (rows["initialized"][i] != "1") continue;
     const int64_t t = t_first_ns + std::llround(std::stod(rows["t_s"][i]) * 1e9);
     const auto [lat, lon] = TruthAt(drive.oxts(), t);
-    constexpr double kR = 6378137.0, kDeg = M_PI / 180;
-    const double e = (lon - lon0) * kDeg * kR * std::cos(lat0 * kDeg), n = (lat - lat0) * kDeg * kR;
-    errors[NearestFrame(drive, t)] = {std::hypot(std::stod(rows["est_e"][i]) - e, std::stod(rows["est_n"][i]) - n),
-                                      rows["in_outage"][i] == "1"};
+    double est_lat = 0, est_lon = 0, est_alt = 0;
+    enu.ToGeodetic({std::stod(rows["est_e"][i]), std::stod(rows["est_n"][i]), std::stod(rows["est_u"][i])}, est_lat,
+                   est_lon, est_alt);
+    errors[NearestFrame(drive, t)] = {HorizontalM(lat, lon, est_lat, est_lon), rows["in_outage"][i] == "1"};
   }
   return errors;
 }
