@@ -335,6 +335,29 @@ TEST(Ros2Inputs, MessagesGoOutInStampOrderAsRectifiedFrames) {
   EXPECT_EQ(f.assembler->frames(), 10u);
 }
 
+// Messages of one stamp go out in the order a replay fuses them (IMU, fix,
+// speed, then the frame), whichever DDS delivered first: a live session then
+// makes the replay's track (tests/ros2/ros2_kitti_test.cpp).
+TEST(Ros2Inputs, EqualStampsGoOutInTheReplaysOrder) {
+  Feed f;
+  constexpr int64_t kMs = 1'000'000;
+  for (int k = 0; k < 4; ++k) {  // every topic at the same stamps, delivered frame first, IMU last
+    const int64_t t = kT0 + k * 100 * kMs;
+    const double at = k * 0.1;
+    f.Add(InputRole::kLeftImage, ImageCdr(t, "camera_left"), at);
+    f.Add(InputRole::kRightImage, ImageCdr(t, "camera_right"), at);
+    f.Add(InputRole::kSpeed, Cdr<geometry_msgs::msg::dds_::TwistStamped_PubSubType>(MakeTwist(t, 3)), at);
+    f.Add(InputRole::kGps, Cdr<sm::NavSatFix_PubSubType>(MakeFix(t)), at);
+    f.Add(InputRole::kImu, ImuCdr(t), at);
+  }
+  f.assembler->Flush(f.out);
+  std::string order;
+  for (const auto& r : f.out) {
+    order += r.has_imu() ? 'i' : r.has_gps() ? 'g' : r.has_speed() ? 's' : r.has_frame() ? 'F' : '?';
+  }
+  EXPECT_EQ(order, "igsFigsFigsFigsF");
+}
+
 // Each bad message is counted against its topic with what was wrong, and
 // the good ones around it still go out.
 TEST(Ros2Inputs, BadMessagesAreCountedAndNamedNeverFatal) {
