@@ -11,6 +11,7 @@
 
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <iomanip>
 #include <iostream>
@@ -79,6 +80,17 @@ class Recorder {
     if (::close(fd) != 0) Throw(errno, "closing the file");
   }
 
+  // A pose's time in seconds to the nanosecond, as its t_ns holds it (12
+  // digits of Unix seconds, as written before, kept 10 ms).
+  static std::string Seconds(int64_t t_ns) {
+    const bool negative = t_ns < 0;
+    const uint64_t a = negative ? 0 - static_cast<uint64_t>(t_ns) : static_cast<uint64_t>(t_ns);
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%s%llu.%09llu", negative ? "-" : "",
+                  static_cast<unsigned long long>(a / 1000000000), static_cast<unsigned long long>(a % 1000000000));
+    return buf;
+  }
+
   void Add(const v1::PoseUpdate& p, double delay_ms) {
     const auto& t = p.position_enu_m();
     const auto& q = p.orientation_enu_body();
@@ -104,7 +116,7 @@ class Recorder {
     const Eigen::Quaterniond quat(q.w(), q.x(), q.y(), q.z());
     const Eigen::Matrix3d R = quat.normalized().toRotationMatrix();
     if (format_ == "tum") {
-      out << t_s << " " << t.x() << " " << t.y() << " " << t.z() << " " << q.x() << " " << q.y() << " " << q.z()
+      out << Seconds(p.t_ns()) << " " << t.x() << " " << t.y() << " " << t.z() << " " << q.x() << " " << q.y() << " " << q.z()
           << " " << q.w() << "\n";
     } else if (format_ == "kitti") {
       for (int r = 0; r < 3; ++r) {
@@ -116,7 +128,7 @@ class Recorder {
       auto sigma = [&](int i) {
         return p.covariance_size() == 36 ? std::sqrt(std::max(0.0, p.covariance(i * 6 + i))) : NAN;
       };
-      out << t_s << "," << p.frame_index() << "," << p.sequence() << "," << t.x() << "," << t.y() << "," << t.z()
+      out << Seconds(p.t_ns()) << "," << p.frame_index() << "," << p.sequence() << "," << t.x() << "," << t.y() << "," << t.z()
           << "," << p.latitude_deg() << "," << p.longitude_deg() << "," << p.altitude_m() << "," << q.w() << ","
           << q.x() << "," << q.y() << "," << q.z() << "," << p.velocity_enu_mps().x() << ","
           << p.velocity_enu_mps().y() << "," << p.velocity_enu_mps().z() << "," << sigma(0) << "," << sigma(1)
@@ -129,7 +141,7 @@ class Recorder {
       // The feature overwrites the closing brackets and brings them back.
       out << (poses_ ? "," : "") << "{\"type\":\"Feature\",\"geometry\":{\"type\":\"Point\",\"coordinates\":["
           << std::setprecision(10) << p.longitude_deg() << "," << p.latitude_deg() << "," << p.altitude_m()
-          << "]},\"properties\":{\"t_s\":" << std::setprecision(12) << t_s << ",\"sequence\":" << p.sequence()
+          << "]},\"properties\":{\"t_s\":" << Seconds(p.t_ns()) << ",\"sequence\":" << p.sequence()
           << ",\"mode\":\"" << ModeName(p.mode()) << "\"}}";
       const std::string feature = out.str();
       Append(feature + kGeoJsonTail, "pose " + std::to_string(poses_ + 1));

@@ -279,6 +279,18 @@ TEST_F(ServerTest, SubscribeRecordsEveryFormatAndFromStartReplaysHistory) {
     } else {
       EXPECT_EQ(lines, static_cast<size_t>(kFrames) + (format == "csv" ? 1 : 0)) << format;
     }
+    if (format == "tum" || format == "csv") {  // times to the nanosecond: t_ns exactly
+      std::istringstream rows(text);
+      std::string row;
+      if (format == "csv") std::getline(rows, row);
+      for (int i = 0; i < kFrames && std::getline(rows, row); ++i) {
+        const int64_t t_ns = (i + 1) * kFramePeriodNs;
+        char expected[32];
+        std::snprintf(expected, sizeof expected, "%lld.%09lld", static_cast<long long>(t_ns / 1000000000),
+                      static_cast<long long>(t_ns % 1000000000));
+        EXPECT_EQ(row.substr(0, row.find_first_of(" ,")), expected) << format << " row " << i;
+      }
+    }
     if (format == "kitti") {
       std::istringstream first(text);
       std::vector<double> v(12);
