@@ -277,6 +277,7 @@ cleanup() {
     [[ -n ${cmnt:-} ]] && { umount "$cmnt/proc" "$cmnt/dev" 2>/dev/null; }
   fi
   if ((KEEP == 0)); then "$ENGINE" rm -f "$NAME" >/dev/null 2>&1; fi
+  [[ -n ${probe_pid:-} ]] && kill "$probe_pid" 2>/dev/null
   [[ -n ${proj:-} ]] && ((KEEP == 0)) && compose_down >/dev/null 2>&1
 }
 trap cleanup EXIT
@@ -458,8 +459,12 @@ note "SIGTERM: exit code 0 after $ms ms; log ends: $(tail -n1 <<<"$log")"
 #    compose with --engine docker) against this image, under a project name
 #    of its own and on free loopback ports: the server plays its demo session,
 #    the recorder finds it by the service name `server` and writes its poses
-#    into the `records` volume, the Foxglove bridge follows it. Then down -v,
-#    and the project's containers, network and volumes must be gone.
+#    into the `records` volume, the Foxglove bridge follows it, and the ROS 2
+#    adapter's nav_msgs/Odometry reaches a Fast DDS subscriber on the host
+#    (build/bin/locaid-fastdds-probe, or $LOCAID_FASTDDS_PROBE: bound to the
+#    project network's gateway, the adapter's container its unicast peer, a
+#    domain id of the test's own). Then down -v, and the project's
+#    containers, network and volumes must be gone.
 proj=""
 compose_down() {  # brings the project down and removes what it made
   local net=${proj}_default br=""
@@ -479,6 +484,14 @@ if [[ $mode == chroot ]]; then
 else
   proj=locaid-test-$$
   cport=$((PORT + 1)) fport=$((PORT + 2))
+  cdomain=$((100 + $$ % 120))
+  probe=${LOCAID_FASTDDS_PROBE:-$ROOT/build/bin/locaid-fastdds-probe}
+  if [[ ! -x $probe ]]; then
+    [[ -n ${CI:-} && ${CI} != 0 && ${CI} != false ]] &&
+      fail "compose: no Fast DDS probe at $probe (built with the tests when Fast DDS and fastddsgen are installed), and CI is set"
+    note "compose: the Fast DDS check is SKIPPED: no $probe (build with -DLOCAID_BUILD_TESTS=ON, Fast DDS and fastddsgen)"
+    probe=""
+  fi
   if [[ $ENGINE == podman ]]; then
     ccmd=(podman-compose)
     [[ $mode == podman-runc ]] && ccmd+=(--podman-args "--runtime runc")
@@ -491,7 +504,7 @@ else
   # The compose file's own defaults, but for the image and the host ports.
   compose() {
     env -u KITTI_DIR -u LOCAID_DEMO_DRIVE -u LOCAID_DEMO_FRAMES -u LOCAID_DEMO_SCENARIO \
-      LOCAID_IMAGE="$TAG" LOCAID_PORT="$cport" LOCAID_FOXGLOVE_PORT="$fport" "${ccmd[@]}" "$@"
+      LOCAID_IMAGE="$TAG" LOCAID_PORT="$cport" LOCAID_FOXGLOVE_PORT="$fport" ROS_DOMAIN_ID="$cdomain" "${ccmd[@]}" "$@"
   }
   cid_of() {  # the project's container of a service (both tools set these labels)
     "$ENGINE" ps -a -q --filter "label=com.docker.compose.project=$proj" \
@@ -514,6 +527,20 @@ else
   if [[ $ENGINE == podman ]]; then
     dns=$(podman network inspect --format '{{.DNSEnabled}}' "${proj}_default")
     [[ $dns == true ]] || fail "compose: network ${proj}_default resolves no names (dns_enabled=$dns; dnsname plugin missing?)"
+  fi
+  # A Fast DDS subscriber on the host (a ROS 2 node on the default rmw), from
+  # before the demo session: the adapter's poses must reach it.
+  if [[ -n $probe ]]; then
+    if [[ $ENGINE == podman ]]; then
+      gw=$(podman network inspect --format '{{range .Subnets}}{{.Gateway}}{{end}}' "${proj}_default")
+    else
+      gw=$(docker network inspect --format '{{range .IPAM.Config}}{{.Gateway}}{{end}}' "${proj}_default")
+    fi
+    rip=$("$ENGINE" inspect --format '{{range .NetworkSettings.Networks}}{{.IPAddress}}{{end}}' "$cros")
+    [[ -n $gw && -n $rip ]] || fail "compose: no gateway ('$gw') or ros2 container address ('$rip') on ${proj}_default"
+    "$probe" --domain "$cdomain" --address "$gw" --peer "$rip" --count 20 --timeout-s 300 \
+      >"$STATE/compose-probe.json" 2>"$STATE/compose-probe.log" &
+    probe_pid=$!
   fi
   tc1=$(date +%s)
   until h=$("$ENGINE" exec "$csrv" locaid --server 127.0.0.1:50051 health 2>&1) && [[ $h == SERVING ]]; do
@@ -594,6 +621,30 @@ PY
   grep -q "following session $cdemo" <<<"$olog" || { echo "$olog" | tail -n 20 >&2; fail "compose: the ROS 2 adapter did not follow $cdemo"; }
   [[ $(cstate "$cros") == running* ]] || { echo "$olog" | tail -n 20 >&2; fail "compose: ros2 $(cstate "$cros")"; }
   note "compose: the ros2 container follows $cdemo: $(grep -m1 'DDS domain' <<<"$olog" || true)"
+  if [[ -n $probe ]]; then
+    wait "$probe_pid" || { cat "$STATE/compose-probe.log" >&2; head -c 400 "$STATE/compose-probe.json" >&2
+      echo "$olog" | tail -n 10 >&2; fail "compose: the Fast DDS probe on $gw (peer $rip, domain $cdomain) got no 20 poses"; }
+    probe_pid=""
+    check=$(python3 - "$STATE/compose-probe.json" "$STATE/compose-server.tum" <<'PY'
+import bisect, json, sys
+probe = json.load(open(sys.argv[1]))
+stream = sorted(float(l.split()[0]) for l in open(sys.argv[2]) if l.strip() and not l.startswith("#"))
+def bad(msg): print(msg); sys.exit(1)
+s = probe["samples"]
+if probe["writers_matched"] < 1: bad("no writer matched")
+for m in s:
+    if (m["frame_id"], m["child_frame_id"]) != ("map", "base_link"):
+        bad(f"frames {m['frame_id']} -> {m['child_frame_id']}, not map -> base_link")
+    t = m["stamp_ns"] / 1e9
+    i = bisect.bisect_left(stream, t - 1e-3)
+    if i == len(stream) or abs(stream[i] - t) > 1e-3: bad(f"a pose at {t:.3f} s that the server's stream has not")
+t = [m["stamp_ns"] for m in s]
+if any(b <= a for a, b in zip(t, t[1:])): bad("stamps not strictly increasing")
+print(f"{probe['received']} nav_msgs/Odometry map -> base_link, {t[0] / 1e9:.1f} .. {t[-1] / 1e9:.1f} s, each a pose of the server's stream")
+PY
+    ) || fail "compose: the Fast DDS probe's poses: $check"
+    note "compose: a Fast DDS subscriber on the host ($gw, domain $cdomain, peer: the ros2 container $rip) received $check"
+  fi
   if ((KEEP == 1)); then
     note "compose: --keep, project $proj left up (LOCAID_IMAGE=$TAG ${ccmd[*]} down -v)"
     proj=""

@@ -77,29 +77,39 @@ inline std::string CycloneLoopbackXml() {
 )";
 }
 
-// Fast DDS: profile "loopback", a UDPv4 transport on 127.0.0.1 only (no
-// shared memory, no multicast), peers by unicast on 127.0.0.1.
-inline std::string FastDdsLoopbackXml() {
+// Fast DDS: profile "loopback", a UDPv4 transport on one address only (no
+// shared memory, no multicast), peers by unicast on the given addresses
+// (127.0.0.1 for the tests; the image test's probe binds the compose
+// network's gateway and names the adapter's container).
+inline std::string FastDdsUnicastXml(const std::string& address, const std::vector<std::string>& peers) {
+  std::string peer_list;
+  for (const std::string& p : peers) peer_list += "<locator><udpv4><address>" + p + "</address></udpv4></locator>";
+  const std::string at = "<locator><udpv4><address>" + address + "</address></udpv4></locator>";
   return R"(<?xml version="1.0" encoding="UTF-8" ?>
 <profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
   <transport_descriptors>
-    <transport_descriptor><transport_id>udp_loopback</transport_id><type>UDPv4</type>
-      <interfaceWhiteList><address>127.0.0.1</address></interfaceWhiteList></transport_descriptor>
+    <transport_descriptor><transport_id>udp_one_address</transport_id><type>UDPv4</type>
+      <interfaceWhiteList><address>)" +
+         address + R"(</address></interfaceWhiteList></transport_descriptor>
   </transport_descriptors>
   <participant profile_name="loopback">
     <rtps>
-      <userTransports><transport_id>udp_loopback</transport_id></userTransports>
+      <userTransports><transport_id>udp_one_address</transport_id></userTransports>
       <useBuiltinTransports>false</useBuiltinTransports>
       <builtin>
-        <metatrafficUnicastLocatorList><locator><udpv4><address>127.0.0.1</address></udpv4></locator></metatrafficUnicastLocatorList>
-        <initialPeersList><locator><udpv4><address>127.0.0.1</address></udpv4></locator></initialPeersList>
+        <metatrafficUnicastLocatorList>)" +
+         at + R"(</metatrafficUnicastLocatorList>
+        <initialPeersList>)" +
+         peer_list + R"(</initialPeersList>
       </builtin>
-      <defaultUnicastLocatorList><locator><udpv4><address>127.0.0.1</address></udpv4></locator></defaultUnicastLocatorList>
+      <defaultUnicastLocatorList>)" +
+         at + R"(</defaultUnicastLocatorList>
     </rtps>
   </participant>
 </profiles>
 )";
 }
+inline std::string FastDdsLoopbackXml() { return FastDdsUnicastXml("127.0.0.1", {"127.0.0.1"}); }
 
 // Both configurations written into `dir`; CYCLONEDDS_URI points at
 // Cyclone's, for this process and the children it starts.
