@@ -83,7 +83,7 @@ struct EkfConfig {
   //    RMS error x/y/z 26.2 / 8.3 / 15.1 mm (3.1 / 1.0 / 1.8 % of the motion),
   //    rot 0.64 / 0.73 / 0.32 mrad; reported 1.2 / 1.2 / 1.4 mm, 0.13 / 0.09 /
   //    0.07 mrad (6-dof NEES 3214): the per-metre terms come from here (part of
-  //    it is reference error: the extract's OXTS records are sparse).
+  //    it is error of the truth: the extract's OXTS records are sparse).
   //  - synthetic 2.2 km drive (locaid-synth --length-m 2200 --seed 3, 1642
   //    frames, 1.34 m/frame): RMS error 5.1 / 5.3 / 3.2 mm, 0.14 / 0.11 / 0.14
   //    mrad; reported 1.8 / 1.5 / 1.9 mm (NEES 24): about 3x the reported sigma,

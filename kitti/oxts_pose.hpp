@@ -58,7 +58,7 @@ OxtsGroundTruth ComputeOxtsGroundTruth(const std::vector<OxtsSample>& oxts,
 // The same records with lat/lon/alt replaced by the first record's position
 // plus the time integral (trapezoid) of the OXTS velocity (ve, vn, vu), taken
 // in the first record's local east-north-up frame; attitude, velocity and the
-// other fields unchanged. A reference whose position is as smooth as the
+// other fields unchanged. A truth whose position is as smooth as the
 // unit's velocity: on drives where the receiver is not in RTK-fixed mode the
 // position solution can step by decimetres that no velocity explains (see
 // docs/benchmarks.md). Drift grows with time, so it is meant for segments of
