@@ -6,7 +6,9 @@
 # SIGTERM and check the clean exit; then bring deploy/compose.yaml up with
 # podman-compose (docker compose with --engine docker) against the image on
 # ports --port+1 and +2, check that the recorder wrote the demo session's poses
-# into its volume, and bring it down leaving nothing of the project.
+# into its volume and that the ROS 2 adapter's poses reach a Fast DDS
+# subscriber on the host (build/bin/locaid-fastdds-probe), and bring it down
+# leaving nothing of the project.
 #
 #   deploy/test-image.sh [--tag IMAGE] [--base IMAGE] [--no-cache] [--skip-build]
 #                        [--run auto|podman|chroot] [--port N] [--keep]
