@@ -69,11 +69,17 @@ def metadata(args):
     return [("authorization", "Bearer " + args.token)] if args.token else []
 
 
+def seconds(t_ns):
+    """t_ns as seconds to the nanosecond, as the CLI writes it ("%.12g" keeps Unix times to 10 ms)."""
+    whole, frac = divmod(abs(t_ns), 10**9)
+    return "%s%d.%09d" % ("-" if t_ns < 0 else "", whole, frac)
+
+
 def pose_row(pb2, p, delay_ms):
     cov = list(p.covariance)
     sigma = [math.sqrt(max(0.0, cov[i * 7])) if len(cov) == 36 else float("nan") for i in range(3)]
     return [
-        "%.12g" % (p.t_ns * 1e-9), p.frame_index, p.sequence,
+        seconds(p.t_ns), p.frame_index, p.sequence,
         p.position_enu_m.x, p.position_enu_m.y, p.position_enu_m.z,
         p.latitude_deg, p.longitude_deg, p.altitude_m,
         p.orientation_enu_body.w, p.orientation_enu_body.x, p.orientation_enu_body.y, p.orientation_enu_body.z,

@@ -321,7 +321,7 @@ TEST_F(ServerTest, PythonClientRecordsCsvWithTheCliColumns) {
   const std::string a = Slurp(py_csv), b = Slurp(cli_csv);
   EXPECT_EQ(a.substr(0, a.find('\n')), b.substr(0, b.find('\n')));  // same header
   EXPECT_EQ(std::count(a.begin(), a.end(), '\n'), kFrames + 1);
-  for (const char* column : {"sequence", "mode", "vo_health"}) {
+  for (const char* column : {"t_s", "sequence", "mode", "vo_health"}) {
     EXPECT_EQ(CsvColumn(a, column), CsvColumn(b, column)) << column;  // the same values
   }
 }
