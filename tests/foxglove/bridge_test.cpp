@@ -259,7 +259,11 @@ TEST_F(BridgeTest, ReconnectsWhenTheServerComesBack) {
   st::ServerProcess server(dir_ / "server", {}, grpc_port);
   ASSERT_EQ(server.port(), grpc_port) << server.log();
   auto stub = st::MakeStub(grpc_port);
-  const std::string id = ft::StartSynthetic(stub.get(), 7, kFrames, 1.0);
+  // The bridge may be in its longest wait (5 s) when the server comes up: the
+  // session must still be live when it asks again (kFrames, 6 s, was not
+  // always, on a loaded machine), so 30 s of drive.
+  constexpr uint32_t kOutlivesTheBackoff = 300;
+  const std::string id = ft::StartSynthetic(stub.get(), 7, kOutlivesTheBackoff, 1.0);
   EXPECT_TRUE(bridge.WaitForLog("following session " + id, 30)) << bridge.log();
 }
 
