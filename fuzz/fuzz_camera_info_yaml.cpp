@@ -29,10 +29,19 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   // A rectifier of a huge camera would only measure the allocator.
   if (static_cast<uint64_t>(info.width) * info.height > 64 * 64) return 0;
   try {
-    const locaid::ros::Rectifier rectifier(info);
+    locaid::ros::Rectifier rectifier(info);
     const cv::Mat raw(static_cast<int>(info.height), static_cast<int>(info.width), CV_8UC1, cv::Scalar(90));
+    // Before a crop the whole camera comes out, border included; the valid
+    // region lies inside it, and cropped to it that is what comes out.
+    const cv::Mat full = rectifier.Rectify(raw);
+    LOCAID_FUZZ_CHECK(full.type() == CV_8UC1 && full.size() == raw.size(),
+                      "rectified image of another size or type than its camera (no crop yet)");
+    const cv::Rect valid = rectifier.valid_region();
+    LOCAID_FUZZ_CHECK(!valid.empty() && (valid & cv::Rect(0, 0, raw.cols, raw.rows)) == valid,
+                      "valid region empty or outside the image");
+    rectifier.Crop(valid);
     const cv::Mat rectified = rectifier.Rectify(raw);
-    LOCAID_FUZZ_CHECK(rectified.type() == CV_8UC1 && rectified.size() == rectifier.valid_region().size(),
+    LOCAID_FUZZ_CHECK(rectified.type() == CV_8UC1 && rectified.size() == valid.size(),
                       "rectified image of another size or type than its valid region");
     try {
       (void)rectifier.Rectify(cv::Mat(3, 5, CV_8UC1, cv::Scalar(1)));
